@@ -1,0 +1,1 @@
+"""Fabrication exporters: files that machines and programs accept."""

@@ -1,0 +1,219 @@
+"""The physical setup of a hologram: light, viewer, cutting tool, machining.
+
+All lengths in mm, all angles in radians, in the plate frame (x right, y up,
+z toward the viewer, plate at z = 0).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from specholo.errors import SpecholoError
+
+
+def _finite(name: str, value: float) -> float:
+    value = float(value)
+    if not math.isfinite(value):
+        raise SpecholoError(f"{name} must be a finite number, got {value}")
+    return value
+
+
+@dataclass(frozen=True)
+class Light:
+    """A sun (collimated) or a point light in the y-z plane above the plate.
+
+    Attributes:
+        elevation: angle a of the light direction (0, cos a, sin a) above the
+            plate, in radians; 0 grazes the plate from above, pi/2 shines straight on.
+        distance: distance of a point light from the plate centre along that
+            direction in mm, or None for a sun.
+    """
+
+    elevation: float
+    distance: float | None = None
+
+    def __post_init__(self) -> None:
+        a = _finite("light elevation", self.elevation)
+        if not 0.0 < a < math.pi:
+            raise SpecholoError(
+                f"light elevation must be in (0, 180) degrees (light in front of the plate), "
+                f"got {math.degrees(a):g}"
+            )
+        if self.distance is not None:
+            d = _finite("light distance", self.distance)
+            if d <= 0:
+                raise SpecholoError(f"light distance must be positive, got {d:g}")
+
+    @property
+    def direction(self) -> np.ndarray:
+        """Unit vector (3,) from the plate centre toward the light."""
+        return np.array([0.0, math.cos(self.elevation), math.sin(self.elevation)])
+
+    @property
+    def position(self) -> np.ndarray | None:
+        """Point light position (3,) in mm, or None for a sun."""
+        return None if self.distance is None else self.distance * self.direction
+
+    def towards(self, points: np.ndarray) -> np.ndarray:
+        """Unit vectors from points toward the light.
+
+        Args:
+            points: (n, 3) positions in mm.
+
+        Returns:
+            (n, 3) unit vectors.
+        """
+        points = np.asarray(points, dtype=float)
+        if self.distance is None:
+            return np.broadcast_to(self.direction, points.shape).copy()
+        v = self.position - points
+        return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+@dataclass(frozen=True)
+class Viewer:
+    """Eyes moving on a horizontal arc about the plate centre.
+
+    Attributes:
+        distance: arc radius D in mm.
+        height: eye height y_e in mm.
+        half_range: largest azimuth |theta| of the arc, in radians (< pi/2).
+        ipd: interocular distance in mm; the eyes sit IPD apart along the arc's tangent.
+    """
+
+    distance: float = 600.0
+    height: float = 0.0
+    half_range: float = math.radians(45.0)
+    ipd: float = 64.0
+
+    def __post_init__(self) -> None:
+        d = _finite("view distance", self.distance)
+        _finite("eye height", self.height)
+        r = _finite("view range", self.half_range)
+        ipd = _finite("interocular distance", self.ipd)
+        if d <= 0:
+            raise SpecholoError(f"view distance must be positive, got {d:g}")
+        if not 0.0 <= r < math.pi / 2:
+            raise SpecholoError(
+                f"view range must be in [0, 90) degrees (eyes in front of the plate), "
+                f"got {math.degrees(r):g}"
+            )
+        if not 0.0 < ipd < d:
+            raise SpecholoError(f"interocular distance must be in (0, view distance), got {ipd:g}")
+        if math.cos(r) * d <= 0.5 * ipd:
+            raise SpecholoError("eyes at the edge of the view range would be behind the plate")
+
+    @property
+    def eye_half_angle(self) -> float:
+        """Azimuth offset of each eye from the head's azimuth, in radians."""
+        return math.atan2(0.5 * self.ipd, self.distance)
+
+    @property
+    def design_range(self) -> float:
+        """Largest azimuth an eye reaches, in radians: the range a design must serve."""
+        return self.half_range + self.eye_half_angle
+
+    def eye(self, theta: np.ndarray) -> np.ndarray:
+        """Eye positions on the arc.
+
+        Args:
+            theta: (n,) azimuths in radians.
+
+        Returns:
+            (n, 3) positions (D sin theta, y_e, D cos theta).
+        """
+        theta = np.asarray(theta, dtype=float)
+        return np.stack(
+            [self.distance * np.sin(theta), np.full_like(theta, self.height),
+             self.distance * np.cos(theta)],
+            axis=-1,
+        )
+
+    def eye_velocity(self, theta: np.ndarray) -> np.ndarray:
+        """Derivative d eye / d theta, shape (n, 3)."""
+        theta = np.asarray(theta, dtype=float)
+        return np.stack(
+            [self.distance * np.cos(theta), np.zeros_like(theta),
+             -self.distance * np.sin(theta)],
+            axis=-1,
+        )
+
+    def stereo(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Left and right eyes of heads looking at the plate centre from the arc.
+
+        Args:
+            theta: (n,) head azimuths in radians.
+
+        Returns:
+            Two (n, 3) arrays: left and right eye positions, IPD apart along the
+            arc's tangent.
+        """
+        theta = np.asarray(theta, dtype=float)
+        centre = self.eye(theta)
+        tangent = np.stack([np.cos(theta), np.zeros_like(theta), -np.sin(theta)], axis=-1)
+        half = 0.5 * self.ipd * tangent
+        return centre - half, centre + half
+
+
+@dataclass(frozen=True)
+class Tool:
+    """A ball-end cutter (or round engraving tip) cutting grooves of a fixed depth.
+
+    Attributes:
+        radius: ball radius R in mm.
+        depth: groove depth d in mm (0 < d <= R).
+    """
+
+    radius: float = 0.25
+    depth: float = 0.08
+
+    def __post_init__(self) -> None:
+        r = _finite("tool radius", self.radius)
+        d = _finite("groove depth", self.depth)
+        if r <= 0:
+            raise SpecholoError(f"tool radius must be positive, got {r:g}")
+        if not 0 < d <= r:
+            raise SpecholoError(f"groove depth must be in (0, tool radius {r:g}], got {d:g}")
+
+    @property
+    def max_tilt(self) -> float:
+        """Largest tilt of the groove wall normal from the plate normal, radians."""
+        return math.acos((self.radius - self.depth) / self.radius)
+
+    @property
+    def width(self) -> float:
+        """Groove width at the plate surface, mm."""
+        r, d = self.radius, self.depth
+        return 2.0 * math.sqrt(r * r - (r - d) ** 2)
+
+
+@dataclass(frozen=True)
+class Machining:
+    """Feeds and heights for the G-code (mm and mm/min)."""
+
+    feed: float = 300.0
+    plunge: float = 100.0
+    safe_z: float = 1.0
+    spindle: float = 12000.0
+
+    def __post_init__(self) -> None:
+        for name in ("feed", "plunge", "safe_z"):
+            v = _finite(name.replace("_", " "), getattr(self, name))
+            if v <= 0:
+                raise SpecholoError(f"{name.replace('_', ' ')} must be positive, got {v:g}")
+        s = _finite("spindle speed", self.spindle)
+        if s < 0:
+            raise SpecholoError(f"spindle speed must be >= 0, got {s:g}")
+
+
+@dataclass(frozen=True)
+class Setup:
+    """Everything physical a design depends on."""
+
+    light: Light = field(default_factory=lambda: Light(math.radians(45.0)))
+    viewer: Viewer = field(default_factory=Viewer)
+    tool: Tool = field(default_factory=Tool)
+    machining: Machining = field(default_factory=Machining)

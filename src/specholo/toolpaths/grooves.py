@@ -1,0 +1,160 @@
+"""Grooves: the engraved geometry, as chains of circular arcs on the plate.
+
+A groove is a path of vertices on the plate (z = 0) joined by circular arcs,
+each given by its *bulge* b = tan(sweep / 4) (the DXF convention): b = 0 is a
+straight segment, b > 0 turns counter-clockwise seen from the viewer (+z).
+Arcs keep the groove's tangent continuous, which is what places the glints;
+G-code (G2/G3), SVG and DXF all carry them exactly. A path of one vertex is a
+dot: a plunge that leaves a spherical dimple.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Segments:
+    """The arcs of a set of grooves as flat arrays (one row per arc).
+
+    Attributes:
+        start: (k, 2) start points, mm.
+        end: (k, 2) end points, mm.
+        bulge: (k,) bulges.
+        path: (k,) index of the path each arc belongs to.
+    """
+
+    start: np.ndarray
+    end: np.ndarray
+    bulge: np.ndarray
+    path: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.bulge)
+
+    def geometry(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Centres, radii, start angles and signed sweeps of the arcs.
+
+        Straight segments (bulge 0) get an infinite radius and NaN centre.
+
+        Returns:
+            centre (k, 2), radius (k,), start angle (k,), sweep (k,) in radians.
+        """
+        chord = self.end - self.start
+        length = np.linalg.norm(chord, axis=1)
+        b = self.bulge
+        sweep = 4.0 * np.arctan(b)
+        left = np.stack([-chord[:, 1], chord[:, 0]], axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            offset = (1.0 - b * b) / (4.0 * b)
+            centre = 0.5 * (self.start + self.end) + left * offset[:, None]
+            radius = length * (1.0 + b * b) / (4.0 * np.abs(b))
+        rel = self.start - centre
+        start_angle = np.arctan2(rel[:, 1], rel[:, 0])
+        return centre, radius, start_angle, sweep
+
+    def lengths(self) -> np.ndarray:
+        """Arc lengths (k,) in mm."""
+        chord = np.linalg.norm(self.end - self.start, axis=1)
+        b = np.abs(self.bulge)
+        sweep = 4.0 * np.arctan(b)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            arc = np.where(b > 1e-12, chord * sweep / (2.0 * np.sin(0.5 * sweep)), chord)
+        return arc
+
+
+@dataclass(frozen=True)
+class Grooves:
+    """Grooves of a hologram, as a structure of arrays.
+
+    Attributes:
+        vertices: (m, 2) vertex positions on the plate in mm.
+        bulges: (m,) bulge of the arc from each vertex to the next in its path;
+            the last vertex of a path has bulge 0 and no arc.
+        offsets: (n_paths + 1,) start of each path in ``vertices``; path j is
+            ``vertices[offsets[j]:offsets[j + 1]]``.
+        stipple: (n_paths,) id of the stipple each path draws.
+    """
+
+    vertices: np.ndarray
+    bulges: np.ndarray
+    offsets: np.ndarray
+    stipple: np.ndarray
+
+    @classmethod
+    def empty(cls) -> Grooves:
+        """Grooves with no paths."""
+        return cls(np.zeros((0, 2)), np.zeros(0), np.zeros(1, dtype=np.int64),
+                   np.zeros(0, dtype=np.int64))
+
+    @classmethod
+    def concatenate(cls, parts: list[Grooves]) -> Grooves:
+        """Join several groove sets into one, keeping path order."""
+        parts = [p for p in parts if p.n_paths]
+        if not parts:
+            return cls.empty()
+        starts = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
+        offsets = np.concatenate(
+            [[0]] + [p.offsets[1:] + s for p, s in zip(parts, starts, strict=True)]
+        )
+        return cls(
+            np.concatenate([p.vertices for p in parts]),
+            np.concatenate([p.bulges for p in parts]),
+            offsets.astype(np.int64),
+            np.concatenate([p.stipple for p in parts]).astype(np.int64),
+        )
+
+    @property
+    def n_paths(self) -> int:
+        return len(self.stipple)
+
+    @property
+    def path_sizes(self) -> np.ndarray:
+        """Number of vertices of each path, shape (n_paths,)."""
+        return np.diff(self.offsets)
+
+    @property
+    def is_dot(self) -> np.ndarray:
+        """(n_paths,) True for single-vertex paths (dimples)."""
+        return self.path_sizes == 1
+
+    def segments(self) -> Segments:
+        """All arcs of all paths as flat arrays."""
+        m = len(self.vertices)
+        path_of_vertex = np.repeat(np.arange(self.n_paths), self.path_sizes)
+        last = np.zeros(m, dtype=bool)
+        last[self.offsets[1:] - 1] = True
+        first = np.flatnonzero(~last)
+        return Segments(
+            self.vertices[first], self.vertices[first + 1], self.bulges[first],
+            path_of_vertex[first],
+        )
+
+    def dots(self) -> tuple[np.ndarray, np.ndarray]:
+        """Dimples: positions (k, 2) and path indices (k,)."""
+        idx = np.flatnonzero(self.is_dot)
+        return self.vertices[self.offsets[idx]], idx
+
+    def total_length(self) -> float:
+        """Total groove length in mm (dots count as 0)."""
+        return float(self.segments().lengths().sum())
+
+    def bounds(self) -> np.ndarray:
+        """(2, 2) lower-left and upper-right corners of all vertices (mm)."""
+        if len(self.vertices) == 0:
+            return np.zeros((2, 2))
+        return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+
+    def save(self, path: str) -> None:
+        """Write to an ``.npz`` file (the caller makes the write atomic)."""
+        with open(path, "wb") as fh:
+            np.savez_compressed(fh, vertices=self.vertices, bulges=self.bulges,
+                                offsets=self.offsets, stipple=self.stipple)
+
+    @classmethod
+    def load(cls, path: str) -> Grooves:
+        """Read grooves written by :meth:`save`."""
+        with np.load(path) as data:
+            return cls(data["vertices"], data["bulges"], data["offsets"], data["stipple"])
