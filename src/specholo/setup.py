@@ -114,7 +114,8 @@ class Viewer:
     @property
     def design_range(self) -> float:
         """Largest azimuth an eye reaches, in radians: the range a design must serve."""
-        return self.half_range + self.eye_half_angle
+        # A small margin so eyes exactly at the edge still meet a groove, not its end.
+        return self.half_range + self.eye_half_angle + math.radians(0.5)
 
     def eye(self, theta: np.ndarray) -> np.ndarray:
         """Eye positions on the arc.

@@ -1,0 +1,1 @@
+"""The ``specholo`` command line: a thin layer over the :mod:`specholo` library."""

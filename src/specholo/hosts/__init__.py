@@ -1,0 +1,1 @@
+"""Host surfaces the optics are cut into."""

@@ -1,0 +1,1 @@
+"""Single-point optics: the normality constraint and its foliations."""

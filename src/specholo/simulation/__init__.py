@@ -1,0 +1,1 @@
+"""Simulation: glints on the engraved geometry, stereo triangulation, verification."""

@@ -1,0 +1,333 @@
+"""The whole job: model in, engraving files and a simulated preview out.
+
+The library entry points behind the CLI. Settings arrive in the units users
+speak (degrees, mm) and are converted once, here, to the library's radians.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import shutil
+import tempfile
+import time
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from specholo import __version__
+from specholo.errors import SpecholoError
+from specholo.fabrication.atomic import atomic_open
+from specholo.setup import Light, Machining, Setup, Tool, Viewer
+from specholo.toolpaths.common import Runs, make_runs
+from specholo.toolpaths.grooves import Grooves
+
+METHODS = ("striped", "hyperbola", "arc")
+
+
+@dataclass(frozen=True)
+class DesignConfig:
+    """Every design option, in the units of the command line (mm, degrees).
+
+    Attributes mirror the ``specholo design`` options of the same names.
+    """
+
+    size: float = 60.0
+    center_z: float = -40.0
+    light_elevation: float = 45.0
+    light_distance: float | None = None
+    view_distance: float = 600.0
+    view_range: float = 45.0
+    eye_height: float = 0.0
+    ipd: float = 64.0
+    stipples: int | None = None
+    spacing: float | None = None
+    seed: int = 0
+    method: str = "striped"
+    band: float = 0.2
+    tool_radius: float = 0.25
+    depth: float = 0.08
+    feed: float = 300.0
+    plunge: float = 100.0
+    safe_z: float = 1.0
+    spindle: float = 12000.0
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise SpecholoError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if self.stipples is not None and self.spacing is not None:
+            raise SpecholoError("give either stipples or spacing, not both")
+        if self.stipples is not None and (isinstance(self.stipples, bool)
+                                          or int(self.stipples) != self.stipples
+                                          or self.stipples <= 0):
+            raise SpecholoError(f"stipples must be a positive integer, got {self.stipples}")
+        if self.spacing is not None and not (math.isfinite(self.spacing) and self.spacing > 0):
+            raise SpecholoError(f"spacing must be a positive number of mm, got {self.spacing}")
+        for name in ("size", "center_z", "band"):
+            if not math.isfinite(getattr(self, name)):
+                raise SpecholoError(f"{name.replace('_', '-')} must be finite, got "
+                                    f"{getattr(self, name)}")
+        if not self.band > 0:
+            raise SpecholoError(f"band must be positive, got {self.band}")
+        self.setup()  # validates the physical settings
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> DesignConfig:
+        """Build from a mapping with option names (dashes or underscores)."""
+        known = {f.name for f in fields(cls)}
+        clean: dict[str, Any] = {}
+        for key, value in values.items():
+            name = key.replace("-", "_")
+            if name not in known:
+                raise SpecholoError(f"unknown setting {key!r}")
+            clean[name] = value
+        try:
+            return cls(**clean)
+        except TypeError as exc:
+            raise SpecholoError(f"bad setting: {exc}") from exc
+
+    def setup(self) -> Setup:
+        """The physical setup in library units (radians)."""
+        try:
+            return Setup(
+                light=Light(math.radians(float(self.light_elevation)),
+                            None if self.light_distance is None else float(self.light_distance)),
+                viewer=Viewer(float(self.view_distance), float(self.eye_height),
+                              math.radians(float(self.view_range)), float(self.ipd)),
+                tool=Tool(float(self.tool_radius), float(self.depth)),
+                machining=Machining(float(self.feed), float(self.plunge), float(self.safe_z),
+                                    float(self.spindle)),
+            )
+        except (TypeError, ValueError) as exc:
+            if isinstance(exc, SpecholoError):
+                raise
+            raise SpecholoError(f"bad setting: {exc}") from exc
+
+
+@dataclass
+class Design:
+    """A designed hologram: the placed model, its stipples, and the grooves."""
+
+    config: DesignConfig
+    model: Any  # scene.loading.Model
+    points: np.ndarray  # (n, 3)
+    normals: np.ndarray | None  # (n, 3)
+    runs: Runs
+    grooves: Grooves
+    dropped: np.ndarray  # stipple ids that could not be designed
+    timings: dict[str, float]
+
+
+def check_points(points: np.ndarray, setup: Setup) -> None:
+    """Refuse points the viewer could not look at through the plate."""
+    v = setup.viewer
+    nearest_eye = v.distance * math.cos(v.design_range)
+    if len(points) and points[:, 2].max() >= 0.9 * nearest_eye:
+        raise SpecholoError(
+            f"model reaches z = {points[:, 2].max():.1f} mm, too close to the eyes "
+            f"(nearest eye depth {nearest_eye:.1f} mm); move it back with --center-z")
+
+
+def design_runs(runs: Runs, config: DesignConfig) -> tuple[Grooves, np.ndarray]:
+    """Grooves for the given view intervals with the configured method."""
+    from specholo.toolpaths.classic import design_classic
+    from specholo.toolpaths.hyperbola import design_hyperbola
+    from specholo.toolpaths.striped import StripeOptions, design_striped
+
+    setup = config.setup()
+    if config.method == "striped":
+        return design_striped(runs, setup, StripeOptions(band=config.band))
+    if config.method == "hyperbola":
+        return design_hyperbola(runs, setup), np.zeros(0, dtype=np.int64)
+    return design_classic(runs, setup), np.zeros(0, dtype=np.int64)
+
+
+def design(model_path: str | os.PathLike[str], config: DesignConfig,
+           rng: np.random.Generator | None = None) -> Design:
+    """Load, place, stipple, crop by occlusion, and design the grooves.
+
+    Args:
+        model_path: mesh or point-cloud file.
+        config: the options.
+        rng: random generator for stippling; default seeded from ``config.seed``.
+    """
+    from specholo.scene.loading import load_model
+    from specholo.scene.placement import place
+    from specholo.scene.stippling import stipple
+    from specholo.visibility.occlusion import visible_intervals
+
+    setup = config.setup()
+    rng = rng if rng is not None else np.random.default_rng(config.seed)
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    model = place(load_model(model_path), config.size, config.center_z)
+    count = config.stipples if config.spacing is None and config.stipples is not None else None
+    if count is None and config.spacing is None:
+        count = 2000
+    st = stipple(model, rng, count=count, spacing=config.spacing)
+    points = st.points
+    check_points(points, setup)
+    timings["stippling"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    iv = visible_intervals(model.mesh, points, st.normals, setup.viewer)
+    runs = make_runs(points, iv.stipple, iv.start, iv.end)
+    timings["occlusion"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    grooves, dropped = design_runs(runs, config)
+    timings["toolpaths"] = time.perf_counter() - t0
+    return Design(config, model, points, st.normals, runs, grooves, dropped, timings)
+
+
+def _intervals_deg(runs: Runs, n: int) -> list[list[list[float]]]:
+    out: list[list[list[float]]] = [[] for _ in range(n)]
+    for s, a, b in zip(runs.stipple.tolist(), np.degrees(runs.start).tolist(),
+                       np.degrees(runs.end).tolist(), strict=True):
+        out[s].append([round(a, 4), round(b, 4)])
+    return out
+
+
+def hologram_json(d: Design) -> dict[str, Any]:
+    """The design's settings, figures and stipples, for ``hologram.json``."""
+    setup = d.config.setup()
+    lo, hi = d.grooves.bounds()
+    iv = _intervals_deg(d.runs, len(d.points))
+    return {
+        "specholo_version": __version__,
+        "settings": asdict(d.config),
+        "frame": "plate mm: x right, y up, z toward the viewer, plate at z = 0",
+        "tool": {"kind": "ball-end", "radius_mm": setup.tool.radius,
+                 "depth_mm": setup.tool.depth, "groove_width_mm": setup.tool.width,
+                 "max_wall_tilt_deg": math.degrees(setup.tool.max_tilt)},
+        "plate": {"groove_extent_mm": [lo.tolist(), hi.tolist()]},
+        "stats": {"stipples": len(d.points), "paths": d.grooves.n_paths,
+                  "dots": int(d.grooves.is_dot.sum()),
+                  "groove_length_mm": d.grooves.total_length(),
+                  "dropped_stipples": d.dropped.tolist(),
+                  "seconds": d.timings},
+        "stipples": [{"id": i, "x": float(p[0]), "y": float(p[1]), "z": float(p[2]),
+                      "visible_deg": iv[i]} for i, p in enumerate(d.points.tolist())],
+    }
+
+
+@contextlib.contextmanager
+def staged_output(out: str | os.PathLike[str]):  # type: ignore[no-untyped-def]
+    """A scratch folder whose files move into ``out`` only if the block succeeds."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise SpecholoError(f"{out} exists and is not a folder")
+    parent = out.resolve().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
+    try:
+        yield tmp
+        if not out.exists():
+            os.rename(tmp, out)
+            return
+        for f in tmp.iterdir():
+            os.replace(f, out / f.name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def write_design(d: Design, out: str | os.PathLike[str]) -> dict[str, float]:
+    """Write every output of a design into ``out`` (all or nothing).
+
+    Returns:
+        Seconds spent per output.
+    """
+    from specholo.fabrication.gcode import write_gcode
+    from specholo.fabrication.svg import write_svg
+    from specholo.preview.preview import render_preview
+
+    setup = d.config.setup()
+    info = hologram_json(d)
+    timings: dict[str, float] = {}
+    with staged_output(out) as tmp:
+        t0 = time.perf_counter()
+        write_gcode(tmp / "hologram.gcode", d.grooves, setup.tool, setup.machining,
+                    header={"design": d.config.method, "stipples": str(len(d.points))})
+        timings["gcode"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        write_svg(tmp / "hologram.svg", d.grooves, setup.tool)
+        timings["svg"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        d.grooves.save(str(tmp / "grooves.npz"))
+        with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
+            np.savez_compressed(fh, points=d.points,
+                                normals=d.normals if d.normals is not None else np.zeros((0, 3)))
+        if d.model.mesh is not None:
+            d.model.mesh.export(tmp / "model.ply")
+        with atomic_open(tmp / "hologram.json") as fh:
+            json.dump(info, fh, indent=1)
+        timings["data"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        render_preview(d.grooves, setup, tmp / "preview.png")
+        timings["preview"] = time.perf_counter() - t0
+    return timings
+
+
+@dataclass
+class Loaded:
+    """A design read back from its output folder."""
+
+    config: DesignConfig
+    points: np.ndarray
+    normals: np.ndarray | None
+    grooves: Grooves
+    mesh: Any
+
+
+def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loaded:
+    """Read a design folder written by :func:`write_design`.
+
+    Args:
+        folder: the output folder.
+        from_gcode: read the grooves from ``hologram.gcode`` (the file that will be
+            cut) instead of ``grooves.npz``.
+    """
+    import trimesh
+
+    folder = Path(folder)
+    meta = folder / "hologram.json"
+    if not meta.is_file():
+        raise SpecholoError(f"{folder} holds no hologram.json: not a design folder")
+    try:
+        info = json.loads(meta.read_text())
+        config = DesignConfig.from_dict(info["settings"])
+        with np.load(folder / "stipples.npz") as data:
+            points = data["points"]
+            normals = data["normals"] if len(data["normals"]) else None
+        if from_gcode:
+            from specholo.fabrication.gcode import read_gcode
+            grooves = read_gcode(folder / "hologram.gcode")
+        else:
+            grooves = Grooves.load(str(folder / "grooves.npz"))
+        mesh = None
+        if (folder / "model.ply").is_file():
+            mesh = trimesh.load(folder / "model.ply", force="mesh", process=False)
+    except SpecholoError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError) as exc:
+        raise SpecholoError(f"cannot read design in {folder}: {exc}") from exc
+    return Loaded(config, points, normals, grooves, mesh)
+
+
+def verify_design(loaded: Loaded, max_step_deg: float = 5.0) -> list[Any]:
+    """Run the stereo verification on a loaded design."""
+    from specholo.simulation.verify import verify, view_azimuths
+    from specholo.visibility.occlusion import visible
+
+    setup = loaded.config.setup()
+    vis = None
+    if loaded.mesh is not None and loaded.normals is not None:
+        mesh, normals = loaded.mesh, loaded.normals
+
+        def vis(points: np.ndarray, eyes: np.ndarray) -> np.ndarray:
+            return visible(mesh, points, normals, eyes)
+
+    az = view_azimuths(setup.viewer.half_range, math.radians(max_step_deg))
+    return verify(loaded.grooves, loaded.points, setup, vis, az)

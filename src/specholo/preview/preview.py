@@ -1,0 +1,109 @@
+"""Simulated views of the engraved plate under its light."""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+
+import numpy as np
+
+from specholo.fabrication.atomic import atomic_open
+from specholo.setup import Setup
+from specholo.simulation.glints import Engraved, find_glints
+from specholo.toolpaths.grooves import Grooves
+
+
+def project(points: np.ndarray, eye: np.ndarray) -> np.ndarray:
+    """Pinhole projection toward the plate centre.
+
+    Args:
+        points: (n, 3) points in mm.
+        eye: (3,) camera position.
+
+    Returns:
+        (n, 2) image coordinates (tangent of the angle right and up from the axis).
+    """
+    forward = -eye / np.linalg.norm(eye)
+    right = np.cross(forward, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    rel = points - eye
+    depth = rel @ forward
+    return np.stack([rel @ right / depth, rel @ up / depth], axis=1)
+
+
+def render_preview(grooves: Grooves, setup: Setup, path: str | os.PathLike[str],
+                   azimuths_deg: tuple[float, ...] = (-30.0, 0.0, 30.0)) -> None:
+    """Write a PNG of the glints one eye sees from a few azimuths on the arc.
+
+    Args:
+        grooves: the engraved grooves.
+        setup: light, viewer and tool.
+        path: PNG file to write (atomically).
+        azimuths_deg: eye azimuths, clipped to the view range.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    eng = Engraved.from_grooves(grooves, setup.tool)
+    limit = math.degrees(setup.viewer.half_range)
+    az = sorted({max(-limit, min(limit, a)) for a in azimuths_deg})
+    fig, axes = plt.subplots(1, len(az), figsize=(4.2 * len(az), 4.4), facecolor="black")
+    axes = np.atleast_1d(axes)
+    lo, hi = grooves.bounds()
+    corners = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0],
+                        [lo[0], hi[1], 0], [lo[0], lo[1], 0]])
+    for ax, a in zip(axes, az, strict=True):
+        eye = setup.viewer.eye(np.array([math.radians(a)]))[0]
+        g = find_glints(eng, eye, setup.light)
+        ax.set_facecolor("black")
+        frame = project(corners, eye)
+        ax.plot(frame[:, 0], frame[:, 1], color="#333333", lw=0.8)
+        if len(g.point):
+            uv = project(g.point, eye)
+            ax.scatter(uv[:, 0], uv[:, 1], s=2.0, c="white", linewidths=0, alpha=0.9)
+        ax.set_aspect("equal")
+        ax.set_axis_off()
+        ax.set_title(f"azimuth {a:+.0f}°  ({len(g.point)} glints)", color="#bbbbbb",
+                     fontsize=10)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, facecolor="black")
+    plt.close(fig)
+    with atomic_open(path, "wb", encoding=None) as fh:
+        fh.write(buf.getvalue())
+
+
+def plot_verification(rows: list[dict[str, float]], path: str | os.PathLike[str],
+                      title: str = "") -> None:
+    """Write a PNG of error and visibility by azimuth (rows from verification)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    az = [r["azimuth"] for r in rows]
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    ax1.plot(az, [r["median_error"] for r in rows], "o-", label="median")
+    ax1.plot(az, [r["p95_error"] for r in rows], "s-", label="95th percentile")
+    ax1.plot(az, [r["p95_depth_error"] for r in rows], "^--", label="95th pct, depth only")
+    ax1.set_ylabel("apparent-point error (mm)")
+    ax1.legend()
+    ax1.grid(alpha=0.3)
+    ax2.plot(az, [r["visibility"] for r in rows], "o-", label="visibility")
+    ax2.plot(az, [r["false_glints"] for r in rows], "s-", label="false glints")
+    ax2.set_ylim(-0.02, 1.02)
+    ax2.set_xlabel("head azimuth (degrees)")
+    ax2.legend()
+    ax2.grid(alpha=0.3)
+    if title:
+        ax1.set_title(title)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    with atomic_open(path, "wb", encoding=None) as fh:
+        fh.write(buf.getvalue())

@@ -1,0 +1,171 @@
+"""Verification: what stereo eye pairs along the viewing arc actually see.
+
+For each head azimuth, both eyes' glints are found on the engraved grooves,
+each stipple's left and right glints are triangulated, and the apparent point
+is compared with the stipple. Stipples hidden by the model should not glint.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from specholo.setup import Setup
+from specholo.simulation.glints import Engraved, Glints, find_glints
+from specholo.simulation.stereo import triangulate
+from specholo.toolpaths.grooves import Grooves
+
+#: visible(points (n, 3), eyes (n, 3)) -> (n,) bool: is each point unoccluded from its eye.
+VisibilityFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class ViewReport:
+    """Figures for one head azimuth (lengths in mm).
+
+    Attributes:
+        azimuth: head azimuth in degrees.
+        stipples_seen: stipples unoccluded for both eyes.
+        median_error: median distance from apparent point to stipple.
+        p95_error: 95th percentile of that distance.
+        p95_depth_error: 95th percentile of the depth (z) part alone.
+        visibility: share of unoccluded stipples glinting for both eyes.
+        false_glints: share of (occluded stipple, eye) pairs that glint.
+    """
+
+    azimuth: float
+    stipples_seen: int
+    median_error: float
+    p95_error: float
+    p95_depth_error: float
+    visibility: float
+    false_glints: float
+
+
+def view_azimuths(half_range: float, max_step: float = math.radians(5.0)) -> np.ndarray:
+    """Evenly spaced head azimuths (radians) over +-half_range, at most max_step apart."""
+    n = int(math.ceil(2.0 * half_range / max_step - 1e-9)) + 1
+    return np.linspace(-half_range, half_range, max(n, 1))
+
+
+def _ranges(stipple: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    count = np.bincount(stipple, minlength=n)
+    return np.cumsum(count) - count, count
+
+
+def stereo_errors(points: np.ndarray, left: Glints, right: Glints, eye_l: np.ndarray,
+                  eye_r: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Apparent-point errors of the given stipples, which glint for both eyes.
+
+    Each left glint is fused with the right glint of the same stipple whose
+    sightline passes closest to its own (the stereo match); a stipple's error
+    is the worst of its fused pairs.
+
+    Args:
+        points: (n, 3) all stipples.
+        left, right: glints of each eye, sorted by stipple.
+        eye_l, eye_r: (3,) eye positions.
+        ids: (k,) stipple ids with glints for both eyes.
+
+    Returns:
+        error (k,) and signed depth error (k,) in mm.
+    """
+    n = len(points)
+    start_l, count_l = _ranges(left.stipple, n)
+    start_r, count_r = _ranges(right.stipple, n)
+    in_ids = np.zeros(n, dtype=bool)
+    in_ids[ids] = True
+    li = np.flatnonzero(in_ids[left.stipple])
+    reps = count_r[left.stipple[li]]
+    pair_l = np.repeat(li, reps)
+    within = np.arange(pair_l.size) - np.repeat(np.cumsum(reps) - reps, reps)
+    pair_r = start_r[left.stipple[pair_l]] + within
+    k = pair_l.size
+    apparent, gap = triangulate(np.broadcast_to(eye_l, (k, 3)), left.point[pair_l],
+                                np.broadcast_to(eye_r, (k, 3)), right.point[pair_r])
+    stip = left.stipple[pair_l]
+    delta = apparent - points[stip]
+    err = np.linalg.norm(delta, axis=1)
+    order = np.lexsort((gap, pair_l))
+    best = order[np.r_[True, pair_l[order][1:] != pair_l[order][:-1]]]
+    worst = np.full(n, -np.inf)
+    np.maximum.at(worst, stip[best], err[best])
+    depth = np.zeros(n)
+    # Depth error of the worst pair per stipple.
+    pick = best[np.isclose(err[best], worst[stip[best]])]
+    depth[stip[pick]] = delta[pick, 2]
+    del start_l, count_l
+    return worst[ids], depth[ids]
+
+
+def verify(grooves: Grooves, points: np.ndarray, setup: Setup,
+           visible: VisibilityFn | None = None,
+           azimuths: np.ndarray | None = None) -> list[ViewReport]:
+    """Simulate stereo eye pairs along the arc and measure what they see.
+
+    Args:
+        grooves: the engraved grooves.
+        points: (n, 3) stipple points the grooves should show.
+        setup: light, viewer and tool.
+        visible: occlusion test; None means every stipple is unoccluded.
+        azimuths: head azimuths in radians; default every <= 5 degrees over the range.
+
+    Returns:
+        One report per azimuth.
+    """
+    points = np.asarray(points, dtype=float)
+    n = len(points)
+    if azimuths is None:
+        azimuths = view_azimuths(setup.viewer.half_range)
+    eng = Engraved.from_grooves(grooves, setup.tool)
+    reports = []
+    for theta in azimuths:
+        eyes_l, eyes_r = setup.viewer.stereo(np.array([theta]))
+        eye_l, eye_r = eyes_l[0], eyes_r[0]
+        gl = find_glints(eng, eye_l, setup.light)
+        gr = find_glints(eng, eye_r, setup.light)
+        if visible is None or n == 0:
+            vis_l = vis_r = np.ones(n, dtype=bool)
+        else:
+            vis_l = visible(points, np.broadcast_to(eye_l, (n, 3)))
+            vis_r = visible(points, np.broadcast_to(eye_r, (n, 3)))
+        lit_l = np.bincount(gl.stipple, minlength=n) > 0
+        lit_r = np.bincount(gr.stipple, minlength=n) > 0
+        seen = vis_l & vis_r
+        both = np.flatnonzero(seen & lit_l & lit_r)
+        err, depth = stereo_errors(points, gl, gr, eye_l, eye_r, both)
+        hidden = int((~vis_l).sum() + (~vis_r).sum())
+        false = int((~vis_l & lit_l).sum() + (~vis_r & lit_r).sum())
+        reports.append(ViewReport(
+            azimuth=math.degrees(theta),
+            stipples_seen=int(seen.sum()),
+            median_error=float(np.median(err)) if err.size else math.nan,
+            p95_error=float(np.percentile(err, 95)) if err.size else math.nan,
+            p95_depth_error=float(np.percentile(np.abs(depth), 95)) if err.size else math.nan,
+            visibility=float(both.size / seen.sum()) if seen.any() else math.nan,
+            false_glints=float(false / hidden) if hidden else 0.0,
+        ))
+    return reports
+
+
+def summarise(reports: list[ViewReport]) -> dict[str, float]:
+    """Worst figures over all azimuths."""
+    def worst(key: str, fn: Callable[[list[float]], float]) -> float:
+        vals = [getattr(r, key) for r in reports if not math.isnan(getattr(r, key))]
+        return float(fn(vals)) if vals else math.nan
+
+    return {
+        "worst_p95_error": worst("p95_error", max),
+        "worst_median_error": worst("median_error", max),
+        "worst_p95_depth_error": worst("p95_depth_error", max),
+        "min_visibility": worst("visibility", min),
+        "max_false_glints": worst("false_glints", max),
+    }
+
+
+def reports_to_dicts(reports: list[ViewReport]) -> list[dict[str, float]]:
+    """Plain dictionaries for JSON."""
+    return [asdict(r) for r in reports]

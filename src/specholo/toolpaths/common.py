@@ -1,0 +1,91 @@
+"""Pieces shared by every toolpath design."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from specholo.hosts.flat import sightline_crossing
+from specholo.setup import Viewer
+from specholo.toolpaths.grooves import Grooves
+
+
+@dataclass(frozen=True)
+class Runs:
+    """View intervals to design, one row per (stipple, interval).
+
+    Attributes:
+        stipple: (r,) stipple ids.
+        point: (r, 3) the stipple's virtual point, mm.
+        start: (r,) first eye azimuth served, radians.
+        end: (r,) last eye azimuth served, radians (> start).
+    """
+
+    stipple: np.ndarray
+    point: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.stipple)
+
+    def take(self, mask: np.ndarray) -> Runs:
+        """The runs selected by a boolean mask or index array."""
+        return Runs(self.stipple[mask], self.point[mask], self.start[mask], self.end[mask])
+
+
+def make_runs(points: np.ndarray, stipple: np.ndarray, start: np.ndarray,
+              end: np.ndarray, min_span: float = 1e-4) -> Runs:
+    """Runs for visibility intervals, dropping intervals narrower than ``min_span``.
+
+    Args:
+        points: (n, 3) all stipple points.
+        stipple: (r,) stipple id of each interval.
+        start: (r,) interval starts, radians.
+        end: (r,) interval ends, radians.
+        min_span: narrowest interval kept, radians.
+    """
+    stipple = np.asarray(stipple, dtype=np.int64)
+    keep = (np.asarray(end) - np.asarray(start)) > min_span
+    stipple = stipple[keep]
+    return Runs(stipple, np.asarray(points, dtype=float)[stipple],
+                np.asarray(start, dtype=float)[keep], np.asarray(end, dtype=float)[keep])
+
+
+def straight_on_image(points: np.ndarray, viewer: Viewer) -> np.ndarray:
+    """Where the central eye (azimuth 0) sees each point on the plate, shape (n, 2).
+
+    The closed-form designs assume eyes at infinity; centring them on this
+    image instead of (p_x, p_y) keeps them right for the straight-on view of a
+    viewer at a finite distance, a fairer baseline.
+    """
+    eye = viewer.eye(np.zeros(1))
+    return sightline_crossing(np.broadcast_to(eye, points.shape), points)[:, :2]
+
+
+def dot_grooves(points: np.ndarray, stipple: np.ndarray) -> Grooves:
+    """Single plunges (spherical dimples) at the stipples' plate positions.
+
+    A point on the plate is seen at the same place by every eye, so a dimple,
+    which offers every normal up to the tool's wall tilt, shows it exactly.
+
+    Args:
+        points: (k, 3) points on or very near the plate.
+        stipple: (k,) their ids.
+    """
+    k = len(stipple)
+    return Grooves(np.asarray(points, dtype=float)[:, :2].copy(), np.zeros(k),
+                   np.arange(k + 1, dtype=np.int64), np.asarray(stipple, dtype=np.int64))
+
+
+def split_near_plate(runs: Runs, threshold: float) -> tuple[Runs, Runs]:
+    """Separate runs whose point lies within ``threshold`` mm of the plate."""
+    near = np.abs(runs.point[:, 2]) <= threshold
+    return runs.take(~near), runs.take(near)
+
+
+def dots_for(runs: Runs) -> Grooves:
+    """One dimple per stipple among ``runs`` (however many intervals it has)."""
+    ids, first = np.unique(runs.stipple, return_index=True)
+    return dot_grooves(runs.point[first], ids)

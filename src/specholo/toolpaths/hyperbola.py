@@ -1,0 +1,56 @@
+"""The paper's closed-form design: one continuous hyperbola per view interval.
+
+Horizontal parallax is right for eyes and sun at infinity, but the glint slides
+along the hyperbola's arms, off the sightline: this design shows how far the
+closed form drifts at finite distances and away from the straight-on view.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from specholo.hosts.flat import crossing_components
+from specholo.optics.foliation import hyperbola_slope, hyperbola_y
+from specholo.setup import Setup
+from specholo.toolpaths.arcs import arc_chain
+from specholo.toolpaths.common import Runs, dots_for, split_near_plate, straight_on_image
+from specholo.toolpaths.grooves import Grooves
+
+
+def design_hyperbola(runs: Runs, setup: Setup, step: float = math.radians(0.5),
+                     near_plate: float | None = None) -> Grooves:
+    """Closed-form hyperbolic grooves, cropped to each run's azimuth interval.
+
+    Args:
+        runs: (stipple, interval) pairs.
+        setup: light, viewer and tool (the light's elevation is the sun's).
+        step: azimuth spacing of the samples joined by biarcs, radians.
+        near_plate: |p_z| below which a stipple becomes a dimple (mm).
+    """
+    if near_plate is None:
+        near_plate = 0.5 * setup.tool.width
+    far, near = split_near_plate(runs, near_plate)
+    if len(far) == 0:
+        return dots_for(near)
+    a = setup.light.elevation
+    k = np.maximum(2, np.ceil((far.end - far.start) / step).astype(np.int64) + 1)
+    run = np.repeat(np.arange(len(far)), k)
+    first = np.concatenate([[0], np.cumsum(k)[:-1]])
+    frac = (np.arange(run.size) - first[run]) / (k[run] - 1)
+    theta = far.start[run] + (far.end - far.start)[run] * frac
+    p = far.point[run]
+    # Crop where this viewer's sightlines actually cross the plate.
+    x, *_ = crossing_components(setup.viewer, theta, p[:, 0], p[:, 1], p[:, 2])
+    apex = straight_on_image(far.point, setup.viewer)[run]
+    y = hyperbola_y(x, apex, p[:, 2], a)
+    direction = np.sign(x[np.minimum(first[run] + 1, run.size - 1)] - x[first[run]])
+    direction[direction == 0] = 1.0
+    tangent = np.stack([np.ones_like(x), hyperbola_slope(x, apex, p[:, 2], a)], axis=1) * direction[:, None]
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    breaks = np.zeros(run.size, dtype=bool)
+    breaks[first] = True
+    vertices, bulges, offsets = arc_chain(np.stack([x, y], axis=1), tangent, breaks)
+    grooves = Grooves(vertices, bulges, offsets, far.stipple.copy())
+    return Grooves.concatenate([grooves, dots_for(near)])

@@ -1,0 +1,181 @@
+"""Physics of the designs: forward ray traces, closed forms, signs, properties."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from specholo.hosts.flat import sightline_crossing
+from specholo.optics.foliation import hyperbola_slope, hyperbola_y
+from specholo.optics.normality import normality, reflect, unit
+from specholo.setup import Light, Setup, Tool, Viewer
+from specholo.simulation.glints import Engraved, find_glints
+from specholo.simulation.stereo import triangulate
+from specholo.toolpaths.arcs import biarc
+from specholo.toolpaths.common import make_runs
+from specholo.toolpaths.striped import StripeOptions, design_striped
+
+WIDE_TOOL = Tool(radius=1.0, depth=1.0)  # walls offer every tilt: isolate the tangent condition
+
+
+def _design(points: np.ndarray, setup: Setup, band: float = 0.2):
+    r = setup.viewer.design_range
+    n = len(points)
+    runs = make_runs(points, np.arange(n), np.full(n, -r), np.full(n, r))
+    grooves, dropped = design_striped(runs, setup, StripeOptions(band=band))
+    assert dropped.size == 0
+    return grooves
+
+
+def _wall_normal_trace(eng: Engraved, glints, eye: np.ndarray, light: Light) -> np.ndarray:
+    """Reflect the light off the groove wall at each glint; return the angle to the eye."""
+    # The engraved tangent at each glint: nearest arc parameter on its path.
+    seg_path = eng.path
+    angles = []
+    for path, s in zip(glints.path, glints.point, strict=True):
+        idx = np.flatnonzero(seg_path == path)
+        u = np.linspace(0, 1, 2001)
+        best = None
+        for i in idx:
+            pts, t = eng.at(np.full(u.size, i), u)
+            d = np.linalg.norm(pts - s, axis=1)
+            j = int(np.argmin(d))
+            if best is None or d[j] < best[0]:
+                best = (d[j], t[j])
+        assert best is not None
+        t3 = np.array([best[1][0], best[1][1], 0.0])
+        b = np.cross([0.0, 0.0, 1.0], t3)
+        h = normality(s[None], light, eye[None])[0]
+        beta = math.atan2(h @ b, h[2])
+        n = math.cos(beta) * np.array([0.0, 0.0, 1.0]) + math.sin(beta) * b  # wall normal ⟂ t
+        incoming = -light.towards(s[None])[0]
+        out = reflect(incoming[None], n[None])[0]
+        to_eye = unit(eye - s)
+        angles.append(math.acos(min(1.0, float(out @ to_eye))))
+    return np.array(angles)
+
+
+def test_forward_trace_reaches_the_eye_on_the_sightline():
+    setup = Setup(tool=WIDE_TOOL)
+    p = np.array([[5.0, 8.0, -40.0], [-12.0, -3.0, -65.0], [3.0, 2.0, 25.0]])
+    eng = Engraved.from_grooves(_design(p, setup), setup.tool)
+    for deg in (-44.0, -20.0, 0.0, 17.0, 44.0):
+        eye = setup.viewer.eye(np.array([math.radians(deg)]))[0]
+        g = find_glints(eng, eye, setup.light)
+        assert sorted(set(g.stipple.tolist())) == [0, 1, 2]
+        # The reflected ray leaves the wall toward the eye (forward trace).
+        assert _wall_normal_trace(eng, g, eye, setup.light).max() < 1e-4
+        # The glint is on the eye's sightline through its point: x exact, y within the band.
+        s = sightline_crossing(np.broadcast_to(eye, (len(g.point), 3)), p[g.stipple])
+        assert np.abs(g.point[:, 0] - s[:, 0]).max() < 0.01
+        assert np.abs(g.point[:, 1] - s[:, 1]).max() <= 0.2 * 1.05
+
+
+def test_construction_matches_closed_form_hyperbola_far_away():
+    # Eyes and sun at (nearly) infinity, one stripe wide enough for the whole range.
+    a = math.radians(40.0)
+    setup = Setup(light=Light(a), viewer=Viewer(distance=1e7, ipd=64.0,
+                                                 half_range=math.radians(40.0)))
+    p = np.array([[4.0, 0.0, -30.0], [0.0, 0.0, 20.0]])
+    grooves = _design(p, setup, band=100.0)
+    for j in range(grooves.n_paths):
+        v = grooves.vertices[grooves.offsets[j]:grooves.offsets[j + 1]]
+        pj = p[grooves.stipple[j]][None].repeat(len(v), 0)
+        y_closed = hyperbola_y(v[:, 0], pj[:, :2], pj[:, 2], a)
+        offset = v[:, 1] - y_closed
+        assert np.ptp(offset) < 1e-3, "the construction drifts from the closed form"
+        assert np.ptp(v[:, 0]) > 20.0
+
+
+def test_hyperbola_sign():
+    a = math.radians(45.0)
+    p = np.array([[0.0, 0.0, -40.0]])
+    for theta in np.radians([-40.0, -10.0, 10.0, 40.0]):
+        x = -p[0, 2] * math.tan(theta)  # far-eye sightline crossing
+        slope = hyperbola_slope(np.array([x]), p[:, :2], p[:, 2], a)[0]
+        # Glint condition for eye and sun at infinity: (1, slope) ⟂ (sin theta, cos a).
+        assert abs(math.sin(theta) + slope * math.cos(a)) < 1e-12
+    # Behind the plate the hyperbola opens downward (the paper's eq. 4 sign would flip it).
+    y = hyperbola_y(np.array([-20.0, 0.0, 20.0]), p[[0, 0, 0], :2], p[[0, 0, 0], 2], a)
+    assert y[0] < y[1] and y[2] < y[1]
+    slope_eq4 = -slope
+    assert abs(math.sin(theta) + slope_eq4 * math.cos(a)) > 0.1
+
+
+def test_biarc_matches_end_tangents():
+    rng = np.random.default_rng(3)
+    p0 = rng.normal(size=(50, 2))
+    p1 = p0 + rng.uniform(0.5, 2.0, size=(50, 1)) * np.array([1.0, 0.0])
+    ang0 = rng.uniform(-0.6, 0.6, 50)
+    ang1 = rng.uniform(-0.6, 0.6, 50)
+    t0 = np.stack([np.cos(ang0), np.sin(ang0)], 1)
+    t1 = np.stack([np.cos(ang1), np.sin(ang1)], 1)
+    joint, b1, b2 = biarc(p0, t0, p1, t1)
+    # End tangent of arc 1 equals start tangent of arc 2 (continuity), and ends match.
+    chord1, chord2 = joint - p0, p1 - joint
+    a1 = np.arctan2(chord1[:, 1], chord1[:, 0])
+    a2 = np.arctan2(chord2[:, 1], chord2[:, 0])
+    sweep1, sweep2 = 4 * np.arctan(b1), 4 * np.arctan(b2)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (a1 - sweep1 / 2 - ang0))), 0, atol=1e-9)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (a1 + sweep1 / 2 - (a2 - sweep2 / 2)))), 0,
+                               atol=1e-9)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (a2 + sweep2 / 2 - ang1))), 0, atol=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    elevation=st.floats(15.0, 75.0),
+    light_distance=st.one_of(st.none(), st.floats(400.0, 3000.0)),
+    distance=st.floats(350.0, 2000.0),
+    eye_height=st.floats(-100.0, 100.0),
+    px=st.floats(-30.0, 30.0), py=st.floats(-30.0, 30.0),
+    pz=st.one_of(st.floats(-90.0, -3.0), st.floats(3.0, 60.0)),
+    view=st.floats(-1.0, 1.0),
+)
+def test_property_glints_triangulate_to_the_point(elevation, light_distance, distance,
+                                                  eye_height, px, py, pz, view):
+    setup = Setup(light=Light(math.radians(elevation), light_distance),
+                  viewer=Viewer(distance, eye_height, math.radians(40.0), 64.0), tool=WIDE_TOOL)
+    p = np.array([[px, py, pz]])
+    eng = Engraved.from_grooves(_design(p, setup, band=0.2), setup.tool)
+    theta = view * setup.viewer.half_range
+    left, right = setup.viewer.stereo(np.array([theta]))
+    gl = find_glints(eng, left[0], setup.light)
+    gr = find_glints(eng, right[0], setup.light)
+    assert len(gl.point) >= 1 and len(gr.point) >= 1
+    for eye, g in ((left[0], gl), (right[0], gr)):
+        s = sightline_crossing(np.broadcast_to(eye, (len(g.point), 3)), p[[0] * len(g.point)])
+        assert np.abs(g.point[:, 0] - s[:, 0]).max() < 0.02
+        assert np.abs(g.point[:, 1] - s[:, 1]).max() < 0.25
+    k = len(gl.point) * len(gr.point)
+    il, ir = np.meshgrid(np.arange(len(gl.point)), np.arange(len(gr.point)))
+    apparent, _ = triangulate(np.broadcast_to(left[0], (k, 3)), gl.point[il.ravel()],
+                              np.broadcast_to(right[0], (k, 3)), gr.point[ir.ravel()])
+    err = np.linalg.norm(apparent - p, axis=1).min()
+    assert err < 0.35
+
+
+def test_light_in_the_eyes_plane_is_reported_not_designed():
+    setup = Setup(light=Light(math.radians(90.0)))
+    p = np.array([[0.0, 0.0, -30.0]])
+    r = setup.viewer.design_range
+    runs = make_runs(p, np.array([0]), np.array([-r]), np.array([r]))
+    grooves, dropped = design_striped(runs, setup)
+    assert dropped.tolist() == [0] and grooves.n_paths == 0
+
+
+@pytest.mark.parametrize("pz", [0.0, 0.05, -0.1])
+def test_points_on_the_plate_become_dimples_seen_in_place(pz):
+    setup = Setup()
+    p = np.array([[3.0, -2.0, pz]])
+    eng = Engraved.from_grooves(_design(p, setup), setup.tool)
+    assert eng.grooves.is_dot.all()
+    left, right = setup.viewer.stereo(np.radians([20.0]))
+    gl = find_glints(eng, left[0], setup.light)
+    gr = find_glints(eng, right[0], setup.light)
+    apparent, _ = triangulate(left, gl.point[:1], right, gr.point[:1])
+    assert np.linalg.norm(apparent[0] - p[0]) <= abs(pz) + 1e-9
