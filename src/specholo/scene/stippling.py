@@ -1,0 +1,301 @@
+"""Stippling: blue-noise points on a model's surface.
+
+Each stipple becomes one glint of the hologram, so stipples should cover the
+surface evenly without clumps: a Poisson-disk set, where no two stipples are
+closer than a radius r. It is built from many uniform random candidates by
+keeping a maximal independent set of the graph joining candidates closer than
+r, chosen greedily in a random priority order. The greedy set is computed in
+rounds (Luby's scheme with fixed priorities): every candidate that outranks all
+its undecided neighbours joins, its neighbours drop out, and so on, which keeps
+all the work in numpy.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+from specholo.errors import SpecholoError
+from specholo.scene.loading import Model
+
+# Candidates drawn per wanted stipple: more gives a tighter (more saturated)
+# Poisson-disk set, at a cost linear in the ratio; beyond 4 the gain is small.
+_CANDIDATES_PER_STIPPLE = 4
+# Surface area per point of the greedy set of radius r from that many candidates,
+# in units of r^2 (measured; a fully saturated set would reach ~1.44).
+_AREA_PER_POINT = 1.9
+# Mean candidates within r of a candidate at that ratio (4 pi / 1.9 ~ 6.6).
+_NEIGHBOURS_PER_CANDIDATE = 8.0
+# Greedy radius over the median nearest-neighbour distance of the candidates,
+# for candidates spread over a surface at the ratio above.
+_R0_PER_NEIGHBOUR_DISTANCE = 3.1
+# Largest candidate set built, to keep memory bounded (~1 GB at worst).
+_MAX_CANDIDATES = 10_000_000
+# For a requested count, accept a radius whose set has N..(1 + slack) N points.
+_COUNT_SLACK = 0.05
+_MAX_SEARCH_STEPS = 16
+
+
+@dataclass(frozen=True, eq=False)
+class Stipples:
+    """Points on a model's surface.
+
+    Attributes:
+        points: (n, 3) float64 positions, mm.
+        normals: (n, 3) float64 outward unit normals of the face each point lies
+            on, or None for a point cloud.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray | None
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+
+def stipple(
+    model: Model,
+    rng: np.random.Generator,
+    count: int | None = None,
+    spacing: float | None = None,
+) -> Stipples:
+    """Place blue-noise stipples on a model.
+
+    Exactly one of ``count`` and ``spacing`` is given. A mesh is sampled over its
+    surface (area weighted); a point cloud is thinned, never added to.
+
+    Args:
+        model: the model (usually already placed, in mm).
+        rng: random generator; the same seed gives the same stipples.
+        count: number of stipples N. Exactly N are returned, unless the model
+            cannot give that many (a point cloud with fewer distinct points).
+        spacing: minimum distance between stipples, mm.
+
+    Returns:
+        The stipples: points (n, 3) and, for a mesh, normals (n, 3).
+
+    Raises:
+        SpecholoError: neither or both of count and spacing are given, count is
+            not a positive integer, spacing is not a positive finite number, or
+            the request needs more candidates than can be held in memory.
+    """
+    if (count is None) == (spacing is None):
+        raise SpecholoError("give exactly one of stipple count and stipple spacing")
+    n_wanted: int | None = None
+    if count is not None:
+        if isinstance(count, bool) or not isinstance(count, numbers.Integral) or count <= 0:
+            raise SpecholoError(f"stipple count must be a positive integer, got {count!r}")
+        n_wanted = int(count)
+    if spacing is not None:
+        s = float(spacing)
+        if not math.isfinite(s) or s <= 0:
+            raise SpecholoError(f"stipple spacing must be a positive number of mm, got {s:g}")
+
+    if model.mesh is not None:
+        return _stipple_mesh(model.mesh, rng, n_wanted, spacing)
+    return _stipple_cloud(np.asarray(model.points, dtype=np.float64), rng, n_wanted, spacing)
+
+
+def _stipple_mesh(
+    mesh: trimesh.Trimesh, rng: np.random.Generator, count: int | None, spacing: float | None
+) -> Stipples:
+    area = float(mesh.area)
+    if not area > 0:
+        raise SpecholoError("mesh has zero surface area; cannot stipple it")
+    if count is not None:
+        n_candidates = _CANDIDATES_PER_STIPPLE * count
+        if n_candidates > _MAX_CANDIDATES:
+            raise SpecholoError(
+                f"stipple count {count} is too large "
+                f"(at most {_MAX_CANDIDATES // _CANDIDATES_PER_STIPPLE})"
+            )
+    else:
+        assert spacing is not None
+        estimate = area / (_AREA_PER_POINT * spacing**2)
+        n_candidates = max(16, math.ceil(_CANDIDATES_PER_STIPPLE * estimate))
+        if n_candidates > _MAX_CANDIDATES:
+            raise SpecholoError(
+                f"stipple spacing {spacing:g} mm is too small for this model "
+                f"(about {estimate:.3g} stipples)"
+            )
+
+    points, face = trimesh.sample.sample_surface(mesh, n_candidates, seed=rng)
+    points = np.asarray(points, dtype=np.float64)
+    face = np.asarray(face, dtype=np.int64)
+    if count is not None:
+        r0 = math.sqrt(area / (_AREA_PER_POINT * count * (1.0 + 0.5 * _COUNT_SLACK)))
+        keep = _select_count(points, rng, count, r0)
+    else:
+        assert spacing is not None
+        keep = _select_spacing(points, rng, spacing)
+    normals = np.asarray(mesh.face_normals, dtype=np.float64)[face[keep]]
+    return Stipples(points=points[keep], normals=normals)
+
+
+def _stipple_cloud(
+    points: np.ndarray, rng: np.random.Generator, count: int | None, spacing: float | None
+) -> Stipples:
+    # Repeated points would only inflate the neighbour graph.
+    _, first = np.unique(points, axis=0, return_index=True)
+    distinct = np.sort(first)
+    n = len(distinct)
+    if count is not None:
+        if n <= count:
+            return Stipples(points=points[distinct], normals=None)
+        # Thin to as many candidates as a mesh would get, so the neighbour
+        # graph stays small however dense the cloud is.
+        m = min(n, _CANDIDATES_PER_STIPPLE * count)
+        cand = distinct if m == n else np.sort(rng.choice(distinct, size=m, replace=False))
+        sub = points[cand]
+        nn = cKDTree(sub).query(sub, k=2)[0][:, 1]
+        # On a surface the greedy radius is ~3.1 median neighbour distances of
+        # the candidates; the search corrects it for volumes and lines.
+        r0 = _R0_PER_NEIGHBOUR_DISTANCE * float(np.median(nn))
+        keep = cand[_select_count(sub, rng, count, r0)]
+    else:
+        assert spacing is not None
+        cand = distinct
+        if n > 1:
+            # Probe how many points lie within the spacing; thin a dense cloud
+            # to about as many neighbours per candidate as a mesh would get.
+            probe = rng.choice(n, size=min(n, 1000), replace=False)
+            tree = cKDTree(points[distinct])
+            within = tree.query_ball_point(points[distinct[probe]], spacing, return_length=True)
+            crowd = float(np.mean(within)) - 1.0
+            if crowd > _NEIGHBOURS_PER_CANDIDATE:
+                m = max(1, math.ceil(n * _NEIGHBOURS_PER_CANDIDATE / crowd))
+                cand = np.sort(rng.choice(distinct, size=m, replace=False))
+        keep = cand[_select_spacing(points[cand], rng, spacing)]
+    return Stipples(points=points[keep], normals=None)
+
+
+def _select_spacing(points: np.ndarray, rng: np.random.Generator, r: float) -> np.ndarray:
+    """Indices of a Poisson-disk subset of radius r."""
+    graph = _PairGraph(points)
+    return graph.independent_set(r, rng.permutation(len(points)))
+
+
+def _select_count(
+    points: np.ndarray, rng: np.random.Generator, count: int, r0: float
+) -> np.ndarray:
+    """Indices of ``count`` points of a Poisson-disk subset, searching the radius.
+
+    The set size falls roughly like r^-2, so the radius is updated by a secant
+    step in log-log space, kept inside the bracket found so far (bisection in
+    log r when the secant leaves it).
+    """
+    graph = _PairGraph(points)
+    priority = rng.permutation(len(points))
+    target = count * (1.0 + 0.5 * _COUNT_SLACK)
+    above: tuple[float, np.ndarray] | None = None  # largest r with >= count points
+    below: float | None = None  # smallest r with < count points
+    best_short: np.ndarray | None = None
+    history: list[tuple[float, int]] = []
+    r = r0
+    chosen: np.ndarray | None = None
+    for _ in range(_MAX_SEARCH_STEPS):
+        selected = graph.independent_set(r, priority)
+        k = len(selected)
+        history.append((r, k))
+        if count <= k <= count * (1.0 + _COUNT_SLACK):
+            chosen = selected
+            break
+        if k >= count:
+            if above is None or r > above[0]:
+                above = (r, selected)
+        else:
+            if below is None or r < below:
+                below = r
+            if best_short is None or k > len(best_short):
+                best_short = selected
+        slope = 2.0  # k ~ r^-slope for points on a surface
+        if len(history) >= 2:
+            (r1, k1), (r2, k2) = history[-2], history[-1]
+            if r1 != r2 and k1 != k2 and k1 > 0 and k2 > 0:
+                slope = min(3.0, max(0.5, -math.log(k1 / k2) / math.log(r1 / r2)))
+        r_next = r * (k / target) ** (1.0 / slope)
+        r_next = min(2.0 * r, max(0.5 * r, r_next))
+        if above is not None and below is not None and not above[0] < r_next < below:
+            r_next = math.sqrt(above[0] * below)
+        r = r_next
+    if chosen is None:
+        if above is not None:
+            chosen = above[1]
+        else:
+            # Too few distinct candidates for the count: return what there is.
+            assert best_short is not None
+            return best_short
+    if len(chosen) > count:
+        # Drop the surplus at random: removing points keeps the minimum distance.
+        chosen = np.sort(rng.choice(chosen, size=count, replace=False))
+    return chosen
+
+
+class _PairGraph:
+    """Pairs of points closer than a radius, cached for the largest radius asked."""
+
+    def __init__(self, points: np.ndarray) -> None:
+        self.points = points
+        self.tree = cKDTree(points)
+        self.radius = -1.0
+        self.pairs = np.zeros((0, 2), dtype=np.int64)
+        self.dist = np.zeros(0)
+
+    def edges(self, r: float) -> np.ndarray:
+        """(e, 2) index pairs of points at distance <= r."""
+        if r > self.radius:
+            # Ask a little beyond r so a slightly larger next radius is cached too.
+            reach = 1.1 * r
+            self.pairs = self.tree.query_pairs(reach, output_type="ndarray").astype(np.int64)
+            diff = self.points[self.pairs[:, 0]] - self.points[self.pairs[:, 1]]
+            self.dist = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+            self.radius = reach
+        return self.pairs[self.dist <= r]
+
+    def independent_set(self, r: float, priority: np.ndarray) -> np.ndarray:
+        """Sorted indices of the greedy maximal independent set at radius r.
+
+        Args:
+            r: the minimum distance between chosen points.
+            priority: (n,) distinct ranks; higher-ranked points are chosen first.
+
+        Returns:
+            (k,) int64 indices, no two closer than r.
+        """
+        return _greedy_independent_set(len(self.points), self.edges(r), priority)
+
+
+def _greedy_independent_set(n: int, pairs: np.ndarray, priority: np.ndarray) -> np.ndarray:
+    """The maximal independent set a greedy pass in priority order would pick.
+
+    Args:
+        n: number of vertices.
+        pairs: (e, 2) undirected edges.
+        priority: (n,) distinct ranks.
+
+    Returns:
+        (k,) sorted int64 vertex indices.
+    """
+    a, b = pairs[:, 0], pairs[:, 1]
+    flip = priority[a] > priority[b]
+    low = np.where(flip, b, a)  # the lower-ranked end of each edge
+    high = np.where(flip, a, b)
+    state = np.zeros(n, dtype=np.int8)  # 0 undecided, 1 chosen, 2 excluded
+    while True:
+        undecided = state == 0
+        if not undecided.any():
+            break
+        # A vertex joins when no undecided neighbour outranks it.
+        outranked = np.zeros(n, dtype=bool)
+        outranked[low] = True
+        joins = undecided & ~outranked
+        state[joins] = 1
+        state[low[joins[high]]] = 2
+        live = (state[low] == 0) & (state[high] == 0)
+        low, high = low[live], high[live]
+    return np.flatnonzero(state == 1).astype(np.int64)
