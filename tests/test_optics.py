@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from specholo.hosts.flat import sightline_crossing
 from specholo.optics.foliation import hyperbola_slope, hyperbola_y
 from specholo.optics.normality import normality, reflect, unit
 from specholo.setup import Light, Setup, Tool, Viewer
@@ -32,31 +31,39 @@ def _design(points: np.ndarray, setup: Setup, band: float = 0.2):
 
 
 def _wall_normal_trace(eng: Engraved, glints, eye: np.ndarray, light: Light) -> np.ndarray:
-    """Reflect the light off the groove wall at each glint; return the angle to the eye."""
-    # The engraved tangent at each glint: nearest arc parameter on its path.
-    seg_path = eng.path
+    """Reflect the light off the groove wall at each glint; return the angle to the eye.
+
+    The wall of a groove cut by a ball of radius R is the envelope of the ball:
+    at a point g its normal points to the ball centre c (on the toolpath, R - d
+    above the plate) whose contact circle, perpendicular to the path, holds g.
+    """
+    tool = eng.tool
     angles = []
-    for path, s in zip(glints.path, glints.point, strict=True):
-        idx = np.flatnonzero(seg_path == path)
-        u = np.linspace(0, 1, 2001)
+    for path, g in zip(glints.path, glints.point, strict=True):
         best = None
-        for i in idx:
+        u = np.linspace(0, 1, 4001)
+        for i in np.flatnonzero(eng.path == path):
             pts, t = eng.at(np.full(u.size, i), u)
-            d = np.linalg.norm(pts - s, axis=1)
-            j = int(np.argmin(d))
-            if best is None or d[j] < best[0]:
-                best = (d[j], t[j])
+            c3 = pts + np.array([0.0, 0.0, tool.radius - tool.depth])
+            rel = c3 - g
+            f = np.abs(rel[:, 0] * t[:, 0] + rel[:, 1] * t[:, 1])
+            j = int(np.argmin(f))
+            if best is None or f[j] < best[0]:
+                best = (f[j], rel[j])
         assert best is not None
-        t3 = np.array([best[1][0], best[1][1], 0.0])
-        b = np.cross([0.0, 0.0, 1.0], t3)
-        h = normality(s[None], light, eye[None])[0]
-        beta = math.atan2(h @ b, h[2])
-        n = math.cos(beta) * np.array([0.0, 0.0, 1.0]) + math.sin(beta) * b  # wall normal ⟂ t
-        incoming = -light.towards(s[None])[0]
+        rel = best[1]
+        assert abs(np.linalg.norm(rel) - tool.radius) < 1e-3  # g is on the cut wall
+        n = rel / np.linalg.norm(rel)
+        incoming = -light.towards(g[None])[0]
         out = reflect(incoming[None], n[None])[0]
-        to_eye = unit(eye - s)
-        angles.append(math.acos(min(1.0, float(out @ to_eye))))
+        angles.append(math.acos(min(1.0, float(out @ unit(eye - g)))))
     return np.array(angles)
+
+
+def _sightline_at(eye: np.ndarray, p: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Points (k, 3) of the lines from eye through p (k, 3) at depths z (k,)."""
+    tau = (eye[2] - z) / (eye[2] - p[:, 2])
+    return eye + tau[:, None] * (p - eye)
 
 
 def test_forward_trace_reaches_the_eye_on_the_sightline():
@@ -68,9 +75,9 @@ def test_forward_trace_reaches_the_eye_on_the_sightline():
         g = find_glints(eng, eye, setup.light)
         assert sorted(set(g.stipple.tolist())) == [0, 1, 2]
         # The reflected ray leaves the wall toward the eye (forward trace).
-        assert _wall_normal_trace(eng, g, eye, setup.light).max() < 1e-4
+        assert _wall_normal_trace(eng, g, eye, setup.light).max() < 2e-3
         # The glint is on the eye's sightline through its point: x exact, y within the band.
-        s = sightline_crossing(np.broadcast_to(eye, (len(g.point), 3)), p[g.stipple])
+        s = _sightline_at(eye, p[g.stipple], g.point[:, 2])
         assert np.abs(g.point[:, 0] - s[:, 0]).max() < 0.01
         assert np.abs(g.point[:, 1] - s[:, 1]).max() <= 0.2 * 1.05
 
@@ -78,8 +85,10 @@ def test_forward_trace_reaches_the_eye_on_the_sightline():
 def test_construction_matches_closed_form_hyperbola_far_away():
     # Eyes and sun at (nearly) infinity, one stripe wide enough for the whole range.
     a = math.radians(40.0)
+    # A fine tool: the closed form describes the glint locus of an ideal thin groove.
     setup = Setup(light=Light(a), viewer=Viewer(distance=1e7, ipd=64.0,
-                                                 half_range=math.radians(40.0)))
+                                                 half_range=math.radians(40.0)),
+                  tool=Tool(radius=1e-3, depth=1e-3))
     p = np.array([[4.0, 0.0, -30.0], [0.0, 0.0, 20.0]])
     grooves = _design(p, setup, band=100.0)
     for j in range(grooves.n_paths):
@@ -148,7 +157,7 @@ def test_property_glints_triangulate_to_the_point(elevation, light_distance, dis
     gr = find_glints(eng, right[0], setup.light)
     assert len(gl.point) >= 1 and len(gr.point) >= 1
     for eye, g in ((left[0], gl), (right[0], gr)):
-        s = sightline_crossing(np.broadcast_to(eye, (len(g.point), 3)), p[[0] * len(g.point)])
+        s = _sightline_at(eye, p[[0] * len(g.point)], g.point[:, 2])
         assert np.abs(g.point[:, 0] - s[:, 0]).max() < 0.02
         assert np.abs(g.point[:, 1] - s[:, 1]).max() < 0.25
     k = len(gl.point) * len(gr.point)
@@ -178,4 +187,5 @@ def test_points_on_the_plate_become_dimples_seen_in_place(pz):
     gl = find_glints(eng, left[0], setup.light)
     gr = find_glints(eng, right[0], setup.light)
     apparent, _ = triangulate(left, gl.point[:1], right, gr.point[:1])
-    assert np.linalg.norm(apparent[0] - p[0]) <= abs(pz) + 1e-9
+    # Within the depth itself plus the wall offset's swing (R times the turn of h).
+    assert np.linalg.norm(apparent[0] - p[0]) <= abs(pz) + 0.1

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from specholo.optics.normality import normality, tilt
+from specholo.optics.normality import normality, tilt, unit
 from specholo.setup import Light, Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -99,11 +99,43 @@ def _lift(xy: np.ndarray) -> np.ndarray:
     return np.concatenate([xy, np.zeros((len(xy), 1))], axis=1)
 
 
+def wall_glint(centre: np.ndarray, tool: Tool, light: Light,
+               eye: np.ndarray, iterations: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Where on a ball-end groove's wall the glint sits, and the normality vector there.
+
+    The tool's ball (centre R - d above the plate) leaves a wall whose normal at
+    a point g points to the ball centre c: the glint is g = c - R h/|h|, off the
+    toolpath by R sin(tilt) across the groove and below the plate surface.
+
+    Args:
+        centre: (k, 2) toolpath points (ball centres seen from above).
+        tool: the ball-end tool.
+        light: the light.
+        eye: (3,) eye.
+        iterations: fixed-point steps (h changes by ~R / distance between them).
+
+    Returns:
+        g (k, 3) glint points and h (k, 3) there.
+    """
+    c3 = np.concatenate([centre, np.full((len(centre), 1), tool.radius - tool.depth)], axis=1)
+    g = _lift(centre)
+    for _ in range(iterations):
+        g = c3 - tool.radius * unit(normality(g, light, eye))
+    return g, normality(g, light, eye)
+
+
 def _condition(eng: Engraved, idx: np.ndarray, u: np.ndarray, eye: np.ndarray,
-               light: Light) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Glint condition h . t at parameters u of arcs idx, with the points and h."""
+               light: Light, wall: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Glint condition h . t at parameters u of arcs idx, with the glint points and h.
+
+    With ``wall`` the glint is placed on the groove wall (see :func:`wall_glint`);
+    without it on the toolpath, a cheap first screen.
+    """
     pts, t = eng.at(idx, u)
-    h = normality(pts, light, eye)
+    if wall:
+        pts, h = wall_glint(pts[:, :2], eng.tool, light, eye)
+    else:
+        h = normality(pts, light, eye)
     return h[:, 0] * t[:, 0] + h[:, 1] * t[:, 1], pts, h
 
 
@@ -113,7 +145,7 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
     At finite distances h turns along a groove nearly as fast as a gently
     curved groove's tangent does, so the glint is bracketed by the sign of
     h . t at each arc's ends and found by regula falsi (Illinois), never by a
-    fixed point that could fail to converge.
+    fixed point that could fail to converge. Glints sit on the groove wall.
 
     Args:
         eng: prepared groove geometry.
@@ -132,13 +164,20 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
     k = len(eng.path)
     if k:
         idx = np.arange(k)
-        f0, _, _ = _condition(eng, idx, np.zeros(k), eye, light)
-        f1, _, _ = _condition(eng, idx, np.ones(k), eye, light)
+        # Screen on the toolpath; the wall shifts h by only ~R / distance (radians).
+        f0, _, h0 = _condition(eng, idx, np.zeros(k), eye, light, wall=False)
+        f1, _, _ = _condition(eng, idx, np.ones(k), eye, light, wall=False)
+        tol = 0.01 * np.linalg.norm(h0, axis=1)
+        near = np.flatnonzero((f0 * f1 <= 0) | (np.minimum(np.abs(f0), np.abs(f1)) < tol))
+        f0, _, _ = _condition(eng, near, np.zeros(near.size), eye, light)
+        f1, _, _ = _condition(eng, near, np.ones(near.size), eye, light)
         # A root exactly on a shared vertex belongs to the arc that starts there.
-        cand = np.flatnonzero((f0 == 0) | (f0 * f1 < 0))
+        hit = (f0 == 0) | (f0 * f1 < 0)
+        cand = near[hit]
         a, b = np.zeros(cand.size), np.ones(cand.size)
-        fa, fb = f0[cand], f1[cand]
+        fa, fb = f0[hit], f1[hit]
         side = np.zeros(cand.size)
+        u = a
         for _ in range(iterations):
             with np.errstate(divide="ignore", invalid="ignore"):
                 u = np.where(fa == fb, a, (a * fb - b * fa) / (fb - fa))
@@ -160,8 +199,8 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
 
     # Dimples offer every normal up to the wall tilt.
     if len(eng.dot_path):
-        s = _lift(eng.dot_pos)
-        ok = tilt(normality(s, light, eye)) <= max_tilt
+        s, h = wall_glint(eng.dot_pos, eng.tool, light, eye)
+        ok = tilt(h) <= max_tilt
         paths.append(eng.dot_path[ok])
         points.append(s[ok])
 

@@ -26,7 +26,7 @@ def design_classic(runs: Runs, setup: Setup, near_plate: float | None = None) ->
         near_plate = 0.5 * setup.tool.width
     far, near = split_near_plate(runs, near_plate)
     if len(far) == 0:
-        return dots_for(near)
+        return dots_for(near, setup)
     a = setup.light.elevation
     r = classic_radius(far.point[:, 2], a)
     # Behind the plate the glint rides the top of a circle below p; in front, the bottom.
@@ -45,4 +45,4 @@ def design_classic(runs: Runs, setup: Setup, near_plate: float | None = None) ->
     bulges[0::2] = np.tan(sweep / 4.0)
     grooves = Grooves(vertices, bulges, np.arange(0, 2 * n + 1, 2, dtype=np.int64),
                       far.stipple.copy())
-    return Grooves.concatenate([grooves, dots_for(near)])
+    return Grooves.concatenate([grooves, dots_for(near, setup)])

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from specholo.hosts.flat import sightline_crossing
-from specholo.setup import Viewer
+from specholo.optics.normality import normality, unit
+from specholo.setup import Setup, Viewer
 from specholo.toolpaths.grooves import Grooves
 
 
@@ -64,19 +65,28 @@ def straight_on_image(points: np.ndarray, viewer: Viewer) -> np.ndarray:
     return sightline_crossing(np.broadcast_to(eye, points.shape), points)[:, :2]
 
 
-def dot_grooves(points: np.ndarray, stipple: np.ndarray) -> Grooves:
-    """Single plunges (spherical dimples) at the stipples' plate positions.
+def dot_grooves(points: np.ndarray, stipple: np.ndarray, setup: Setup) -> Grooves:
+    """Single plunges (spherical dimples) showing points on or very near the plate.
 
-    A point on the plate is seen at the same place by every eye, so a dimple,
-    which offers every normal up to the tool's wall tilt, shows it exactly.
+    A point on the plate is seen at the same place by every eye, and a dimple
+    offers every normal up to the tool's wall tilt. Its glint sits on the wall,
+    R h/|h| from the dimple's centre, so the centre is moved by that offset as
+    seen straight on; other views keep a residue of R times the turn of h.
 
     Args:
         points: (k, 3) points on or very near the plate.
         stipple: (k,) their ids.
+        setup: light, viewer and tool.
     """
     k = len(stipple)
-    return Grooves(np.asarray(points, dtype=float)[:, :2].copy(), np.zeros(k),
-                   np.arange(k + 1, dtype=np.int64), np.asarray(stipple, dtype=np.int64))
+    points = np.asarray(points, dtype=float)
+    plate = points.copy()
+    plate[:, 2] = 0.0
+    eye = setup.viewer.eye(np.zeros(1))
+    h = unit(normality(plate, setup.light, np.broadcast_to(eye, plate.shape)))
+    centre = points[:, :2] + setup.tool.radius * h[:, :2]
+    return Grooves(centre, np.zeros(k), np.arange(k + 1, dtype=np.int64),
+                   np.asarray(stipple, dtype=np.int64))
 
 
 def split_near_plate(runs: Runs, threshold: float) -> tuple[Runs, Runs]:
@@ -85,7 +95,7 @@ def split_near_plate(runs: Runs, threshold: float) -> tuple[Runs, Runs]:
     return runs.take(~near), runs.take(near)
 
 
-def dots_for(runs: Runs) -> Grooves:
+def dots_for(runs: Runs, setup: Setup) -> Grooves:
     """One dimple per stipple among ``runs`` (however many intervals it has)."""
     ids, first = np.unique(runs.stipple, return_index=True)
-    return dot_grooves(runs.point[first], ids)
+    return dot_grooves(runs.point[first], ids, setup)

@@ -33,7 +33,7 @@ def design_hyperbola(runs: Runs, setup: Setup, step: float = math.radians(0.5),
         near_plate = 0.5 * setup.tool.width
     far, near = split_near_plate(runs, near_plate)
     if len(far) == 0:
-        return dots_for(near)
+        return dots_for(near, setup)
     a = setup.light.elevation
     k = np.maximum(2, np.ceil((far.end - far.start) / step).astype(np.int64) + 1)
     run = np.repeat(np.arange(len(far)), k)
@@ -53,4 +53,4 @@ def design_hyperbola(runs: Runs, setup: Setup, step: float = math.radians(0.5),
     breaks[first] = True
     vertices, bulges, offsets = arc_chain(np.stack([x, y], axis=1), tangent, breaks)
     grooves = Grooves(vertices, bulges, offsets, far.stipple.copy())
-    return Grooves.concatenate([grooves, dots_for(near)])
+    return Grooves.concatenate([grooves, dots_for(near, setup)])

@@ -18,8 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.hosts.flat import crossing_components
-from specholo.setup import Setup
+from specholo.setup import Light, Setup
 from specholo.toolpaths.arcs import arc_chain
 from specholo.toolpaths.common import Runs, dots_for, split_near_plate
 from specholo.toolpaths.grooves import Grooves
@@ -48,41 +47,83 @@ class StripeOptions:
 
 
 class _Field:
-    """The glint-condition slope field, component-wise for speed."""
+    """The glint-condition slope field, component-wise for speed.
+
+    The tool is a ball of radius R whose centre runs R - d above the plate; the
+    glint sits on the groove wall at g = c - R h/|h|, off the toolpath c. So the
+    field places the *glint* on the sightline (at the glint's own depth) and
+    moves the toolpath by R h/|h| to put it there; the band bounds g's
+    vertical offset from the sightline.
+    """
+
+    _DTHETA = 1e-7  # forward-difference step for the toolpath's theta-derivative
 
     def __init__(self, setup: Setup) -> None:
         self.viewer = setup.viewer
         self.light = setup.light
+        self.radius = setup.tool.radius
+        self.centre_z = setup.tool.radius - setup.tool.depth
+
+    def _target(self, theta: np.ndarray, y: np.ndarray,
+                p: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Toolpath x, band centre y and normality vector for eyes at theta.
+
+        Args:
+            theta: (k,) azimuths. y: (k,) toolpath heights. p: (k, 3) points.
+
+        Returns:
+            x (k,), band centre (k,) such that u = y - centre, and h components at
+            the glint.
+        """
+        v, light, r = self.viewer, self.light, self.radius
+        ex, ey, ez = v.distance * np.sin(theta), v.height, v.distance * np.cos(theta)
+        px, py, pz = p[:, 0], p[:, 1], p[:, 2]
+        inv_dz = 1.0 / (ez - pz)
+        gx = ex + ez * inv_dz * (px - ex)  # start on the plate crossing
+        gz = np.zeros_like(gx)
+        gy = y
+        for _ in range(3):
+            hx, hy, hz = self._h(gx, gy, gz, ex, ey, ez, light)
+            inv = 1.0 / np.sqrt(hx * hx + hy * hy + hz * hz)
+            nx, ny, nz = hx * inv, hy * inv, hz * inv
+            gz = self.centre_z - r * nz
+            tau = (ez - gz) * inv_dz  # sightline point at the glint's depth
+            gx = ex + tau * (px - ex)
+            line_y = ey + tau * (py - ey)
+            gy = y - r * ny
+        hx, hy, hz = self._h(gx, gy, gz, ex, ey, ez, light)
+        return gx + r * nx, line_y + r * ny, hx, hy, hz
+
+    @staticmethod
+    def _h(gx: np.ndarray, gy: np.ndarray, gz: np.ndarray, ex: np.ndarray, ey: float,
+           ez: np.ndarray, light: Light) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ux, uy, uz = ex - gx, ey - gy, ez - gz
+        inv = 1.0 / np.sqrt(ux * ux + uy * uy + uz * uz)
+        if light.distance is None:
+            lx, ly, lz = light.direction
+            return lx + ux * inv, ly + uy * inv, lz + uz * inv
+        lp = light.position
+        vx, vy, vz = lp[0] - gx, lp[1] - gy, lp[2] - gz
+        linv = 1.0 / np.sqrt(vx * vx + vy * vy + vz * vz)
+        return vx * linv + ux * inv, vy * linv + uy * inv, vz * linv + uz * inv
 
     def __call__(self, theta: np.ndarray, y: np.ndarray,
                  p: np.ndarray) -> tuple[np.ndarray, ...]:
-        """dy/dtheta, crossing y, crossing x, dx/dtheta, dy_s/dtheta and h.
+        """Slope and targets of the toolpath at (theta, y).
 
         Args:
-            theta: (k,) azimuths. y: (k,) groove heights. p: (k, 3) points.
+            theta: (k,) azimuths. y: (k,) toolpath heights. p: (k, 3) points.
 
         Returns:
-            Five (k,) arrays and h (k, 3), the normality vector at (x_s(theta), y, 0).
+            dy/dtheta, band centre, toolpath x, dx/dtheta, d(band centre)/dtheta,
+            each (k,), and the normality vector (hx, hy, hz) at the glint.
         """
-        v = self.viewer
-        sx, sy, dsx, dsy = crossing_components(v, theta, p[:, 0], p[:, 1], p[:, 2])
-        # Eye direction from the groove point (x_s, y, 0).
-        ux = v.distance * np.sin(theta) - sx
-        uy = v.height - y
-        uz = v.distance * np.cos(theta)
-        inv = 1.0 / np.sqrt(ux * ux + uy * uy + uz * uz)
-        ux, uy, uz = ux * inv, uy * inv, uz * inv
-        light = self.light
-        if light.distance is None:
-            lx, ly, lz = light.direction
-        else:
-            lp = light.position
-            lx, ly, lz = lp[0] - sx, lp[1] - y, lp[2] + 0.0 * sx
-            inv = 1.0 / np.sqrt(lx * lx + ly * ly + lz * lz)
-            lx, ly, lz = lx * inv, ly * inv, lz * inv
-        hx, hy, hz = lx + ux, ly + uy, lz + uz
-        dy = -dsx * hx / hy
-        return dy, sy, sx, dsx, dsy, (hx, hy, hz)
+        x, centre, hx, hy, hz = self._target(theta, y, p)
+        x2, centre2, *_ = self._target(theta + self._DTHETA, y, p)
+        dx = (x2 - x) / self._DTHETA
+        dcentre = (centre2 - centre) / self._DTHETA
+        dy = -dx * hx / hy
+        return dy, centre, x, dx, dcentre, (hx, hy, hz)
 
 
 def _start_offsets(field: _Field, runs: Runs, w: float,
@@ -204,13 +245,13 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     far, near = split_near_plate(runs, near_plate)
     field = _Field(setup)
     if len(far) == 0:
-        return dots_for(near), np.zeros(0, dtype=np.int64)
+        return dots_for(near, setup), np.zeros(0, dtype=np.int64)
     u0, valid = _start_offsets(field, far, w, opts)
     dropped = np.unique(far.stipple[~valid])
     far = far.take(valid)
     u0 = u0[valid]
     if len(far) == 0:
-        return dots_for(near), dropped
+        return dots_for(near, setup), dropped
     run, theta, y, stripe = _integrate(field, far, u0, w, opts)
     p = far.point[run]
     dy, _, x, dsx, _, _ = field(theta, y, p)
@@ -226,4 +267,4 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     pts, tangent, breaks, run = pts[keep], tangent[keep], breaks[keep], run[keep]
     vertices, bulges, offsets = arc_chain(pts, tangent, breaks)
     grooves = Grooves(vertices, bulges, offsets, far.stipple[run[breaks]])
-    return Grooves.concatenate([grooves, dots_for(near)]), dropped
+    return Grooves.concatenate([grooves, dots_for(near, setup)]), dropped
