@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from specholo.hosts.flat import sightline_crossing
 from specholo.optics.foliation import hyperbola_slope, hyperbola_y
 from specholo.optics.normality import normality, reflect, unit
 from specholo.setup import Light, Setup, Tool, Viewer
@@ -189,3 +190,26 @@ def test_points_on_the_plate_become_dimples_seen_in_place(pz):
     apparent, _ = triangulate(left, gl.point[:1], right, gr.point[:1])
     # Within the depth itself plus the wall offset's swing (R times the turn of h).
     assert np.linalg.norm(apparent[0] - p[0]) <= abs(pz) + 0.1
+
+
+def test_grooves_stay_between_the_sightline_crossings():
+    # Every arc of a stipple lies where its eyes' sightlines cross the plate:
+    # no biarc may bulge far out (a wild arc would cut stray grooves).
+    setup = Setup()
+    rng = np.random.default_rng(7)
+    p = np.column_stack([rng.uniform(-30, 30, 300), rng.uniform(-30, 30, 300),
+                         rng.choice([-1.0, 1.0], 300) * rng.uniform(1.0, 70.0, 300)])
+    grooves = _design(p, setup)
+    eng = Engraved.from_grooves(grooves, setup.tool)
+    r = setup.viewer.design_range
+    eyes = setup.viewer.eye(np.array([-r, r]))
+    lo = np.minimum(sightline_crossing(np.broadcast_to(eyes[0], p.shape), p),
+                    sightline_crossing(np.broadcast_to(eyes[1], p.shape), p))
+    hi = np.maximum(sightline_crossing(np.broadcast_to(eyes[0], p.shape), p),
+                    sightline_crossing(np.broadcast_to(eyes[1], p.shape), p))
+    stip = grooves.stipple[eng.path]
+    for u in (0.0, 0.5, 1.0):
+        pts, _ = eng.at(np.arange(len(eng.path)), np.full(len(eng.path), u))
+        margin = 1.0  # band, wall offset and tool radius
+        assert (pts[:, 0] >= lo[stip, 0] - margin).all()
+        assert (pts[:, 0] <= hi[stip, 0] + margin).all()

@@ -21,7 +21,7 @@ import numpy as np
 
 from specholo import __version__
 from specholo.errors import SpecholoError
-from specholo.fabrication.atomic import atomic_open
+from specholo.fabrication.atomic import atomic_open, public_mode
 from specholo.setup import Light, Machining, Setup, Tool, Viewer
 from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import Grooves
@@ -222,6 +222,7 @@ def staged_output(out: str | os.PathLike[str]):  # type: ignore[no-untyped-def]
     parent = out.resolve().parent
     parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
+    public_mode(tmp, directory=True)
     try:
         yield tmp
         if not out.exists():

@@ -123,11 +123,13 @@ def verify(folder: Path, step: float, from_gcode: bool) -> None:
     rows = reports_to_dicts(reports)
     summary = summarise(reports)
     table = Table(title=f"{loaded.config.method} design, {len(loaded.points)} stipples")
-    for col in ("azimuth", "median mm", "p95 mm", "p95 depth mm", "visibility", "false"):
+    for col in ("azimuth", "median mm", "p95 mm", "p95 depth mm", "max mm", "visibility",
+                "false"):
         table.add_column(col, justify="right")
     for r in rows:
         table.add_row(f"{r['azimuth']:+.1f}", f"{r['median_error']:.3f}",
                       f"{r['p95_error']:.3f}", f"{r['p95_depth_error']:.3f}",
+                      f"{r['max_error']:.3f}",
                       f"{r['visibility']:.3f}", f"{r['false_glints']:.3f}")
     Console().print(table)
     click.echo(f"worst p95 error {summary['worst_p95_error']:.3f} mm, "

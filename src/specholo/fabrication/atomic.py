@@ -10,6 +10,17 @@ from pathlib import Path
 from typing import IO
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def public_mode(path: str | os.PathLike[str], directory: bool = False) -> None:
+    """Give a scratch file or folder the permissions a plain create would have."""
+    os.chmod(path, (0o777 if directory else 0o666) & ~_umask())
+
+
 @contextlib.contextmanager
 def atomic_open(path: str | os.PathLike[str], mode: str = "w",
                 encoding: str | None = "utf-8") -> Iterator[IO]:
@@ -26,6 +37,7 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w",
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp's 0600 is for the scratch file only
         if "b" in mode:
             fh = os.fdopen(fd, mode)
         else:

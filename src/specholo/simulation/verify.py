@@ -32,6 +32,7 @@ class ViewReport:
         median_error: median distance from apparent point to stipple.
         p95_error: 95th percentile of that distance.
         p95_depth_error: 95th percentile of the depth (z) part alone.
+        max_error: the worst stipple's error.
         visibility: share of unoccluded stipples glinting for both eyes.
         false_glints: share of (occluded stipple, eye) pairs that glint.
     """
@@ -41,6 +42,7 @@ class ViewReport:
     median_error: float
     p95_error: float
     p95_depth_error: float
+    max_error: float
     visibility: float
     false_glints: float
 
@@ -145,6 +147,7 @@ def verify(grooves: Grooves, points: np.ndarray, setup: Setup,
             median_error=float(np.median(err)) if err.size else math.nan,
             p95_error=float(np.percentile(err, 95)) if err.size else math.nan,
             p95_depth_error=float(np.percentile(np.abs(depth), 95)) if err.size else math.nan,
+            max_error=float(err.max()) if err.size else math.nan,
             visibility=float(both.size / seen.sum()) if seen.any() else math.nan,
             false_glints=float(false / hidden) if hidden else 0.0,
         ))
@@ -161,6 +164,7 @@ def summarise(reports: list[ViewReport]) -> dict[str, float]:
         "worst_p95_error": worst("p95_error", max),
         "worst_median_error": worst("median_error", max),
         "worst_p95_depth_error": worst("p95_depth_error", max),
+        "worst_max_error": worst("max_error", max),
         "min_visibility": worst("visibility", min),
         "max_false_glints": worst("false_glints", max),
     }

@@ -60,9 +60,16 @@ def biarc(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray,
     vv = _dot(v, v)
     a = 2.0 - 2.0 * _dot(t0, t1)  # 4 - |t|^2, >= 0
     # Rationalised root of a d^2 + 2 vt d - vv = 0: stable when a -> 0.
-    d = vv / (vt + np.sqrt(vt * vt + a * vv))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = vv / (vt + np.sqrt(vt * vt + a * vv))
+    # Tangents that disagree with the chord (samples out of order, or nearly
+    # coincident) have no sensible biarc: join those with a straight segment.
+    bad = ~(np.isfinite(d) & (vt > 0) & (d < np.sqrt(vv)))
+    d = np.where(bad, 0.0, d)
     joint = 0.5 * (p0 + p1 + d[:, None] * (t0 - t1))
-    return joint, bulge_from_start_tangent(p0, t0, joint), bulge_to_end_tangent(joint, p1, t1)
+    b1 = np.where(bad, 0.0, bulge_from_start_tangent(p0, t0, joint))
+    b2 = np.where(bad, 0.0, bulge_to_end_tangent(joint, p1, t1))
+    return joint, b1, b2
 
 
 def arc_chain(points: np.ndarray, tangents: np.ndarray,

@@ -260,6 +260,15 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     pts = np.stack([x, y], axis=1)
     breaks = np.ones(len(run), dtype=bool)
     breaks[1:] = (run[1:] != run[:-1]) | (stripe[1:] != stripe[:-1])
+    # A sliver step (a band edge met just before the run's end) leaves two samples
+    # a micron apart: keep the later one so biarcs never join near-coincident points.
+    close = np.zeros(len(run), dtype=bool)
+    close[:-1] = ~breaks[1:] & (np.linalg.norm(np.diff(pts, axis=0), axis=1) < 1e-3)
+    close &= ~breaks  # never drop a stripe's first sample
+    keep_sample = ~close
+    run, stripe, pts, tangent, breaks = (run[keep_sample], stripe[keep_sample],
+                                         pts[keep_sample], tangent[keep_sample],
+                                         breaks[keep_sample])
     # A stripe of one sample (a band edge met exactly at the end) has no length.
     path_id = np.cumsum(breaks) - 1
     sizes = np.bincount(path_id)

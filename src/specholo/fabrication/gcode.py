@@ -1,0 +1,581 @@
+"""G-code for cutting grooves (RS274/NGC as LinuxCNC reads it), and reading it back.
+
+The program works in mm, absolute coordinates, the XY plane and feed per minute,
+with its origin at the plate centre and Z = 0 on the plate surface. Each groove
+is cut as: a comment ``(stipple N)``, a rapid to its start at the safe height, a
+plunge to ``-depth``, its arcs as ``G2``/``G3`` (centre given by ``I J`` relative
+to the arc's start) or ``G1`` when they are straight, and a retract. A dot is a
+plunge and a retract.
+
+Coordinates are written with 5 decimals (10 nm). Coarser rounding shows: a
+groove's glints follow its tangent, and moving the ends of a 0.04 mm arc by
+0.05 um (4 decimals) turns it by ~2e-3 rad, which doubles the image error of
+a design verified from its G-code. Every number is rounded to the grid *before*
+the arc centres are offset from the arc starts, so the interpreter sees exactly
+the rounded centre: the two radii of an arc then differ by less than 3e-5 mm,
+far inside LinuxCNC's tolerance.
+
+Writing is vectorised: each vertex becomes one row of a byte table (its
+``(stipple N)``/rapid/plunge lines if it starts a path, its move line otherwise,
+and the retract if it ends one). Absent parts are NUL bytes, which are squeezed
+out in one pass, so no Python code runs per line.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from operator import itemgetter
+
+import numpy as np
+
+from specholo.errors import SpecholoError
+from specholo.fabrication.atomic import atomic_open
+from specholo.setup import Machining, Tool
+from specholo.toolpaths.grooves import Grooves, Segments
+
+#: Decimals of every written coordinate and feed.
+DECIMALS = 5
+#: Written coordinates are integers in units of 1 / SCALE mm.
+SCALE = 10**DECIMALS
+#: Arcs are written as straight lines when they bulge less than this from their
+#: chord (mm) *and* turn less than ``STRAIGHT_TURN_RAD``: glints follow the
+#: tangent, so a long flat arc of a design must stay an arc.
+STRAIGHT_SAGITTA_MM = 1e-5
+#: Largest angle between an arc straightened and its chord (half its sweep), rad.
+STRAIGHT_TURN_RAD = 1e-5
+#: Arcs of smaller radius are written as straight lines (mm): LinuxCNC rejects
+#: radii under 1.27 um as zero, and the rounded centre of a tinier arc could
+#: turn it into a near-full circle.
+MIN_ARC_RADIUS_MM = 5e-3
+
+_CHUNK_ROWS = 1 << 16
+_MAX_COORD_MM = 1e9
+
+
+@dataclass(frozen=True)
+class GcodeStats:
+    """What a written G-code program does.
+
+    Attributes:
+        lines: number of lines in the file.
+        paths: number of grooves (dots included).
+        cutting_length_mm: length of all feed moves (grooves and plunges), mm.
+        rapid_length_mm: length of all rapid moves (travel and retracts), mm,
+            taking the job to start above the origin (plate centre).
+    """
+
+    lines: int
+    paths: int
+    cutting_length_mm: float
+    rapid_length_mm: float
+
+
+def is_straight(segments: Segments) -> np.ndarray:
+    """Which arcs the exporters write as straight segments.
+
+    Args:
+        segments: arcs of a set of grooves.
+
+    Returns:
+        (k,) bool: True where the arc's sagitta is below ``STRAIGHT_SAGITTA_MM``
+        and half its sweep below ``STRAIGHT_TURN_RAD``, or its radius below
+        ``MIN_ARC_RADIUS_MM``.
+    """
+    chord = np.linalg.norm(segments.end - segments.start, axis=1)
+    b = np.abs(segments.bulge)
+    # chord / 2 * tan(sweep / 4) is the sagitta, chord (1 + b^2) / (4 b) the radius
+    sagitta = 0.5 * chord * b
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        radius = chord * (1.0 + b * b) / (4.0 * b)
+    flat = (sagitta < STRAIGHT_SAGITTA_MM) & (2.0 * np.arctan(b) < STRAIGHT_TURN_RAD)
+    return flat | ~(radius >= MIN_ARC_RADIUS_MM)
+
+
+def format_number(value: float, decimals: int = DECIMALS) -> str:
+    """Fixed-point text of a number, '.' as decimal point whatever the locale.
+
+    Rounds half to even like the vectorised writer, and never gives ``-0.0000``.
+    """
+    scale = 10**decimals
+    q = round(float(value) * scale)
+    sign = "-" if q < 0 else ""
+    whole, frac = divmod(abs(q), scale)
+    return f"{sign}{whole}.{frac:0{decimals}d}" if decimals else f"{sign}{whole}"
+
+
+class TextRows:
+    """Builds n rows of ASCII text side by side, one column block at a time.
+
+    Each block is an (n, w) uint8 array; NUL bytes are padding and are removed
+    when the rows are joined, so a block can be left out of some rows by zeroing it.
+    """
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self._blocks: list[np.ndarray] = []
+
+    def _add(self, block: np.ndarray, mask: np.ndarray | None) -> None:
+        if mask is not None:
+            block = block * mask[:, None].astype(np.uint8)
+        self._blocks.append(block)
+
+    def text(self, text: str, mask: np.ndarray | None = None) -> None:
+        """The same text in every row (or in the rows where ``mask`` (n,) is True)."""
+        row = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
+        self._add(np.broadcast_to(row, (self.n, len(row))), mask)
+
+    def choice(self, options: Sequence[str], index: np.ndarray) -> None:
+        """``options[index[i]]`` in row i; index (n,) ints."""
+        width = max(len(o) for o in options)
+        table = np.zeros((len(options), width), dtype=np.uint8)
+        for k, option in enumerate(options):
+            table[k, : len(option)] = np.frombuffer(option.encode("ascii"), dtype=np.uint8)
+        self._blocks.append(table[index])
+
+    def number(self, q: np.ndarray, decimals: int, mask: np.ndarray | None = None) -> None:
+        """Fixed-point numbers given as integers q (n,) in units of 10**-decimals."""
+        self._add(fixed_point_bytes(q, decimals), mask)
+
+    def tobytes(self) -> bytes:
+        """All rows, concatenated without the padding."""
+        if not self._blocks or self.n == 0:
+            return b""
+        table = np.concatenate(self._blocks, axis=1)
+        return table[table != 0].tobytes()
+
+
+def fixed_point_bytes(q: np.ndarray, decimals: int) -> np.ndarray:
+    """ASCII digits of scaled integers, NUL-padded.
+
+    Args:
+        q: (n,) integers, the numbers in units of 10**-decimals.
+        decimals: digits after the decimal point (0 for integers).
+
+    Returns:
+        (n, w) uint8: a '-' (or NUL) in column 0, then the digits right-aligned
+        with NUL in place of leading zeros, with the point before the last
+        ``decimals`` digits. Removing the NULs gives e.g. ``-12.0400``.
+    """
+    q = np.asarray(q, dtype=np.int64)
+    a = np.abs(q)
+    ndig = max(len(str(int(a.max(initial=0)))), decimals + 1)
+    pow10 = 10 ** np.arange(ndig - 1, -1, -1, dtype=np.int64)
+    digits = (a[:, None] // pow10) % 10
+    shown = a[:, None] >= pow10
+    shown[:, ndig - decimals - 1 :] = True  # the units digit and the decimals always show
+    chars = np.where(shown, digits + ord("0"), 0).astype(np.uint8)
+    sign = np.where(q < 0, ord("-"), 0).astype(np.uint8)[:, None]
+    if decimals == 0:
+        return np.concatenate([sign, chars], axis=1)
+    point = np.full((len(q), 1), ord("."), dtype=np.uint8)
+    return np.concatenate([sign, chars[:, :-decimals], point, chars[:, -decimals:]], axis=1)
+
+
+def _comment(text: str) -> str:
+    # G-code comments cannot nest parentheses or span lines, and LinuxCNC reads
+    # lines of at most 255 characters.
+    clean = "".join(c if 32 <= ord(c) < 127 else "?" for c in text)
+    clean = clean.replace("(", "[").replace(")", "]")
+    return f"({clean[:200]})"
+
+
+def check_grooves(grooves: Grooves) -> None:
+    """Raise SpecholoError unless the grooves can be written (no empty path, finite numbers)."""
+    if np.any(grooves.path_sizes < 1):
+        raise SpecholoError("grooves contain an empty path")
+    if not np.all(np.isfinite(grooves.vertices)) or not np.all(np.isfinite(grooves.bulges)):
+        raise SpecholoError("grooves contain non-finite vertices or bulges")
+    if len(grooves.vertices) and np.abs(grooves.vertices).max() > _MAX_COORD_MM:
+        raise SpecholoError(f"groove vertices exceed {_MAX_COORD_MM:g} mm")
+
+
+def write_gcode(
+    path: str | os.PathLike[str],
+    grooves: Grooves,
+    tool: Tool,
+    machining: Machining,
+    header: dict[str, str] | None = None,
+) -> GcodeStats:
+    """Write the program that cuts the grooves, atomically.
+
+    Args:
+        path: destination ``.ngc`` file.
+        grooves: m vertices in n paths; path j is preceded by ``(stipple N)``
+            with N = ``grooves.stipple[j]``.
+        tool: cutter (depth of the grooves, width for the header).
+        machining: feeds (mm/min), safe height (mm) and spindle speed (rpm; 0
+            leaves the spindle alone).
+        header: extra ``key: value`` lines for the header comments.
+
+    Returns:
+        Line count, path count and move lengths of the program.
+
+    Raises:
+        SpecholoError: if the grooves hold an empty path or non-finite numbers.
+    """
+    check_grooves(grooves)
+    depth = tool.depth
+    safe = machining.safe_z
+    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
+    m = len(verts)
+    n_paths = grooves.n_paths
+    offsets = np.asarray(grooves.offsets, dtype=np.int64)
+    sizes = np.diff(offsets)
+
+    first = np.zeros(m, dtype=bool)
+    first[offsets[:-1]] = True
+    last = np.zeros(m, dtype=bool)
+    last[offsets[1:] - 1] = True
+    second = np.zeros(m, dtype=bool)
+    second[offsets[:-1][sizes > 1] + 1] = True
+
+    qv = np.rint(verts * SCALE).astype(np.int64)
+    segs = grooves.segments()
+    straight = is_straight(segs)
+    arc_start = np.flatnonzero(~last)  # vertex where each segment starts
+    rows = arc_start + 1  # the segment's move is written on its end vertex's row
+    code = np.zeros(m, dtype=np.int64)  # 0 first vertex, 1 G1, 2 G2, 3 G3
+    code[rows] = np.where(straight, 1, np.where(segs.bulge < 0, 2, 3))
+    arc = code >= 2
+    centre, _, _, _ = Segments(
+        segs.start[~straight], segs.end[~straight], segs.bulge[~straight], segs.path[~straight]
+    ).geometry()
+    qij = np.zeros((m, 2), dtype=np.int64)
+    # the interpreter adds I J to the rounded start: offset the rounded centre from it
+    qij[rows[~straight]] = np.rint(centre * SCALE).astype(np.int64) - qv[arc_start[~straight]]
+    stipple = np.repeat(np.asarray(grooves.stipple, dtype=np.int64), sizes)
+
+    lengths = np.where(straight, np.linalg.norm(segs.end - segs.start, axis=1), segs.lengths())
+    starts = verts[offsets[:-1]]
+    ends = verts[offsets[1:] - 1]
+    # from above the origin to the first groove, then from each groove's end to the next
+    travel = np.linalg.norm(starts - np.vstack([np.zeros((1, 2)), ends[:-1]]), axis=1)
+    vertical = n_paths * (safe + depth)
+
+    head = [
+        _comment("specholo specular hologram"),
+        _comment("units: mm, absolute coordinates, feed in mm/min"),
+        _comment("origin: plate centre; X right, Y up, Z = 0 on the plate surface"),
+        _comment(
+            f"tool: ball end, radius {format_number(tool.radius)} mm, "
+            f"groove width {format_number(tool.width)} mm"
+        ),
+        _comment(f"depth: {format_number(depth)} mm"),
+        _comment(f"grooves: {n_paths}, dots: {int(np.sum(sizes == 1))}"),
+    ]
+    head += [_comment(f"{k}: {v}") for k, v in (header or {}).items()]
+    head.append("G21 G90 G17 G94 G40")
+    if machining.spindle > 0:
+        head += [f"M3 S{round(machining.spindle)}", "G4 P2"]
+    head.append(f"G0 Z{format_number(safe)}")
+    tail = (["M5"] if machining.spindle > 0 else []) + ["M2"]
+
+    plunge = f"G1 Z{format_number(-depth)} F{format_number(machining.plunge)}\n"
+    retract = f"G0 Z{format_number(safe)}\n"
+    feed = f" F{format_number(machining.feed)}"
+    with atomic_open(path, "wb") as fh:
+        fh.write(("\n".join(head) + "\n").encode("ascii"))
+        for lo in range(0, m, _CHUNK_ROWS):
+            s = slice(lo, min(lo + _CHUNK_ROWS, m))
+            t = TextRows(s.stop - s.start)
+            f = first[s]
+            t.text("(stipple ", f)
+            t.number(stipple[s], 0, f)
+            t.choice([")\nG0", "G1", "G2", "G3"], code[s])
+            t.text(" X")
+            t.number(qv[s, 0], DECIMALS)
+            t.text(" Y")
+            t.number(qv[s, 1], DECIMALS)
+            a = arc[s]
+            t.text(" I", a)
+            t.number(qij[s, 0], DECIMALS, a)
+            t.text(" J", a)
+            t.number(qij[s, 1], DECIMALS, a)
+            t.text(feed, second[s])
+            t.text("\n")
+            t.text(plunge, f)
+            t.text(retract, last[s])
+            fh.write(t.tobytes())
+        fh.write(("\n".join(tail) + "\n").encode("ascii"))
+
+    return GcodeStats(
+        lines=len(head) + len(tail) + m + 3 * n_paths,
+        paths=n_paths,
+        cutting_length_mm=float(lengths.sum() + vertical),
+        rapid_length_mm=float(travel.sum() + vertical),
+    )
+
+
+# ---------------------------------------------------------------------------
+# Reading
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
+_WORD = re.compile(rf"([A-Z])\s*({_NUMBER})", re.ASCII)
+_COMMENT = re.compile(r"\(([^()]*)\)")
+_STIPPLE = re.compile(r"\s*stipple\s+([-+]?\d+)\s*", re.IGNORECASE)
+# write_gcode's own move lines, read without the general tokenizer
+_FAST_MOVE = re.compile(
+    rf"G([0-3])(?= [XYZ])(?: X({_NUMBER}))?(?: Y({_NUMBER}))?(?: Z({_NUMBER}))?"
+    rf"(?: I({_NUMBER}) J({_NUMBER}))?(?: F{_NUMBER})?\s*",
+    re.ASCII,
+)
+_IGNORED_WORDS = frozenset("FSPTNHDQ")
+# G codes (times 10) that change nothing read_gcode models: plane XY, absolute
+# distances, cutter compensation and tool length offsets off, work offset 1, path
+# blending, feed modes, dwell, incremental arc centres, spindle and canned-cycle modes.
+_IGNORED_G = frozenset({40, 170, 400, 490, 540, 610, 611, 640, 900, 911,
+                        930, 940, 950, 960, 970, 980, 990})
+_NAN = math.nan
+
+
+def _line_error(number: int, raw: str, why: str) -> SpecholoError:
+    return SpecholoError(f"G-code line {number}: {why}: {raw.strip()!r}")
+
+
+class _Moves:
+    """The motion blocks of a program, as columns (NaN where a word is absent).
+
+    Lines are only tokenised here; modal positions, units, paths and arcs are
+    resolved afterwards on whole arrays, which keeps the per-line work small.
+    Lines in write_gcode's own move format skip the general tokenizer: they are
+    kept as matched text (``fast``) and converted in bulk.
+    """
+
+    def __init__(self) -> None:
+        self.motion: int | None = None
+        self.synced = 0  # line of the last fast move already folded into ``motion``
+        self.ended = False
+        self.fast_number: list[int] = []
+        self.fast_words: list[tuple[str | None, ...]] = []  # G, X, Y, Z, I, J texts
+        self.kind: list[int] = []
+        self.x: list[float] = []
+        self.y: list[float] = []
+        self.z: list[float] = []
+        self.i: list[float] = []
+        self.j: list[float] = []
+        self.number: list[int] = []
+        self.units: list[tuple[int, float]] = []  # (line, mm per unit) from G20/G21
+        self.stipple: list[tuple[int, int]] = []  # (line, id) from (stipple N)
+
+    def line(self, number: int, raw: str) -> None:
+        if self.fast_number and self.fast_number[-1] > self.synced:
+            # a fast move set the modal motion since the last general line
+            self.synced = self.fast_number[-1]
+            self.motion = int(self.fast_words[-1][0] or 0)
+        text = raw.strip()
+        if not text or text == "%":
+            return
+        semi = text.find(";")
+        if semi >= 0 and not 0 <= text.find("(") < semi:
+            text = text[:semi]
+        if "(" in text:
+            for comment in _COMMENT.findall(text):
+                found = _STIPPLE.fullmatch(comment)
+                if found:
+                    self.stipple.append((number, int(found.group(1))))
+            text = _COMMENT.sub(" ", text)
+            semi = text.find(";")
+            if semi >= 0:
+                text = text[:semi]
+        if "(" in text or ")" in text:
+            raise _line_error(number, raw, "unbalanced parentheses")
+        code = text.upper().lstrip()
+        if code.startswith("/"):
+            code = code[1:]
+        words = _WORD.findall(code)
+        if _WORD.sub("", code).strip():
+            raise _line_error(number, raw, "cannot parse")
+        if words:
+            self.block(number, words, raw)
+
+    def block(self, number: int, words: list[tuple[str, str]], raw: str) -> None:
+        values: dict[str, float] = {}
+        motion = self.motion
+        for letter, text in words:
+            value = float(text)
+            if letter == "G":
+                g = round(value * 10)
+                if g in (0, 10, 20, 30):
+                    motion = g // 10
+                elif g == 800:
+                    motion = None
+                elif g in (200, 210):
+                    self.units.append((number, 25.4 if g == 200 else 1.0))
+                elif g not in _IGNORED_G:
+                    raise _line_error(number, raw, f"unsupported G{value:g}")
+            elif letter == "M":
+                if round(value) in (2, 30):
+                    self.ended = True
+            elif letter in "XYZIJ":
+                if letter in values:
+                    raise _line_error(number, raw, f"{letter} given twice")
+                values[letter] = value
+            elif letter not in _IGNORED_WORDS:
+                raise _line_error(number, raw, f"unsupported word {letter}")
+        self.motion = motion
+        get = values.get
+        has_ij = "I" in values or "J" in values
+        if not any(k in values for k in "XYZ"):
+            if has_ij:
+                raise _line_error(number, raw, "I/J without an end point (full circles are "
+                                  "not supported)")
+            return
+        if motion is None:
+            raise _line_error(number, raw, "axis words without a motion mode")
+        if motion >= 2 and not has_ij:
+            raise _line_error(number, raw, "arc without I/J (R-format arcs are not supported)")
+        if motion < 2 and has_ij:
+            raise _line_error(number, raw, "I/J outside an arc move")
+        self.kind.append(motion)
+        self.x.append(get("X", _NAN))
+        self.y.append(get("Y", _NAN))
+        self.z.append(get("Z", _NAN))
+        self.i.append(get("I", 0.0) if has_ij else _NAN)
+        self.j.append(get("J", 0.0) if has_ij else _NAN)
+        self.number.append(number)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """All moves in line order: kind, number (int) and x, y, z, i, j in mm."""
+        cols = {
+            "kind": np.asarray(self.kind, dtype=np.int64),
+            "number": np.asarray(self.number, dtype=np.int64),
+            **{k: np.asarray(getattr(self, k), dtype=float) for k in "xyzij"},
+        }
+        if self.fast_number:
+            n = len(self.fast_number)
+            words = self.fast_words
+
+            def floats(k: int) -> np.ndarray:
+                return np.fromiter((float(t) if t else _NAN for t in map(itemgetter(k), words)),
+                                   float, n)
+
+            fast = {"kind": np.fromiter(map(int, map(itemgetter(0), words)), np.int64, n),
+                    "number": np.asarray(self.fast_number, dtype=np.int64),
+                    "x": floats(1), "y": floats(2), "z": floats(3), "i": floats(4),
+                    "j": floats(5)}
+            order = np.argsort(np.concatenate([cols["number"], fast["number"]]), kind="stable")
+            cols = {k: np.concatenate([cols[k], fast[k]])[order] for k in cols}
+            arc = cols["kind"] >= 2
+            bad = arc == np.isnan(cols["i"])
+            if bad.any():
+                first = int(np.argmax(bad))
+                why = "arc without I/J" if arc[first] else "I/J outside an arc move"
+                raise SpecholoError(f"G-code line {cols['number'][first]}: {why}")
+        if self.units:
+            at, factor = (np.asarray(v) for v in zip(*self.units, strict=True))
+            idx = np.searchsorted(at, cols["number"], side="right") - 1
+            scale = np.where(idx >= 0, factor[np.maximum(idx, 0)], 1.0)
+            for axis in "xyzij":
+                cols[axis] = cols[axis] * scale
+        return cols
+
+    def stipple_at(self, numbers: np.ndarray) -> np.ndarray:
+        """The stipple id in force on the given lines (-1 before any)."""
+        if not self.stipple:
+            return np.full(len(numbers), -1, dtype=np.int64)
+        at, ids = (np.asarray(v, dtype=np.int64) for v in zip(*self.stipple, strict=True))
+        idx = np.searchsorted(at, numbers, side="right") - 1
+        return np.where(idx >= 0, ids[np.maximum(idx, 0)], -1)
+
+
+def _fill_forward(values: np.ndarray, initial: float) -> np.ndarray:
+    """Modal coordinates: each NaN takes the last given value before it."""
+    full = np.concatenate([[initial], values])
+    idx = np.where(np.isnan(full), 0, np.arange(len(full)))
+    return full[np.maximum.accumulate(idx)]
+
+
+def _assemble(moves: _Moves) -> Grooves:
+    cols = moves.columns()
+    kind = cols["kind"]
+    number = cols["number"]
+    ex, ey = cols["x"], cols["y"]
+    has_xy = ~(np.isnan(ex) & np.isnan(ey))
+    # positions before and after each move; the machine starts at the origin
+    x = _fill_forward(ex, 0.0)
+    y = _fill_forward(ey, 0.0)
+    z = _fill_forward(cols["z"], 0.0)
+    start = np.stack([x[:-1], y[:-1]], axis=1)
+    end = np.stack([x[1:], y[1:]], axis=1)
+
+    arc = kind >= 2
+    centre = start + np.stack([cols["i"], cols["j"]], axis=1)
+    r1 = np.linalg.norm(start - centre, axis=1)
+    r2 = np.linalg.norm(end - centre, axis=1)
+    circle = arc & np.all(start == end, axis=1)
+    # LinuxCNC accepts radii differing by up to about 0.025 mm and cuts a spiral;
+    # a bulge cannot hold a spiral, so only near-exact arcs are read
+    skew = arc & ~(np.abs(r1 - r2) <= np.maximum(5e-3, 1e-3 * r1))
+    for bad, why in ((circle, "full circles are not supported"),
+                     (skew, "arc radii to start and end differ")):
+        if bad.any():
+            e = int(np.argmax(bad))
+            raise SpecholoError(f"G-code line {number[e]}: {why} (start {start[e].round(5)}, "
+                                f"centre {centre[e].round(5)}, end {end[e].round(5)})")
+
+    below = z[1:] < 0.0
+    begins = below & ~(z[:-1] < 0.0)  # a groove starts where the tool goes below the plate
+    vertex = below & (begins | has_xy)
+    verts = end[vertex]
+    path_start = begins[vertex]
+    offsets = np.append(np.flatnonzero(path_start), len(verts)).astype(np.int64)
+    stipple = moves.stipple_at(number[begins])
+
+    bulges = np.zeros(len(verts))
+    cut_arc = (arc & vertex)[vertex] & ~path_start  # arcs between two groove vertices
+    k = np.flatnonzero(cut_arc)
+    if len(k):
+        c = centre[vertex][k]
+        u = verts[k - 1] - c
+        v = verts[k] - c
+        ang = np.arctan2(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0], np.sum(u * v, axis=1))
+        ccw = kind[vertex][k] == 3
+        # the direction word decides which way round the circle the arc goes
+        sweep = np.where(ccw, np.where(ang <= 0, ang + 2 * np.pi, ang),
+                         np.where(ang >= 0, ang - 2 * np.pi, ang))
+        bulges[k - 1] = np.tan(sweep / 4.0)
+    return Grooves(verts.reshape(-1, 2), bulges, offsets, stipple)
+
+
+def read_gcode(path: str | os.PathLike[str]) -> Grooves:
+    """Read back the grooves a G-code program cuts.
+
+    Understands the subset :func:`write_gcode` writes and reasonably general
+    programs: modal ``G0/G1/G2/G3`` with ``X Y Z I J F`` words (G2/G3 with
+    incremental ``I J`` in the XY plane), ``G20``/``G21``, comments in
+    parentheses or after ``;``. A groove is a run of moves below Z = 0 (a move
+    with X or Y words adds a vertex, a move along Z alone does not); its stipple
+    id is that of the last ``(stipple N)`` comment before it (-1 if none).
+
+    Args:
+        path: G-code file.
+
+    Returns:
+        The grooves, arcs as bulges.
+
+    Raises:
+        SpecholoError: on a line it cannot parse or a construct it does not support.
+    """
+    moves = _Moves()
+    fast = _FAST_MOVE.fullmatch
+    keep_number = moves.fast_number.append
+    keep_words = moves.fast_words.append
+    try:
+        # comments may hold any text; the words themselves must be ASCII
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for number, raw in enumerate(fh, 1):
+                found = fast(raw)
+                if found is not None:
+                    keep_number(number)
+                    keep_words(found.groups())
+                    continue
+                moves.line(number, raw)
+                if moves.ended:
+                    break
+    except OSError as exc:
+        raise SpecholoError(f"cannot read G-code file {os.fspath(path)!r}: {exc.strerror}") from exc
+    return _assemble(moves)
