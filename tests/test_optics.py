@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from specholo.hosts.flat import sightline_crossing
 from specholo.optics.foliation import hyperbola_slope, hyperbola_y
-from specholo.optics.normality import normality, reflect, unit
+from specholo.optics.normality import reflect, unit
 from specholo.setup import Light, Setup, Tool, Viewer
 from specholo.simulation.glints import Engraved, find_glints
 from specholo.simulation.stereo import triangulate

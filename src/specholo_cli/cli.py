@@ -79,7 +79,8 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     """Design a hologram of MODEL (OBJ, STL, PLY, OFF, GLB; PLY/XYZ/CSV point clouds)."""
     from rich.console import Console
 
-    from specholo.pipeline import DesignConfig, design as run_design, write_design
+    from specholo.pipeline import DesignConfig, write_design
+    from specholo.pipeline import design as run_design
 
     values = _read_config(config_path)
     if method is not None:

@@ -31,7 +31,8 @@ def design_classic(runs: Runs, setup: Setup, near_plate: float | None = None) ->
     r = classic_radius(far.point[:, 2], a)
     # Behind the plate the glint rides the top of a circle below p; in front, the bottom.
     side = np.where(far.point[:, 2] < 0, 1.0, -1.0)
-    centre = straight_on_image(far.point, setup.viewer) - side[:, None] * np.array([0.0, 1.0]) * r[:, None]
+    centre = straight_on_image(far.point, setup.viewer)
+    centre[:, 1] -= side * r
     start = centre + (side * r)[:, None] * classic_glint_direction(far.start, a)
     end = centre + (side * r)[:, None] * classic_glint_direction(far.end, a)
     ang0 = np.arctan2(start[:, 1] - centre[:, 1], start[:, 0] - centre[:, 0])

@@ -47,7 +47,8 @@ def design_hyperbola(runs: Runs, setup: Setup, step: float = math.radians(0.5),
     y = hyperbola_y(x, apex, p[:, 2], a)
     direction = np.sign(x[np.minimum(first[run] + 1, run.size - 1)] - x[first[run]])
     direction[direction == 0] = 1.0
-    tangent = np.stack([np.ones_like(x), hyperbola_slope(x, apex, p[:, 2], a)], axis=1) * direction[:, None]
+    slope = hyperbola_slope(x, apex, p[:, 2], a)
+    tangent = np.stack([np.ones_like(x), slope], axis=1) * direction[:, None]
     tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
     breaks = np.zeros(run.size, dtype=bool)
     breaks[first] = True

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -102,13 +103,13 @@ class _Field:
         if light.distance is None:
             lx, ly, lz = light.direction
             return lx + ux * inv, ly + uy * inv, lz + uz * inv
-        lp = light.position
+        lp = light.distance * light.direction
         vx, vy, vz = lp[0] - gx, lp[1] - gy, lp[2] - gz
         linv = 1.0 / np.sqrt(vx * vx + vy * vy + vz * vz)
         return vx * linv + ux * inv, vy * linv + uy * inv, vz * linv + uz * inv
 
     def __call__(self, theta: np.ndarray, y: np.ndarray,
-                 p: np.ndarray) -> tuple[np.ndarray, ...]:
+                 p: np.ndarray) -> tuple[Any, ...]:
         """Slope and targets of the toolpath at (theta, y).
 
         Args:
