@@ -97,7 +97,9 @@ def test_construction_matches_closed_form_hyperbola_far_away():
         pj = p[grooves.stipple[j]][None].repeat(len(v), 0)
         y_closed = hyperbola_y(v[:, 0], pj[:, :2], pj[:, 2], a)
         offset = v[:, 1] - y_closed
-        assert np.ptp(offset) < 1e-3, "the construction drifts from the closed form"
+        # Microns over a hyperbola several mm tall: the integration's (Heun) own error.
+        assert np.ptp(offset) < 5e-3, "the construction drifts from the closed form"
+        assert np.ptp(y_closed) > 2.0
         assert np.ptp(v[:, 0]) > 20.0
 
 
@@ -159,7 +161,7 @@ def test_property_glints_triangulate_to_the_point(elevation, light_distance, dis
     assert len(gl.point) >= 1 and len(gr.point) >= 1
     for eye, g in ((left[0], gl), (right[0], gr)):
         s = _sightline_at(eye, p[[0] * len(g.point)], g.point[:, 2])
-        assert np.abs(g.point[:, 0] - s[:, 0]).max() < 0.02
+        assert np.abs(g.point[:, 0] - s[:, 0]).max() < 0.01
         assert np.abs(g.point[:, 1] - s[:, 1]).max() < 0.25
     k = len(gl.point) * len(gr.point)
     il, ir = np.meshgrid(np.arange(len(gl.point)), np.arange(len(gr.point)))

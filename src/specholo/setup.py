@@ -112,13 +112,23 @@ class Viewer:
         return math.atan2(0.5 * self.ipd, self.distance)
 
     @property
+    def eye_radius(self) -> float:
+        """Distance of every eye from the plate centre, mm.
+
+        Eyes sit IPD/2 off the arc along its tangent, so all of them lie on one
+        circle of radius sqrt(D^2 + (IPD/2)^2): designs aim at that circle, where
+        real eyes are, rather than at the arc of head centres.
+        """
+        return math.hypot(self.distance, 0.5 * self.ipd)
+
+    @property
     def design_range(self) -> float:
-        """Largest azimuth an eye reaches, in radians: the range a design must serve."""
+        """Largest eye azimuth on the eyes' circle, radians: the range designs serve."""
         # A small margin so eyes exactly at the edge still meet a groove, not its end.
         return self.half_range + self.eye_half_angle + math.radians(0.5)
 
-    def eye(self, theta: np.ndarray) -> np.ndarray:
-        """Eye positions on the arc.
+    def head(self, theta: np.ndarray) -> np.ndarray:
+        """Head centres on the arc.
 
         Args:
             theta: (n,) azimuths in radians.
@@ -133,27 +143,38 @@ class Viewer:
             axis=-1,
         )
 
+    def eye(self, theta: np.ndarray) -> np.ndarray:
+        """Single eyes at azimuths theta on the eyes' circle (radius :attr:`eye_radius`).
+
+        Args:
+            theta: (n,) eye azimuths in radians.
+
+        Returns:
+            (n, 3) eye positions.
+        """
+        theta = np.asarray(theta, dtype=float)
+        r = self.eye_radius
+        return np.stack(
+            [r * np.sin(theta), np.full_like(theta, self.height), r * np.cos(theta)], axis=-1)
+
     def eye_velocity(self, theta: np.ndarray) -> np.ndarray:
         """Derivative d eye / d theta, shape (n, 3)."""
         theta = np.asarray(theta, dtype=float)
-        return np.stack(
-            [self.distance * np.cos(theta), np.zeros_like(theta),
-             -self.distance * np.sin(theta)],
-            axis=-1,
-        )
+        r = self.eye_radius
+        return np.stack([r * np.cos(theta), np.zeros_like(theta), -r * np.sin(theta)], axis=-1)
 
     def stereo(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Left and right eyes of heads looking at the plate centre from the arc.
+        """Left and right eyes of heads on the arc looking at the plate centre.
 
         Args:
             theta: (n,) head azimuths in radians.
 
         Returns:
             Two (n, 3) arrays: left and right eye positions, IPD apart along the
-            arc's tangent.
+            arc's tangent (both on the eyes' circle).
         """
         theta = np.asarray(theta, dtype=float)
-        centre = self.eye(theta)
+        centre = self.head(theta)
         tangent = np.stack([np.cos(theta), np.zeros_like(theta), -np.sin(theta)], axis=-1)
         half = 0.5 * self.ipd * tangent
         return centre - half, centre + half

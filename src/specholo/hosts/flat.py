@@ -39,7 +39,7 @@ def crossing_components(viewer: Viewer, theta: np.ndarray, px: np.ndarray, py: n
         s_x, s_y, ds_x/dtheta, ds_y/dtheta, each (n,).
     """
     sin, cos = np.sin(theta), np.cos(theta)
-    d = viewer.distance
+    d = viewer.eye_radius
     ex, ey, ez = d * sin, viewer.height, d * cos
     dex, dez = ez, -ex  # d eye / d theta
     inv = 1.0 / (ez - pz)

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.setup import Light, Setup
+from specholo.setup import Setup
+from specholo.toolpaths import _stripe_kernel as kernel
 from specholo.toolpaths.arcs import arc_chain
 from specholo.toolpaths.common import Runs, dots_for, split_near_plate
 from specholo.toolpaths.grooves import Grooves
@@ -38,8 +38,8 @@ class StripeOptions:
     """
 
     band: float = 0.2
-    max_step: float = math.radians(0.5)
-    max_chord: float = 0.5
+    max_step: float = math.radians(1.0)
+    max_chord: float = 1.0
     min_light_tilt: float = 0.05
 
     def __post_init__(self) -> None:
@@ -47,181 +47,40 @@ class StripeOptions:
             raise SpecholoError(f"band must be a positive number of mm, got {self.band}")
 
 
-class _Field:
-    """The glint-condition slope field, component-wise for speed.
-
-    The tool is a ball of radius R whose centre runs R - d above the plate; the
-    glint sits on the groove wall at g = c - R h/|h|, off the toolpath c. So the
-    field places the *glint* on the sightline (at the glint's own depth) and
-    moves the toolpath by R h/|h| to put it there; the band bounds g's
-    vertical offset from the sightline.
-    """
-
-    _DTHETA = 1e-7  # forward-difference step for the toolpath's theta-derivative
-
-    def __init__(self, setup: Setup) -> None:
-        self.viewer = setup.viewer
-        self.light = setup.light
-        self.radius = setup.tool.radius
-        self.centre_z = setup.tool.radius - setup.tool.depth
-
-    def _target(self, theta: np.ndarray, y: np.ndarray,
-                p: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Toolpath x, band centre y and normality vector for eyes at theta.
-
-        Args:
-            theta: (k,) azimuths. y: (k,) toolpath heights. p: (k, 3) points.
-
-        Returns:
-            x (k,), band centre (k,) such that u = y - centre, and h components at
-            the glint.
-        """
-        v, light, r = self.viewer, self.light, self.radius
-        ex, ey, ez = v.distance * np.sin(theta), v.height, v.distance * np.cos(theta)
-        px, py, pz = p[:, 0], p[:, 1], p[:, 2]
-        inv_dz = 1.0 / (ez - pz)
-        gx = ex + ez * inv_dz * (px - ex)  # start on the plate crossing
-        gz = np.zeros_like(gx)
-        gy = y
-        for _ in range(3):
-            hx, hy, hz = self._h(gx, gy, gz, ex, ey, ez, light)
-            inv = 1.0 / np.sqrt(hx * hx + hy * hy + hz * hz)
-            nx, ny, nz = hx * inv, hy * inv, hz * inv
-            gz = self.centre_z - r * nz
-            tau = (ez - gz) * inv_dz  # sightline point at the glint's depth
-            gx = ex + tau * (px - ex)
-            line_y = ey + tau * (py - ey)
-            gy = y - r * ny
-        hx, hy, hz = self._h(gx, gy, gz, ex, ey, ez, light)
-        return gx + r * nx, line_y + r * ny, hx, hy, hz
-
-    @staticmethod
-    def _h(gx: np.ndarray, gy: np.ndarray, gz: np.ndarray, ex: np.ndarray, ey: float,
-           ez: np.ndarray, light: Light) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        ux, uy, uz = ex - gx, ey - gy, ez - gz
-        inv = 1.0 / np.sqrt(ux * ux + uy * uy + uz * uz)
-        if light.distance is None:
-            lx, ly, lz = light.direction
-            return lx + ux * inv, ly + uy * inv, lz + uz * inv
-        lp = light.distance * light.direction
-        vx, vy, vz = lp[0] - gx, lp[1] - gy, lp[2] - gz
-        linv = 1.0 / np.sqrt(vx * vx + vy * vy + vz * vz)
-        return vx * linv + ux * inv, vy * linv + uy * inv, vz * linv + uz * inv
-
-    def __call__(self, theta: np.ndarray, y: np.ndarray,
-                 p: np.ndarray) -> tuple[Any, ...]:
-        """Slope and targets of the toolpath at (theta, y).
-
-        Args:
-            theta: (k,) azimuths. y: (k,) toolpath heights. p: (k, 3) points.
-
-        Returns:
-            dy/dtheta, band centre, toolpath x, dx/dtheta, d(band centre)/dtheta,
-            each (k,), and the normality vector (hx, hy, hz) at the glint.
-        """
-        x, centre, hx, hy, hz = self._target(theta, y, p)
-        x2, centre2, *_ = self._target(theta + self._DTHETA, y, p)
-        dx = (x2 - x) / self._DTHETA
-        dcentre = (centre2 - centre) / self._DTHETA
-        dy = -dx * hx / hy
-        return dy, centre, x, dx, dcentre, (hx, hy, hz)
+def _params(setup: Setup, opts: StripeOptions) -> np.ndarray:
+    """The setup packed for the compiled kernel (see :mod:`._stripe_kernel`)."""
+    light, viewer, tool = setup.light, setup.viewer, setup.tool
+    point = light.distance is not None
+    lvec = light.distance * light.direction if light.distance is not None else light.direction
+    return np.array([viewer.eye_radius, viewer.height, *lvec, float(point), tool.radius,
+                     tool.radius - tool.depth, opts.max_step, opts.max_chord])
 
 
-def _start_offsets(field: _Field, runs: Runs, w: float,
-                   opts: StripeOptions) -> tuple[np.ndarray, np.ndarray]:
-    """Initial offsets u0 and a validity mask for each run.
-
-    A coarse pass integrates u' with the groove on the crossings; the start offset
-    then puts u = 0 at the apex (the view where u' = 0, usually straight on), or
-    centres the whole run in the band when it fits in one stripe.
-    """
-    k = 33
-    frac = np.linspace(0.0, 1.0, k)
-    th = runs.start[:, None] + (runs.end - runs.start)[:, None] * frac
-    pts = np.repeat(runs.point, k, axis=0)
-    _, sy, *_ = field(th.ravel(), np.zeros(th.size), pts)
-    dy, _, _, _, dsy, (hx, hy, hz) = field(th.ravel(), sy, pts)
-    du = (dy - dsy).reshape(-1, k)
-    hy = np.abs(hy) / np.sqrt(hx * hx + hy * hy + hz * hz)
-    valid = hy.reshape(-1, k).min(axis=1) >= opts.min_light_tilt
-    du = np.where(np.isfinite(du), du, 0.0)
-    dth = np.diff(th, axis=1)
-    u = np.concatenate([np.zeros((len(runs), 1)),
-                        np.cumsum(0.5 * (du[:, 1:] + du[:, :-1]) * dth, axis=1)], axis=1)
-    lo, hi = u.min(axis=1), u.max(axis=1)
-    apex = np.argmin(np.abs(du), axis=1)
-    interior = (apex > 0) & (apex < k - 1)
-    u_apex = u[np.arange(len(runs)), apex]
-    wrapped = np.mod(-u_apex + w, 2 * w) - w
-    edge = -w * np.sign(u[:, -1]) * (1.0 - 1e-9)
-    u0 = np.where(interior, wrapped, edge)
-    u0 = np.where(hi - lo <= 2 * w * 0.999, -0.5 * (hi + lo), u0)
-    return u0, valid
-
-
-def _integrate(field: _Field, runs: Runs, u0: np.ndarray, w: float,
-               opts: StripeOptions) -> tuple[np.ndarray, ...]:
-    """Follow every run through its azimuth interval, striping at the band edges.
-
-    Returns:
-        run (m,), theta (m,), y (m,), stripe (m,) for all samples, ordered by run
-        then by travel.
-    """
-    n = len(runs)
-    theta = runs.start.copy()
-    _, sy, *_ = field(theta, np.zeros(n), runs.point)
-    y = sy + u0
-    stripe = np.zeros(n, dtype=np.int64)
-    rec: list[tuple[np.ndarray, ...]] = [(np.arange(n), theta.copy(), y.copy(), stripe.copy())]
-    active = np.flatnonzero(runs.end - theta > 1e-12)
-
-    def heun(th: np.ndarray, yy: np.ndarray, p: np.ndarray, k1: np.ndarray,
-             dth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        k2, sy2, *_ = field(th + dth, yy + dth * k1, p)
-        y1 = yy + 0.5 * dth * (k1 + k2)
-        return y1, y1 - sy2
-
-    while active.size:
-        th, yy, p = theta[active], y[active], runs.point[active]
-        k1, sy0, _, dsx, dsy, _ = field(th, yy, p)
-        u_start = yy - sy0
-        dth = np.minimum(runs.end[active] - th, opts.max_step)
-        dth = np.minimum(dth, opts.max_chord / np.maximum(np.abs(dsx), 1e-12))
-        # |du| <= 2w per step: a step can cross at most one band edge.
-        dth = np.minimum(dth, 2.0 * w / np.maximum(np.abs(k1 - dsy), 1e-12))
-        y1, u1 = heun(th, yy, p, k1, dth)
-        edge = np.where(u1 > w, w, np.where(u1 < -w, -w, 0.0))
-        cross = np.flatnonzero(edge)
-        if cross.size:
-            # Secant on the step length so the stripe ends on the band edge.
-            a_t, a_u = np.zeros(cross.size), u_start[cross]
-            b_t, b_u = dth[cross], u1[cross]
-            e = edge[cross]
-            for _ in range(2):
-                t_new = a_t + (e - a_u) * (b_t - a_t) / (b_u - a_u)
-                y_new, u_new = heun(th[cross], yy[cross], p[cross], k1[cross], t_new)
-                inside = np.abs(u_new) <= w
-                a_t = np.where(inside, t_new, a_t)
-                a_u = np.where(inside, u_new, a_u)
-                b_t = np.where(inside, b_t, t_new)
-                b_u = np.where(inside, b_u, u_new)
-            dth[cross] = t_new
-            y1[cross] = y_new
-        th1 = th + dth
-        theta[active] = th1
-        y[active] = y1
-        rec.append((active.copy(), th1, y1.copy(), stripe[active].copy()))
-        if cross.size:
-            idx = active[cross]
-            _, sy_c, *_ = field(th1[cross], y1[cross], p[cross])
-            stripe[idx] += 1
-            y[idx] = sy_c - edge[cross]
-            rec.append((idx, th1[cross], y[idx].copy(), stripe[idx].copy()))
-        active = active[runs.end[active] - theta[active] > 1e-12]
-
-    run = np.concatenate([r[0] for r in rec])
+def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
+               w: float) -> tuple[np.ndarray, ...]:
+    """Samples of every run: run (m,), theta (m,), y (m,), stripe (m,), in travel order."""
+    pending = np.arange(len(runs))
+    parts = []
+    while pending.size:
+        offsets = np.concatenate([[0], np.cumsum(cap[pending])]).astype(np.int64)
+        theta = np.empty(offsets[-1])
+        y = np.empty(offsets[-1])
+        stripe = np.empty(offsets[-1], dtype=np.int64)
+        count = kernel.integrate(runs.start[pending], runs.end[pending],
+                                 np.ascontiguousarray(runs.point[pending]), u0[pending],
+                                 params, w, offsets, theta, y, stripe)
+        done = count >= 0
+        idx = np.flatnonzero(done)
+        keep = np.repeat(offsets[:-1][idx], count[idx]) + (
+            np.arange(count[idx].sum()) - np.repeat(np.cumsum(count[idx]) - count[idx],
+                                                    count[idx]))
+        parts.append((np.repeat(pending[idx], count[idx]), theta[keep], y[keep], stripe[keep]))
+        # Runs whose bound was too small go again with room to spare.
+        cap[pending[~done]] *= 4
+        pending = pending[~done]
+    run = np.concatenate([p[0] for p in parts])
     order = np.argsort(run, kind="stable")
-    return tuple(np.concatenate([r[i] for r in rec])[order] for i in range(4))
+    return tuple(np.concatenate([p[i] for p in parts])[order] for i in range(4))
 
 
 def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
@@ -244,20 +103,19 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     if near_plate is None:
         near_plate = 0.5 * setup.tool.width
     far, near = split_near_plate(runs, near_plate)
-    field = _Field(setup)
     if len(far) == 0:
         return dots_for(near, setup), np.zeros(0, dtype=np.int64)
-    u0, valid = _start_offsets(field, far, w, opts)
+    params = _params(setup, opts)
+    pts3 = np.ascontiguousarray(far.point)
+    u0, valid, cap = kernel.start_offsets(far.start, far.end, pts3, params, w,
+                                          opts.min_light_tilt)
     dropped = np.unique(far.stipple[~valid])
     far = far.take(valid)
-    u0 = u0[valid]
+    u0, cap = u0[valid], cap[valid]
     if len(far) == 0:
         return dots_for(near, setup), dropped
-    run, theta, y, stripe = _integrate(field, far, u0, w, opts)
-    p = far.point[run]
-    dy, _, x, dsx, _, _ = field(theta, y, p)
-    tangent = np.stack([dsx, dy], axis=1)
-    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    run, theta, y, stripe = _integrate(far, params, u0, cap, w)
+    x, tangent = kernel.evaluate(theta, y, np.ascontiguousarray(far.point[run]), params)
     pts = np.stack([x, y], axis=1)
     breaks = np.ones(len(run), dtype=bool)
     breaks[1:] = (run[1:] != run[:-1]) | (stripe[1:] != stripe[:-1])

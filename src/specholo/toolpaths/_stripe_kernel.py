@@ -1,0 +1,241 @@
+"""Compiled inner loops of the striped construction (numba, parallel over runs).
+
+Each run (a stipple's view interval) is a short sequential walk along the
+azimuth, so this is the one place a loop must stay; it runs compiled, one run
+per iteration of a parallel loop. ``params`` packs the setup as floats:
+[D, eye height, light x, y, z, point light (0/1), ball radius R, ball-centre
+height R - d]; for a point light, (x, y, z) is its position, else its direction.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+_DTHETA = 1e-7  # forward-difference step for the toolpath's theta-derivative
+_NEAR_EDGE = 1e-12
+
+
+@nb.njit(cache=True, inline="always")
+def _h(gx: float, gy: float, gz: float, ex: float, ey: float, ez: float,
+       params: np.ndarray) -> tuple[float, float, float]:
+    """Normality vector (the half vector) at glint g for an eye e."""
+    ux, uy, uz = ex - gx, ey - gy, ez - gz
+    inv = 1.0 / math.sqrt(ux * ux + uy * uy + uz * uz)
+    lx, ly, lz = params[2], params[3], params[4]
+    if params[5] > 0.5:
+        lx, ly, lz = lx - gx, ly - gy, lz - gz
+        linv = 1.0 / math.sqrt(lx * lx + ly * ly + lz * lz)
+        lx, ly, lz = lx * linv, ly * linv, lz * linv
+    return lx + ux * inv, ly + uy * inv, lz + uz * inv
+
+
+@nb.njit(cache=True)
+def target(theta: float, y: float, px: float, py: float, pz: float, params: np.ndarray,
+           nx: float, ny: float, nz: float,
+           iterations: int) -> tuple[float, float, float, float, float, float, float, float]:
+    """Toolpath x, band centre and h for the eye at theta, toolpath height y.
+
+    The glint sits on the ball-end wall at g = c - R n (c the ball centre, R - d
+    above the plate, n = h/|h|); g is put on the sightline at its own depth. n
+    is found by fixed-point steps from a first guess (h turns by ~R / distance
+    per step, so each step gains ~3 digits).
+
+    Returns:
+        x, centre (u = y - centre is the glint's offset from the sightline),
+        hx, hy, hz, and the converged n.
+    """
+    d, ey, r, zc = params[0], params[1], params[6], params[7]
+    ex, ez = d * math.sin(theta), d * math.cos(theta)
+    inv_dz = 1.0 / (ez - pz)
+    gx = gy = gz = line_y = 0.0
+    for _ in range(iterations):
+        gz = zc - r * nz
+        tau = (ez - gz) * inv_dz
+        gx = ex + tau * (px - ex)
+        line_y = ey + tau * (py - ey)
+        gy = y - r * ny
+        hx, hy, hz = _h(gx, gy, gz, ex, ey, ez, params)
+        inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
+        nx, ny, nz = hx * inv, hy * inv, hz * inv
+    gz = zc - r * nz
+    tau = (ez - gz) * inv_dz
+    gx = ex + tau * (px - ex)
+    line_y = ey + tau * (py - ey)
+    gy = y - r * ny
+    hx, hy, hz = _h(gx, gy, gz, ex, ey, ez, params)
+    return gx + r * nx, line_y + r * ny, hx, hy, hz, nx, ny, nz
+
+
+@nb.njit(cache=True)
+def field(theta: float, y: float, px: float, py: float, pz: float,
+          params: np.ndarray) -> tuple[float, float, float, float, float, float, float, float]:
+    """Slope of the toolpath and its targets at (theta, y).
+
+    Returns:
+        dy/dtheta, band centre, x, dx/dtheta, d centre/dtheta, hx, hy, hz.
+    """
+    # First guess: the plate normal, whose glint is the toolpath's own plate crossing.
+    x, c, hx, hy, hz, nx, ny, nz = target(theta, y, px, py, pz, params, 0.0, 0.0, 1.0, 3)
+    # Warm start: one step from the converged n keeps the difference quotient exact.
+    x2, c2, _, _, _, _, _, _ = target(theta + _DTHETA, y, px, py, pz, params, nx, ny, nz, 1)
+    dx = (x2 - x) / _DTHETA
+    return -dx * hx / hy, c, x, dx, (c2 - c) / _DTHETA, hx, hy, hz
+
+
+@nb.njit(cache=True, parallel=True)
+def start_offsets(start: np.ndarray, end: np.ndarray, pts: np.ndarray, params: np.ndarray,
+                  w: float, min_light_tilt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Initial band offset, validity and a sample-count bound for each run.
+
+    A coarse pass integrates u' along the run; the offset puts u = 0 at the apex
+    (where u' = 0, usually straight on), or centres a run that fits in one stripe.
+
+    Returns:
+        u0 (r,), valid (r,) and capacity (r,) (an upper bound on samples).
+    """
+    k = 33
+    n = start.size
+    u0 = np.zeros(n)
+    valid = np.ones(n, dtype=np.bool_)
+    cap = np.zeros(n, dtype=np.int64)
+    for i in nb.prange(n):
+        px, py, pz = pts[i, 0], pts[i, 1], pts[i, 2]
+        u = 0.0
+        lo = hi = 0.0
+        total = 0.0
+        best = math.inf
+        u_apex = 0.0
+        apex = 0
+        prev_du = 0.0
+        prev_th = start[i]
+        x_first = x_last = 0.0
+        for j in range(k):
+            th = start[i] + (end[i] - start[i]) * j / (k - 1)
+            _, c, _, _, _, _, _, _ = field(th, 0.0, px, py, pz, params)
+            dy, _, x, _, dc, hx, hy, hz = field(th, c, px, py, pz, params)
+            if abs(hy) / math.sqrt(hx * hx + hy * hy + hz * hz) < min_light_tilt:
+                valid[i] = False
+            du = dy - dc
+            if not math.isfinite(du):
+                du = 0.0
+            if j == 0:
+                x_first = x
+            else:
+                step = 0.5 * (du + prev_du) * (th - prev_th)
+                u += step
+                total += abs(step)
+            x_last = x
+            lo = min(lo, u)
+            hi = max(hi, u)
+            if abs(du) < best:
+                best = abs(du)
+                apex = j
+                u_apex = u
+            prev_du = du
+            prev_th = th
+        if hi - lo <= 2.0 * w * 0.999:
+            u0[i] = -0.5 * (hi + lo)
+        elif 0 < apex < k - 1:
+            u0[i] = ((-u_apex + w) % (2.0 * w)) - w
+        else:
+            u0[i] = -w * math.copysign(1.0, u) * (1.0 - 1e-9)
+        span = end[i] - start[i]
+        cap[i] = 3 * (int(total / (2.0 * w)) + 2) + int(span / params[8]) \
+            + int(abs(x_last - x_first) / params[9]) + 64
+    return u0, valid, cap
+
+
+@nb.njit(cache=True, inline="always")
+def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: float,
+          params: np.ndarray) -> tuple[float, float]:
+    k2, c2, _, _, _, _, _, _ = field(th + dth, y + dth * k1, px, py, pz, params)
+    y1 = y + 0.5 * dth * (k1 + k2)
+    return y1, y1 - c2
+
+
+@nb.njit(cache=True, parallel=True)
+def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarray,
+              params: np.ndarray, w: float, offsets: np.ndarray, theta_out: np.ndarray,
+              y_out: np.ndarray, stripe_out: np.ndarray) -> np.ndarray:
+    """Walk every run through its interval, striping where |u| reaches the band edge.
+
+    Samples of run r go to slots offsets[r] .. offsets[r + 1] - 1.
+
+    Returns:
+        (r,) number of samples written per run, or -1 where the slots ran out.
+    """
+    n = start.size
+    count = np.zeros(n, dtype=np.int64)
+    max_step, max_chord = params[8], params[9]
+    for i in nb.prange(n):
+        px, py, pz = pts[i, 0], pts[i, 1], pts[i, 2]
+        k, stop = offsets[i], offsets[i + 1]
+        th = start[i]
+        _, c, _, _, _, _, _, _ = field(th, 0.0, px, py, pz, params)
+        y = c + u0[i]
+        stripe = 0
+        theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
+        k += 1
+        while end[i] - th > _NEAR_EDGE:
+            if k + 2 > stop:
+                k = -1
+                break
+            k1, c, _, dx, dc, _, _, _ = field(th, y, px, py, pz, params)
+            u_start = y - c
+            dth = min(end[i] - th, max_step, max_chord / max(abs(dx), 1e-12))
+            # |du| <= 2w per step: a step can cross at most one band edge.
+            dth = min(dth, 2.0 * w / max(abs(k1 - dc), 1e-12))
+            y1, u1 = _heun(th, y, k1, dth, px, py, pz, params)
+            edge = 0.0
+            if u1 > w:
+                edge = w
+            elif u1 < -w:
+                edge = -w
+            if edge != 0.0:
+                # Secant on the step length so the stripe ends on the band edge.
+                a_t, a_u, b_t, b_u = 0.0, u_start, dth, u1
+                t_new = dth
+                for _ in range(2):
+                    t_new = a_t + (edge - a_u) * (b_t - a_t) / (b_u - a_u)
+                    y1, u_new = _heun(th, y, k1, t_new, px, py, pz, params)
+                    if abs(u_new) <= w:
+                        a_t, a_u = t_new, u_new
+                    else:
+                        b_t, b_u = t_new, u_new
+                dth = t_new
+            th += dth
+            y = y1
+            theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
+            k += 1
+            if edge != 0.0:
+                _, c, _, _, _, _, _, _ = field(th, y, px, py, pz, params)
+                stripe += 1
+                y = c - edge
+                theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
+                k += 1
+        count[i] = -1 if k < 0 else k - offsets[i]
+    return count
+
+
+@nb.njit(cache=True, parallel=True)
+def evaluate(theta: np.ndarray, y: np.ndarray, pts: np.ndarray,
+             params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Toolpath points and unit tangents (along travel) at samples.
+
+    Returns:
+        x (m,) and tangent (m, 2).
+    """
+    m = theta.size
+    x = np.empty(m)
+    tangent = np.empty((m, 2))
+    for j in nb.prange(m):
+        dy, _, xj, dx, _, _, _, _ = field(theta[j], y[j], pts[j, 0], pts[j, 1], pts[j, 2],
+                                          params)
+        norm = math.sqrt(dx * dx + dy * dy)
+        x[j] = xj
+        tangent[j, 0] = dx / norm
+        tangent[j, 1] = dy / norm
+    return x, tangent
