@@ -224,7 +224,8 @@ def test_place_bbox(
     np.testing.assert_allclose(0.5 * (lo + hi), [0.0, 0.0, center_z], atol=1e-9 * (1 + size))
     # Uniform scale: proportions are kept.
     ratio = (hi - lo) / np.ptp(mesh.vertices, axis=0)
-    np.testing.assert_allclose(ratio, ratio[0], rtol=1e-9)
+    # Thin sides lose relative precision when moved far (here up to ~1e-9).
+    np.testing.assert_allclose(ratio, ratio[0], rtol=1e-6)
     if not cloud:
         assert placed.mesh is not None
         np.testing.assert_array_equal(placed.mesh.faces, mesh.faces)

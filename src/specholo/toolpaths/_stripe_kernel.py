@@ -14,7 +14,8 @@ import math
 import numba as nb
 import numpy as np
 
-_DTHETA = 1e-7  # forward-difference step for the toolpath's theta-derivative
+_DTHETA = 1e-6  # central-difference steps for the toolpath's derivatives (rad, mm)
+_DY = 1e-3
 _NEAR_EDGE = 1e-12
 
 
@@ -75,14 +76,25 @@ def field(theta: float, y: float, px: float, py: float, pz: float,
     """Slope of the toolpath and its targets at (theta, y).
 
     Returns:
-        dy/dtheta, band centre, x, dx/dtheta, d centre/dtheta, hx, hy, hz.
+        dy/dtheta, band centre, x, dx/dtheta, d centre/dtheta (derivatives along
+        the path), hx, hy, hz.
     """
-    # First guess: the plate normal, whose glint is the toolpath's own plate crossing.
-    x, c, hx, hy, hz, nx, ny, nz = target(theta, y, px, py, pz, params, 0.0, 0.0, 1.0, 3)
-    # Warm start: one step from the converged n keeps the difference quotient exact.
-    x2, c2, _, _, _, _, _, _ = target(theta + _DTHETA, y, px, py, pz, params, nx, ny, nz, 1)
-    dx = (x2 - x) / _DTHETA
-    return -dx * hx / hy, c, x, dx, (c2 - c) / _DTHETA, hx, hy, hz
+    # First guess: the plate normal, a wall point at the groove's bottom. Each
+    # fixed-point step gains ~log10(distance / R) digits: four reach ~1e-10 mm.
+    x, c, hx, hy, hz, nx, ny, nz = target(theta, y, px, py, pz, params, 0.0, 0.0, 1.0, 4)
+    # Central differences, each side warm-started from the converged n, so their
+    # residuals (not the base's) cancel in the quotients.
+    xa, ca, _, _, _, _, _, _ = target(theta + _DTHETA, y, px, py, pz, params, nx, ny, nz, 1)
+    xb, cb, _, _, _, _, _, _ = target(theta - _DTHETA, y, px, py, pz, params, nx, ny, nz, 1)
+    xc, cc, _, _, _, _, _, _ = target(theta, y + _DY, px, py, pz, params, nx, ny, nz, 1)
+    xd, cd, _, _, _, _, _, _ = target(theta, y - _DY, px, py, pz, params, nx, ny, nz, 1)
+    x_th, c_th = (xa - xb) / (2.0 * _DTHETA), (ca - cb) / (2.0 * _DTHETA)
+    x_y, c_y = (xc - xd) / (2.0 * _DY), (cc - cd) / (2.0 * _DY)
+    # The wall offset makes x depend on y too: solve (x', y') . h = 0 with
+    # x' = x_th + x_y y' for the path's true direction.
+    slope = hx / hy
+    dy = -x_th * slope / (1.0 + x_y * slope)
+    return dy, c, x, x_th + x_y * dy, c_th + c_y * dy, hx, hy, hz
 
 
 @nb.njit(cache=True, parallel=True)

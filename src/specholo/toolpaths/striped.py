@@ -39,7 +39,7 @@ class StripeOptions:
 
     band: float = 0.2
     max_step: float = math.radians(1.0)
-    max_chord: float = 1.0
+    max_chord: float = 0.5
     min_light_tilt: float = 0.05
 
     def __post_init__(self) -> None:
