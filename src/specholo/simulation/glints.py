@@ -20,6 +20,7 @@ from specholo.setup import Light, Tool
 from specholo.toolpaths.grooves import Grooves
 
 _LINE_BULGE = 1e-9
+_CHUNK = 1 << 19  # arcs screened at once
 
 
 @dataclass(frozen=True)
@@ -163,12 +164,16 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
 
     k = len(eng.path)
     if k:
-        idx = np.arange(k)
-        # Screen on the toolpath; the wall shifts h by only ~R / distance (radians).
-        f0, _, h0 = _condition(eng, idx, np.zeros(k), eye, light, wall=False)
-        f1, _, _ = _condition(eng, idx, np.ones(k), eye, light, wall=False)
-        tol = 0.01 * np.linalg.norm(h0, axis=1)
-        near = np.flatnonzero((f0 * f1 <= 0) | (np.minimum(np.abs(f0), np.abs(f1)) < tol))
+        # Screen on the toolpath (the wall shifts h by only ~R / distance radians),
+        # in chunks so memory stays bounded for millions of arcs.
+        near_parts = []
+        for lo in range(0, k, _CHUNK):
+            idx = np.arange(lo, min(k, lo + _CHUNK))
+            f0, _, h0 = _condition(eng, idx, np.zeros(idx.size), eye, light, wall=False)
+            f1, _, _ = _condition(eng, idx, np.ones(idx.size), eye, light, wall=False)
+            tol = 0.01 * np.linalg.norm(h0, axis=1)
+            near_parts.append(idx[(f0 * f1 <= 0) | (np.minimum(np.abs(f0), np.abs(f1)) < tol)])
+        near = np.concatenate(near_parts)
         f0, _, _ = _condition(eng, near, np.zeros(near.size), eye, light)
         f1, _, _ = _condition(eng, near, np.ones(near.size), eye, light)
         # A root exactly on a shared vertex belongs to the arc that starts there.

@@ -97,6 +97,13 @@ def field(theta: float, y: float, px: float, py: float, pz: float,
     return dy, c, x, x_th + x_y * dy, c_th + c_y * dy, hx, hy, hz
 
 
+@nb.njit(cache=True, inline="always")
+def _centre(theta: float, y: float, px: float, py: float, pz: float,
+            params: np.ndarray) -> float:
+    """Band centre alone (no derivatives needed)."""
+    return target(theta, y, px, py, pz, params, 0.0, 0.0, 1.0, 4)[1]
+
+
 @nb.njit(cache=True, parallel=True)
 def start_offsets(start: np.ndarray, end: np.ndarray, pts: np.ndarray, params: np.ndarray,
                   w: float, min_light_tilt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -126,7 +133,7 @@ def start_offsets(start: np.ndarray, end: np.ndarray, pts: np.ndarray, params: n
         x_first = x_last = 0.0
         for j in range(k):
             th = start[i] + (end[i] - start[i]) * j / (k - 1)
-            _, c, _, _, _, _, _, _ = field(th, 0.0, px, py, pz, params)
+            c = _centre(th, 0.0, px, py, pz, params)
             dy, _, x, _, dc, hx, hy, hz = field(th, c, px, py, pz, params)
             if abs(hy) / math.sqrt(hx * hx + hy * hy + hz * hz) < min_light_tilt:
                 valid[i] = False
@@ -186,7 +193,7 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
         px, py, pz = pts[i, 0], pts[i, 1], pts[i, 2]
         k, stop = offsets[i], offsets[i + 1]
         th = start[i]
-        _, c, _, _, _, _, _, _ = field(th, 0.0, px, py, pz, params)
+        c = _centre(th, 0.0, px, py, pz, params)
         y = c + u0[i]
         stripe = 0
         theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
@@ -223,7 +230,7 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
             theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
             k += 1
             if edge != 0.0:
-                _, c, _, _, _, _, _, _ = field(th, y, px, py, pz, params)
+                c = _centre(th, y, px, py, pz, params)
                 stripe += 1
                 y = c - edge
                 theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
