@@ -108,6 +108,42 @@ def test_model_straddling_the_plate(tmp_path: Path, capsys):
     assert max(r["p95_error"] for r in rows) <= 0.3
 
 
+@pytest.mark.parametrize("extra", [
+    ["--light-distance", "500"],  # a point light
+    ["--eye-height", "120", "--view-distance", "450"],
+    ["--light-elevation", "30", "--view-range", "30"],
+])
+def test_other_setups_verify(tmp_path: Path, capsys, extra: list[str]):
+    out = tmp_path / "o"
+    code, _, err = run(["design", BUNNY, "--out", out, "--stipples", "150", *extra], capsys)
+    assert code == 0, err
+    code, _, _ = run(["verify", out], capsys)
+    rows = json.loads((out / "verify.json").read_text())["azimuths"]
+    assert max(r["p95_error"] for r in rows) <= 0.3
+    assert min(r["visibility"] for r in rows) >= 0.95
+
+
+def test_point_cloud_and_a_fresh_design_replaces_old_results(tmp_path: Path, capsys):
+    import numpy as np
+    import trimesh
+
+    cloud = tmp_path / "bunny.xyz"
+    np.savetxt(cloud, trimesh.load(BUNNY).sample(5000, seed=1))
+    out = tmp_path / "o"
+    assert run(["design", cloud, "--out", out, "--stipples", "100"], capsys)[0] == 0
+    assert run(["verify", out], capsys)[0] == 0
+    rows = json.loads((out / "verify.json").read_text())["azimuths"]
+    assert max(r["p95_error"] for r in rows) <= 0.3
+    assert not (out / "model.ply").exists()  # nothing to hide a cloud's points
+    # Designing again into the folder drops the old verification, and a cloud
+    # after a mesh drops the mesh that would otherwise hide its points.
+    assert run(["design", BUNNY, "--out", out, "--stipples", "50"], capsys)[0] == 0
+    assert not (out / "verify.json").exists()
+    assert (out / "model.ply").exists()
+    assert run(["design", cloud, "--out", out, "--stipples", "50"], capsys)[0] == 0
+    assert not (out / "model.ply").exists()
+
+
 def _bad_inputs(tmp_path: Path) -> list[list[str]]:
     empty = tmp_path / "empty.obj"
     empty.write_text("")

@@ -214,8 +214,16 @@ def hologram_json(d: Design) -> dict[str, Any]:
 
 
 @contextlib.contextmanager
-def staged_output(out: str | os.PathLike[str]):  # type: ignore[no-untyped-def]
-    """A scratch folder whose files move into ``out`` only if the block succeeds."""
+def staged_output(out: str | os.PathLike[str],  # type: ignore[no-untyped-def]
+                  stale: tuple[str, ...] = ()):
+    """A scratch folder whose files move into ``out`` only if the block succeeds.
+
+    Args:
+        out: the output folder (created if missing).
+        stale: names in ``out`` that describe an older run and go once the new
+            files are in place (a new design's folder must not keep an old
+            verification).
+    """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise SpecholoError(f"{out} exists and is not a folder")
@@ -228,8 +236,12 @@ def staged_output(out: str | os.PathLike[str]):  # type: ignore[no-untyped-def]
         if not out.exists():
             os.rename(tmp, out)
             return
-        for f in tmp.iterdir():
-            os.replace(f, out / f.name)
+        fresh = {f.name for f in tmp.iterdir()}
+        for name in fresh:
+            os.replace(tmp / name, out / name)
+        for name in set(stale) - fresh:
+            with contextlib.suppress(FileNotFoundError):
+                (out / name).unlink()
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -247,7 +259,7 @@ def write_design(d: Design, out: str | os.PathLike[str]) -> dict[str, float]:
     setup = d.config.setup()
     info = hologram_json(d)
     timings: dict[str, float] = {}
-    with staged_output(out) as tmp:
+    with staged_output(out, stale=("verify.json", "verify.png", "model.ply")) as tmp:
         t0 = time.perf_counter()
         write_gcode(tmp / "hologram.gcode", d.grooves, setup.tool, setup.machining,
                     header={"design": d.config.method, "stipples": str(len(d.points))})
