@@ -215,3 +215,21 @@ def test_grooves_stay_between_the_sightline_crossings():
         margin = 1.0  # band, wall offset and tool radius
         assert (pts[:, 0] >= lo[stip, 0] - margin).all()
         assert (pts[:, 0] <= hi[stip, 0] + margin).all()
+
+
+def test_sample_buffers_that_overflow_are_retried_with_room():
+    from specholo.toolpaths import _stripe_kernel as kernel
+    from specholo.toolpaths.striped import _integrate, _params
+
+    setup = Setup()
+    opts = StripeOptions()
+    p = np.array([[5.0, 8.0, -40.0], [-12.0, -3.0, -65.0], [3.0, 2.0, 25.0]])
+    r = setup.viewer.design_range
+    runs = make_runs(p, np.arange(3), np.full(3, -r), np.full(3, r))
+    params = _params(setup, opts)
+    u0, _, cap = kernel.start_offsets(runs.start, runs.end, runs.point, params, opts.band,
+                                      opts.min_light_tilt)
+    full = _integrate(runs, params, u0, cap.copy(), opts.band)
+    tight = _integrate(runs, params, u0, np.full(3, 2, dtype=np.int64), opts.band)
+    for a, b in zip(full, tight, strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -178,10 +178,13 @@ def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: 
 @nb.njit(cache=True, parallel=True)
 def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarray,
               params: np.ndarray, w: float, offsets: np.ndarray, theta_out: np.ndarray,
-              y_out: np.ndarray, stripe_out: np.ndarray) -> np.ndarray:
+              y_out: np.ndarray, stripe_out: np.ndarray, x_out: np.ndarray,
+              tangent_out: np.ndarray) -> np.ndarray:
     """Walk every run through its interval, striping where |u| reaches the band edge.
 
-    Samples of run r go to slots offsets[r] .. offsets[r + 1] - 1.
+    Samples of run r go to slots offsets[r] .. offsets[r + 1] - 1: azimuth,
+    toolpath point (x, y), stripe number and the path's direction there
+    (unnormalised).
 
     Returns:
         (r,) number of samples written per run, or -1 where the slots ran out.
@@ -202,7 +205,8 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
             if k + 2 > stop:
                 k = -1
                 break
-            k1, c, _, dx, dc, _, _, _ = field(th, y, px, py, pz, params)
+            k1, c, x, dx, dc, _, _, _ = field(th, y, px, py, pz, params)
+            x_out[k - 1], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x, dx, k1
             u_start = y - c
             dth = min(end[i] - th, max_step, max_chord / max(abs(dx), 1e-12))
             # |du| <= 2w per step: a step can cross at most one band edge.
@@ -230,31 +234,15 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
             theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
             k += 1
             if edge != 0.0:
-                c = _centre(th, y, px, py, pz, params)
+                # The stripe's end sample: its own point and direction.
+                dy_e, c, x_e, dx_e, _, _, _, _ = field(th, y, px, py, pz, params)
+                x_out[k - 1], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
                 stripe += 1
                 y = c - edge
                 theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
                 k += 1
+        if k > 0:
+            dy_e, _, x_e, dx_e, _, _, _, _ = field(th, y, px, py, pz, params)
+            x_out[k - 1], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
         count[i] = -1 if k < 0 else k - offsets[i]
     return count
-
-
-@nb.njit(cache=True, parallel=True)
-def evaluate(theta: np.ndarray, y: np.ndarray, pts: np.ndarray,
-             params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Toolpath points and unit tangents (along travel) at samples.
-
-    Returns:
-        x (m,) and tangent (m, 2).
-    """
-    m = theta.size
-    x = np.empty(m)
-    tangent = np.empty((m, 2))
-    for j in nb.prange(m):
-        dy, _, xj, dx, _, _, _, _ = field(theta[j], y[j], pts[j, 0], pts[j, 1], pts[j, 2],
-                                          params)
-        norm = math.sqrt(dx * dx + dy * dy)
-        x[j] = xj
-        tangent[j, 0] = dx / norm
-        tangent[j, 1] = dy / norm
-    return x, tangent

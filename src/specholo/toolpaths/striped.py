@@ -58,29 +58,41 @@ def _params(setup: Setup, opts: StripeOptions) -> np.ndarray:
 
 def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
                w: float) -> tuple[np.ndarray, ...]:
-    """Samples of every run: run (m,), theta (m,), y (m,), stripe (m,), in travel order."""
+    """Samples of every run, in travel order.
+
+    Returns:
+        run (m,), stripe (m,), point (m, 2) and unit tangent (m, 2).
+    """
     pending = np.arange(len(runs))
     parts = []
     while pending.size:
         offsets = np.concatenate([[0], np.cumsum(cap[pending])]).astype(np.int64)
-        theta = np.empty(offsets[-1])
-        y = np.empty(offsets[-1])
-        stripe = np.empty(offsets[-1], dtype=np.int64)
+        m = int(offsets[-1])
+        theta, y, x = np.empty(m), np.empty(m), np.empty(m)
+        stripe = np.empty(m, dtype=np.int64)
+        tangent = np.empty((m, 2))
         count = kernel.integrate(runs.start[pending], runs.end[pending],
                                  np.ascontiguousarray(runs.point[pending]), u0[pending],
-                                 params, w, offsets, theta, y, stripe)
+                                 params, w, offsets, theta, y, stripe, x, tangent)
         done = count >= 0
         idx = np.flatnonzero(done)
-        keep = np.repeat(offsets[:-1][idx], count[idx]) + (
-            np.arange(count[idx].sum()) - np.repeat(np.cumsum(count[idx]) - count[idx],
-                                                    count[idx]))
-        parts.append((np.repeat(pending[idx], count[idx]), theta[keep], y[keep], stripe[keep]))
+        n_done = count[idx]
+        keep = np.repeat(offsets[:-1][idx] - (np.cumsum(n_done) - n_done), n_done) + np.arange(
+            n_done.sum())
+        parts.append((np.repeat(pending[idx], n_done), stripe[keep],
+                      np.stack([x[keep], y[keep]], axis=1), tangent[keep]))
         # Runs whose bound was too small go again with room to spare.
         cap[pending[~done]] *= 4
         pending = pending[~done]
-    run = np.concatenate([p[0] for p in parts])
-    order = np.argsort(run, kind="stable")
-    return tuple(np.concatenate([p[i] for p in parts])[order] for i in range(4))
+    if len(parts) == 1:
+        run, stripe, pts, tangent = parts[0]
+    else:
+        run = np.concatenate([p[0] for p in parts])
+        order = np.argsort(run, kind="stable")
+        run, stripe, pts, tangent = (np.concatenate([p[i] for p in parts])[order]
+                                     for i in range(4))
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    return run, stripe, pts, tangent
 
 
 def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
@@ -114,9 +126,7 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     u0, cap = u0[valid], cap[valid]
     if len(far) == 0:
         return dots_for(near, setup), dropped
-    run, theta, y, stripe = _integrate(far, params, u0, cap, w)
-    x, tangent = kernel.evaluate(theta, y, np.ascontiguousarray(far.point[run]), params)
-    pts = np.stack([x, y], axis=1)
+    run, stripe, pts, tangent = _integrate(far, params, u0, cap, w)
     breaks = np.ones(len(run), dtype=bool)
     breaks[1:] = (run[1:] != run[:-1]) | (stripe[1:] != stripe[:-1])
     # A sliver step (a band edge met just before the run's end) leaves two samples
