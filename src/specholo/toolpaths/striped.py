@@ -38,7 +38,7 @@ class StripeOptions:
     """
 
     band: float = 0.2
-    max_step: float = math.radians(1.0)
+    max_step: float = math.radians(0.5)
     max_chord: float = 0.5
     min_light_tilt: float = 0.05
 
