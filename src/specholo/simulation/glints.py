@@ -166,14 +166,27 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
     if k:
         # Screen on the toolpath (the wall shifts h by only ~R / distance radians),
         # in chunks so memory stays bounded for millions of arcs.
-        near_parts = []
+        near_parts, kink_parts = [], []
         for lo in range(0, k, _CHUNK):
-            idx = np.arange(lo, min(k, lo + _CHUNK))
+            hi = min(k, lo + _CHUNK)
+            idx = np.arange(lo, min(k, hi + 1))  # one more: the pair across the boundary
             f0, _, h0 = _condition(eng, idx, np.zeros(idx.size), eye, light, wall=False)
             f1, _, _ = _condition(eng, idx, np.ones(idx.size), eye, light, wall=False)
             tol = 0.01 * np.linalg.norm(h0, axis=1)
-            near_parts.append(idx[(f0 * f1 <= 0) | (np.minimum(np.abs(f0), np.abs(f1)) < tol)])
+            near = (f0 * f1 <= 0) | (np.minimum(np.abs(f0), np.abs(f1)) < tol)
+            near_parts.append(idx[:hi - lo][near[:hi - lo]])
+            pair = (eng.path[idx[:-1]] == eng.path[idx[1:]]) & (
+                (f1[:-1] * f0[1:] <= 0) | (np.abs(f1[:-1]) < tol[:-1]))
+            kink_parts.append(idx[:-1][pair[:hi - lo] if idx.size > hi - lo else pair])
         near = np.concatenate(near_parts)
+        kinks = np.concatenate(kink_parts)
+        # A corner between two arcs (where rounding or a straight stretch breaks
+        # the tangent) is swept by the ball through every direction in between.
+        fe, s_end, h_end = _condition(eng, kinks, np.ones(kinks.size), eye, light)
+        fs, _, _ = _condition(eng, kinks + 1, np.zeros(kinks.size), eye, light)
+        corner = (fe * fs < 0) & (tilt(h_end) <= max_tilt)
+        paths.append(eng.path[kinks[corner]])
+        points.append(s_end[corner])
         f0, _, _ = _condition(eng, near, np.zeros(near.size), eye, light)
         f1, _, _ = _condition(eng, near, np.ones(near.size), eye, light)
         # A root exactly on a shared vertex belongs to the arc that starts there.

@@ -17,6 +17,7 @@ import numpy as np
 _DTHETA = 1e-6  # central-difference steps for the toolpath's derivatives (rad, mm)
 _DY = 1e-3
 _NEAR_EDGE = 1e-12
+_SNAP = 0.02  # a step ending within this share of w from the edge ends its stripe
 
 
 @nb.njit(cache=True, inline="always")
@@ -208,16 +209,24 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
             k1, c, x, dx, dc, _, _, _ = field(th, y, px, py, pz, params)
             x_out[k - 1], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x, dx, k1
             u_start = y - c
-            dth = min(end[i] - th, max_step, max_chord / max(abs(dx), 1e-12))
+            dth = min(max_step, max_chord / max(abs(dx), 1e-12))
             # |du| <= 2w per step: a step can cross at most one band edge.
             dth = min(dth, 2.0 * w / max(abs(k1 - dc), 1e-12))
+            # Never leave a sliver of the run for a last, tiny step.
+            if end[i] - th < 1.25 * dth:
+                dth = end[i] - th
             y1, u1 = _heun(th, y, k1, dth, px, py, pz, params)
             edge = 0.0
             if u1 > w:
                 edge = w
             elif u1 < -w:
                 edge = -w
-            if edge != 0.0:
+            elif abs(u1) > (1.0 - _SNAP) * w and end[i] - th - dth > _NEAR_EDGE:
+                # Ending next to the edge would force a sliver of a step next:
+                # the stripe ends here instead.
+                edge = math.copysign(w, u1)
+                u1 = edge
+            if edge != 0.0 and u1 != edge:
                 # Secant on the step length so the stripe ends on the band edge.
                 a_t, a_u, b_t, b_u = 0.0, u_start, dth, u1
                 t_new = dth

@@ -24,6 +24,9 @@ from specholo.toolpaths.arcs import arc_chain
 from specholo.toolpaths.common import Runs, dots_for, split_near_plate
 from specholo.toolpaths.grooves import Grooves
 
+#: Closest two samples of one stripe may be, mm.
+MIN_SPACING = 0.02
+
 
 @dataclass(frozen=True)
 class StripeOptions:
@@ -129,19 +132,22 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     run, stripe, pts, tangent = _integrate(far, params, u0, cap, w)
     breaks = np.ones(len(run), dtype=bool)
     breaks[1:] = (run[1:] != run[:-1]) | (stripe[1:] != stripe[:-1])
-    # A sliver step (a band edge met just before the run's end) leaves two samples
-    # a micron apart: keep the later one so biarcs never join near-coincident points.
+    # Samples closer than MIN_SPACING would give arcs so short that rounding
+    # their ends to the G-code's grid turns them visibly: keep the later one.
     close = np.zeros(len(run), dtype=bool)
-    close[:-1] = ~breaks[1:] & (np.linalg.norm(np.diff(pts, axis=0), axis=1) < 1e-3)
+    close[:-1] = ~breaks[1:] & (np.linalg.norm(np.diff(pts, axis=0), axis=1) < MIN_SPACING)
     close &= ~breaks  # never drop a stripe's first sample
     keep_sample = ~close
     run, stripe, pts, tangent, breaks = (run[keep_sample], stripe[keep_sample],
                                          pts[keep_sample], tangent[keep_sample],
                                          breaks[keep_sample])
-    # A stripe of one sample (a band edge met exactly at the end) has no length.
+    # A stripe shorter than MIN_SPACING (a band edge met right at a run's end)
+    # serves a sliver of views with a sliver of groove: drop it.
     path_id = np.cumsum(breaks) - 1
-    sizes = np.bincount(path_id)
-    keep = sizes[path_id] >= 2
+    first = np.flatnonzero(breaks)
+    last = np.r_[first[1:], len(breaks)] - 1
+    span = np.linalg.norm(pts[last] - pts[first], axis=1)
+    keep = (span >= MIN_SPACING)[path_id]
     pts, tangent, breaks, run = pts[keep], tangent[keep], breaks[keep], run[keep]
     vertices, bulges, offsets = arc_chain(pts, tangent, breaks)
     grooves = Grooves(vertices, bulges, offsets, far.stipple[run[breaks]])
