@@ -157,12 +157,6 @@ class Viewer:
         return np.stack(
             [r * np.sin(theta), np.full_like(theta, self.height), r * np.cos(theta)], axis=-1)
 
-    def eye_velocity(self, theta: np.ndarray) -> np.ndarray:
-        """Derivative d eye / d theta, shape (n, 3)."""
-        theta = np.asarray(theta, dtype=float)
-        r = self.eye_radius
-        return np.stack([r * np.cos(theta), np.zeros_like(theta), -r * np.sin(theta)], axis=-1)
-
     def stereo(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Left and right eyes of heads on the arc looking at the plate centre.
 

@@ -38,11 +38,6 @@ def hyperbola_slope(x: np.ndarray, apex: np.ndarray, pz: np.ndarray,
     return q / np.sqrt(q * q + 1.0) / np.cos(elevation)
 
 
-def far_crossing_x(theta: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Sightline crossing x for an eye at infinity in azimuth theta: p_x - p_z tan theta."""
-    return p[:, 0] - p[:, 2] * np.tan(theta)
-
-
 def classic_radius(pz: np.ndarray, elevation: float) -> np.ndarray:
     """Radius |p_z| cos a of the classic circular scratch (the apex osculating circle)."""
     return np.abs(pz) * np.cos(elevation)

@@ -76,7 +76,6 @@ def stereo_errors(points: np.ndarray, left: Glints, right: Glints, eye_l: np.nda
         error (k,) and signed depth error (k,) in mm.
     """
     n = len(points)
-    start_l, count_l = _ranges(left.stipple, n)
     start_r, count_r = _ranges(right.stipple, n)
     in_ids = np.zeros(n, dtype=bool)
     in_ids[ids] = True
@@ -99,7 +98,6 @@ def stereo_errors(points: np.ndarray, left: Glints, right: Glints, eye_l: np.nda
     # Depth error of the worst pair per stipple.
     pick = best[np.isclose(err[best], worst[stip[best]])]
     depth[stip[pick]] = delta[pick, 2]
-    del start_l, count_l
     return worst[ids], depth[ids]
 
 

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from specholo.hosts.flat import crossing_components
+from specholo.hosts.flat import sightline_crossing
 from specholo.optics.foliation import hyperbola_slope, hyperbola_y
 from specholo.setup import Setup
 from specholo.toolpaths.arcs import arc_chain
@@ -42,7 +42,7 @@ def design_hyperbola(runs: Runs, setup: Setup, step: float = math.radians(0.5),
     theta = far.start[run] + (far.end - far.start)[run] * frac
     p = far.point[run]
     # Crop where this viewer's sightlines actually cross the plate.
-    x, *_ = crossing_components(setup.viewer, theta, p[:, 0], p[:, 1], p[:, 2])
+    x = sightline_crossing(setup.viewer.eye(theta), p)[:, 0]
     apex = straight_on_image(far.point, setup.viewer)[run]
     y = hyperbola_y(x, apex, p[:, 2], a)
     direction = np.sign(x[np.minimum(first[run] + 1, run.size - 1)] - x[first[run]])
