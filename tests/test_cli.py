@@ -212,3 +212,32 @@ def test_console_script_exit_code(tmp_path: Path):
                        capture_output=True, text=True)
     assert r.returncode != 0
     assert r.stderr.count("\n") == 1 and r.stderr.startswith("error: ")
+
+
+@pytest.mark.skipif(not Path("/usr/bin/rs274").exists(),
+                    reason="LinuxCNC's interpreter /usr/bin/rs274 is missing")
+def test_designed_gcode_runs_in_linuxcnc(designed: Path):
+    from test_gcode import check_canon, run_rs274
+
+    from specholo.pipeline import load_design
+
+    loaded = load_design(designed)
+    canon = run_rs274(designed / "hologram.gcode")
+    setup = loaded.config.setup()
+    # The interpreter cuts the grooves that verification checked: same arcs,
+    # centres, directions, depths, rapids and feeds.
+    check_canon(canon, loaded.grooves, setup.tool, setup.machining)
+
+
+def test_spacing_option(tmp_path: Path, capsys):
+    out = tmp_path / "o"
+    code, _, err = run(["design", BUNNY, "--out", out, "--spacing", "4"], capsys)
+    assert code == 0, err
+    info = json.loads((out / "hologram.json").read_text())
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    pts = np.array([[s["x"], s["y"], s["z"]] for s in info["stipples"]])
+    assert len(pts) > 50
+    d, _ = cKDTree(pts).query(pts, k=2)
+    assert d[:, 1].min() >= 4.0 - 1e-9
