@@ -14,7 +14,7 @@ import math
 import numba as nb
 import numpy as np
 
-_DTHETA = 1e-6  # central-difference steps for the toolpath's derivatives (rad, mm)
+_DTHETA = 1e-6  # forward-difference steps for the toolpath's derivatives (rad, mm)
 _DY = 1e-3
 _NEAR_EDGE = 1e-12
 _SNAP = 0.02  # a step ending within this share of w from the edge ends its stripe
@@ -83,14 +83,12 @@ def field(theta: float, y: float, px: float, py: float, pz: float,
     # First guess: the plate normal, a wall point at the groove's bottom. Each
     # fixed-point step gains ~log10(distance / R) digits: four reach ~1e-10 mm.
     x, c, hx, hy, hz, nx, ny, nz = target(theta, y, px, py, pz, params, 0.0, 0.0, 1.0, 4)
-    # Central differences, each side warm-started from the converged n, so their
-    # residuals (not the base's) cancel in the quotients.
+    # Forward differences, warm-started from the converged n: four cold steps
+    # leave a residual far below what the quotients can see.
     xa, ca, _, _, _, _, _, _ = target(theta + _DTHETA, y, px, py, pz, params, nx, ny, nz, 1)
-    xb, cb, _, _, _, _, _, _ = target(theta - _DTHETA, y, px, py, pz, params, nx, ny, nz, 1)
     xc, cc, _, _, _, _, _, _ = target(theta, y + _DY, px, py, pz, params, nx, ny, nz, 1)
-    xd, cd, _, _, _, _, _, _ = target(theta, y - _DY, px, py, pz, params, nx, ny, nz, 1)
-    x_th, c_th = (xa - xb) / (2.0 * _DTHETA), (ca - cb) / (2.0 * _DTHETA)
-    x_y, c_y = (xc - xd) / (2.0 * _DY), (cc - cd) / (2.0 * _DY)
+    x_th, c_th = (xa - x) / _DTHETA, (ca - c) / _DTHETA
+    x_y, c_y = (xc - x) / _DY, (cc - c) / _DY
     # The wall offset makes x depend on y too: solve (x', y') . h = 0 with
     # x' = x_th + x_y y' for the path's true direction.
     slope = hx / hy
@@ -178,14 +176,12 @@ def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: 
 
 @nb.njit(cache=True, parallel=True)
 def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarray,
-              params: np.ndarray, w: float, offsets: np.ndarray, theta_out: np.ndarray,
-              y_out: np.ndarray, stripe_out: np.ndarray, x_out: np.ndarray,
-              tangent_out: np.ndarray) -> np.ndarray:
+              params: np.ndarray, w: float, offsets: np.ndarray, stripe_out: np.ndarray,
+              point_out: np.ndarray, tangent_out: np.ndarray) -> np.ndarray:
     """Walk every run through its interval, striping where |u| reaches the band edge.
 
-    Samples of run r go to slots offsets[r] .. offsets[r + 1] - 1: azimuth,
-    toolpath point (x, y), stripe number and the path's direction there
-    (unnormalised).
+    Samples of run r go to slots offsets[r] .. offsets[r + 1] - 1: stripe
+    number, toolpath point (x, y) and the path's direction there (unnormalised).
 
     Returns:
         (r,) number of samples written per run, or -1 where the slots ran out.
@@ -200,14 +196,14 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
         c = _centre(th, 0.0, px, py, pz, params)
         y = c + u0[i]
         stripe = 0
-        theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
+        point_out[k, 1], stripe_out[k] = y, stripe
         k += 1
         while end[i] - th > _NEAR_EDGE:
             if k + 2 > stop:
                 k = -1
                 break
             k1, c, x, dx, dc, _, _, _ = field(th, y, px, py, pz, params)
-            x_out[k - 1], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x, dx, k1
+            point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x, dx, k1
             u_start = y - c
             dth = min(max_step, max_chord / max(abs(dx), 1e-12))
             # |du| <= 2w per step: a step can cross at most one band edge.
@@ -240,18 +236,80 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
                 dth = t_new
             th += dth
             y = y1
-            theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
+            point_out[k, 1], stripe_out[k] = y, stripe
             k += 1
             if edge != 0.0:
                 # The stripe's end sample: its own point and direction.
                 dy_e, c, x_e, dx_e, _, _, _, _ = field(th, y, px, py, pz, params)
-                x_out[k - 1], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
+                point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
                 stripe += 1
                 y = c - edge
-                theta_out[k], y_out[k], stripe_out[k] = th, y, stripe
+                point_out[k, 1], stripe_out[k] = y, stripe
                 k += 1
         if k > 0:
             dy_e, _, x_e, dx_e, _, _, _, _ = field(th, y, px, py, pz, params)
-            x_out[k - 1], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
+            point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
         count[i] = -1 if k < 0 else k - offsets[i]
     return count
+
+
+@nb.njit(cache=True, parallel=True)
+def compact(offsets: np.ndarray, count: np.ndarray, runs: np.ndarray, stripe: np.ndarray,
+            point: np.ndarray,
+            tangent: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Gather the written slots of finished runs (count >= 0) into dense arrays.
+
+    Returns:
+        run id (m,), stripe (m,), point (m, 2) and unit tangent (m, 2).
+    """
+    n = count.size
+    start = np.zeros(n + 1, dtype=np.int64)
+    for i in range(n):
+        start[i + 1] = start[i] + max(count[i], 0)
+    m = start[n]
+    run_o = np.empty(m, dtype=np.int64)
+    stripe_o = np.empty(m, dtype=np.int64)
+    point_o = np.empty((m, 2))
+    tangent_o = np.empty((m, 2))
+    for i in nb.prange(n):
+        for j in range(max(count[i], 0)):
+            src, dst = offsets[i] + j, start[i] + j
+            run_o[dst] = runs[i]
+            stripe_o[dst] = stripe[src]
+            point_o[dst, 0], point_o[dst, 1] = point[src, 0], point[src, 1]
+            norm = math.hypot(tangent[src, 0], tangent[src, 1])
+            tangent_o[dst, 0], tangent_o[dst, 1] = tangent[src, 0] / norm, tangent[src, 1] / norm
+    return run_o, stripe_o, point_o, tangent_o
+
+
+@nb.njit(cache=True)
+def tidy(run: np.ndarray, stripe: np.ndarray, point: np.ndarray,
+         min_spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which samples to keep, and where stripes start, once slivers are gone.
+
+    A sample closer than ``min_spacing`` to the next one of its stripe goes (the
+    later stays; a stripe's first sample always stays): arcs that short would be
+    turned visibly by rounding their ends to the G-code's grid. A stripe shorter
+    than ``min_spacing`` end to end (a band edge met right at a run's end)
+    serves a sliver of views and goes whole.
+
+    Returns:
+        keep (m,) and breaks (m,): True where a sample starts a stripe.
+    """
+    m = run.size
+    breaks = np.ones(m, dtype=np.bool_)
+    for i in range(1, m):
+        breaks[i] = run[i] != run[i - 1] or stripe[i] != stripe[i - 1]
+    keep = np.ones(m, dtype=np.bool_)
+    for i in range(m - 1):
+        if not breaks[i] and not breaks[i + 1]:
+            dx, dy = point[i + 1, 0] - point[i, 0], point[i + 1, 1] - point[i, 1]
+            keep[i] = math.hypot(dx, dy) >= min_spacing
+    first = 0
+    for i in range(1, m + 1):
+        if i == m or breaks[i]:
+            dx, dy = point[i - 1, 0] - point[first, 0], point[i - 1, 1] - point[first, 1]
+            if math.hypot(dx, dy) < min_spacing:
+                keep[first:i] = False
+            first = i
+    return keep, breaks

@@ -2,43 +2,57 @@
 
 Glints sit where a groove's tangent is perpendicular to the half vector, so the
 tangent matters more than the position: a biarc through two samples matches both
-samples' tangents exactly and varies smoothly between them.
+samples' tangents exactly and varies smoothly between them. Compiled with numba:
+millions of sample pairs are joined per design.
 """
 
 from __future__ import annotations
 
+import math
+
+import numba as nb
 import numpy as np
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+@nb.njit(cache=True, inline="always")
+def _half_turn_bulge(ax: float, ay: float, bx: float, by: float) -> float:
+    """tan(angle from a to b / 2): the bulge of an arc making that angle with its chord."""
+    return math.tan(0.5 * math.atan2(ax * by - ay * bx, ax * bx + ay * by))
 
 
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.sum(a * b, axis=1)
+@nb.njit(cache=True)
+def _biarc(p0x: float, p0y: float, t0x: float, t0y: float, p1x: float, p1y: float,
+           t1x: float, t1y: float) -> tuple[float, float, float, float]:
+    """Joint and bulges of the equal-leg biarc from (p0, t0) to (p1, t1)."""
+    vx, vy = p1x - p0x, p1y - p0y
+    vt = vx * (t0x + t1x) + vy * (t0y + t1y)
+    vv = vx * vx + vy * vy
+    a = 2.0 - 2.0 * (t0x * t1x + t0y * t1y)  # 4 - |t0 + t1|^2, >= 0
+    # Rationalised root of a d^2 + 2 vt d - vv = 0: stable when a -> 0.
+    root = vt + math.sqrt(max(vt * vt + a * vv, 0.0))
+    d = vv / root if root > 0.0 else math.inf
+    if not (vt > 0.0 and d < math.sqrt(vv)):
+        # Tangents that disagree with the chord (samples out of order, or
+        # nearly coincident) have no sensible biarc: a straight segment instead.
+        return 0.5 * (p0x + p1x), 0.5 * (p0y + p1y), 0.0, 0.0
+    jx = 0.5 * (p0x + p1x + d * (t0x - t1x))
+    jy = 0.5 * (p0y + p1y + d * (t0y - t1y))
+    b1 = _half_turn_bulge(t0x, t0y, jx - p0x, jy - p0y)
+    b2 = _half_turn_bulge(p1x - jx, p1y - jy, t1x, t1y)
+    return jx, jy, b1, b2
 
 
-def bulge_from_start_tangent(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray) -> np.ndarray:
-    """Bulges of arcs leaving p0 along t0 and ending at p1.
-
-    Args:
-        p0: (k, 2) start points.
-        t0: (k, 2) unit start tangents.
-        p1: (k, 2) end points.
-
-    Returns:
-        (k,) bulges tan(sweep / 4); the sweep is twice the angle from t0 to the chord.
-    """
-    chord = p1 - p0
-    half_sweep = np.arctan2(_cross(t0, chord), _dot(t0, chord))
-    return np.tan(0.5 * half_sweep)
-
-
-def bulge_to_end_tangent(p0: np.ndarray, p1: np.ndarray, t1: np.ndarray) -> np.ndarray:
-    """Bulges of arcs from p0 arriving at p1 along t1; shapes as above."""
-    chord = p1 - p0
-    half_sweep = np.arctan2(_cross(chord, t1), _dot(chord, t1))
-    return np.tan(0.5 * half_sweep)
+@nb.njit(cache=True, parallel=True)
+def _biarcs(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray,
+            t1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    k = p0.shape[0]
+    joint = np.empty((k, 2))
+    b1 = np.empty(k)
+    b2 = np.empty(k)
+    for i in nb.prange(k):
+        joint[i, 0], joint[i, 1], b1[i], b2[i] = _biarc(
+            p0[i, 0], p0[i, 1], t0[i, 0], t0[i, 1], p1[i, 0], p1[i, 1], t1[i, 0], t1[i, 1])
+    return joint, b1, b2
 
 
 def biarc(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray,
@@ -52,24 +66,29 @@ def biarc(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray,
         t1: (k, 2) unit tangents at the end.
 
     Returns:
-        joint (k, 2): where the two arcs meet; bulge1 (k,), bulge2 (k,).
+        joint (k, 2): where the two arcs meet; bulge1 (k,), bulge2 (k,). Pairs
+        with no sensible biarc get a straight segment (both bulges 0).
     """
-    v = p1 - p0
-    t = t0 + t1
-    vt = _dot(v, t)
-    vv = _dot(v, v)
-    a = 2.0 - 2.0 * _dot(t0, t1)  # 4 - |t|^2, >= 0
-    # Rationalised root of a d^2 + 2 vt d - vv = 0: stable when a -> 0.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        d = vv / (vt + np.sqrt(vt * vt + a * vv))
-    # Tangents that disagree with the chord (samples out of order, or nearly
-    # coincident) have no sensible biarc: join those with a straight segment.
-    bad = ~(np.isfinite(d) & (vt > 0) & (d < np.sqrt(vv)))
-    d = np.where(bad, 0.0, d)
-    joint = 0.5 * (p0 + p1 + d[:, None] * (t0 - t1))
-    b1 = np.where(bad, 0.0, bulge_from_start_tangent(p0, t0, joint))
-    b2 = np.where(bad, 0.0, bulge_to_end_tangent(joint, p1, t1))
-    return joint, b1, b2
+    f = np.ascontiguousarray
+    return _biarcs(f(p0, dtype=float), f(t0, dtype=float), f(p1, dtype=float),
+                   f(t1, dtype=float))
+
+
+@nb.njit(cache=True, parallel=True)
+def _fill_chain(points: np.ndarray, tangents: np.ndarray, pair: np.ndarray, slot: np.ndarray,
+                vertices: np.ndarray, bulges: np.ndarray) -> None:
+    m = points.shape[0]
+    for i in nb.prange(m):
+        s = slot[i]
+        vertices[s, 0], vertices[s, 1] = points[i, 0], points[i, 1]
+        if i + 1 < m and pair[i]:
+            jx, jy, b1, b2 = _biarc(points[i, 0], points[i, 1], tangents[i, 0],
+                                    tangents[i, 1], points[i + 1, 0], points[i + 1, 1],
+                                    tangents[i + 1, 0], tangents[i + 1, 1])
+            vertices[s + 1, 0], vertices[s + 1, 1] = jx, jy
+            bulges[s], bulges[s + 1] = b1, b2
+        else:
+            bulges[s] = 0.0
 
 
 def arc_chain(points: np.ndarray, tangents: np.ndarray,
@@ -88,19 +107,15 @@ def arc_chain(points: np.ndarray, tangents: np.ndarray,
     m = len(points)
     if m == 0:
         return np.zeros((0, 2)), np.zeros(0), np.zeros(1, dtype=np.int64)
-    pair = ~breaks[1:]  # sample i and i + 1 on the same curve
-    i = np.flatnonzero(pair)
-    joint, b1, b2 = biarc(points[i], tangents[i], points[i + 1], tangents[i + 1])
+    pair = np.zeros(m, dtype=np.bool_)
+    pair[:-1] = ~breaks[1:]  # sample i and i + 1 on the same curve
     # Before sample k lie k samples and one joint per sample that is not its curve's last.
     curve = np.cumsum(breaks) - 1
     slot = 2 * np.arange(m) - curve
     n_out = 2 * m - int(breaks.sum())
     vertices = np.empty((n_out, 2))
-    bulges = np.zeros(n_out)
-    vertices[slot] = points
-    vertices[slot[i] + 1] = joint
-    bulges[slot[i]] = b1
-    bulges[slot[i] + 1] = b2
-    starts = slot[breaks]
-    offsets = np.concatenate([starts, [n_out]]).astype(np.int64)
+    bulges = np.empty(n_out)
+    _fill_chain(np.ascontiguousarray(points, dtype=float),
+                np.ascontiguousarray(tangents, dtype=float), pair, slot, vertices, bulges)
+    offsets = np.concatenate([slot[breaks], [n_out]]).astype(np.int64)
     return vertices, bulges, offsets

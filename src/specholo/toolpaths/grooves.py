@@ -95,6 +95,8 @@ class Grooves:
         parts = [p for p in parts if p.n_paths]
         if not parts:
             return cls.empty()
+        if len(parts) == 1:
+            return parts[0]
         starts = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
         offsets = np.concatenate(
             [[0]] + [p.offsets[1:] + s for p, s in zip(parts, starts, strict=True)]

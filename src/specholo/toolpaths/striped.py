@@ -71,31 +71,20 @@ def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
     while pending.size:
         offsets = np.concatenate([[0], np.cumsum(cap[pending])]).astype(np.int64)
         m = int(offsets[-1])
-        theta, y, x = np.empty(m), np.empty(m), np.empty(m)
         stripe = np.empty(m, dtype=np.int64)
-        tangent = np.empty((m, 2))
+        point, tangent = np.empty((m, 2)), np.empty((m, 2))
         count = kernel.integrate(runs.start[pending], runs.end[pending],
                                  np.ascontiguousarray(runs.point[pending]), u0[pending],
-                                 params, w, offsets, theta, y, stripe, x, tangent)
-        done = count >= 0
-        idx = np.flatnonzero(done)
-        n_done = count[idx]
-        keep = np.repeat(offsets[:-1][idx] - (np.cumsum(n_done) - n_done), n_done) + np.arange(
-            n_done.sum())
-        parts.append((np.repeat(pending[idx], n_done), stripe[keep],
-                      np.stack([x[keep], y[keep]], axis=1), tangent[keep]))
+                                 params, w, offsets, stripe, point, tangent)
+        parts.append(kernel.compact(offsets, count, pending, stripe, point, tangent))
         # Runs whose bound was too small go again with room to spare.
-        cap[pending[~done]] *= 4
-        pending = pending[~done]
+        cap[pending[count < 0]] *= 4
+        pending = pending[count < 0]
     if len(parts) == 1:
-        run, stripe, pts, tangent = parts[0]
-    else:
-        run = np.concatenate([p[0] for p in parts])
-        order = np.argsort(run, kind="stable")
-        run, stripe, pts, tangent = (np.concatenate([p[i] for p in parts])[order]
-                                     for i in range(4))
-    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
-    return run, stripe, pts, tangent
+        return parts[0]
+    run = np.concatenate([p[0] for p in parts])
+    order = np.argsort(run, kind="stable")
+    return tuple(np.concatenate([p[i] for p in parts])[order] for i in range(4))
 
 
 def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
@@ -130,24 +119,7 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     if len(far) == 0:
         return dots_for(near, setup), dropped
     run, stripe, pts, tangent = _integrate(far, params, u0, cap, w)
-    breaks = np.ones(len(run), dtype=bool)
-    breaks[1:] = (run[1:] != run[:-1]) | (stripe[1:] != stripe[:-1])
-    # Samples closer than MIN_SPACING would give arcs so short that rounding
-    # their ends to the G-code's grid turns them visibly: keep the later one.
-    close = np.zeros(len(run), dtype=bool)
-    close[:-1] = ~breaks[1:] & (np.linalg.norm(np.diff(pts, axis=0), axis=1) < MIN_SPACING)
-    close &= ~breaks  # never drop a stripe's first sample
-    keep_sample = ~close
-    run, stripe, pts, tangent, breaks = (run[keep_sample], stripe[keep_sample],
-                                         pts[keep_sample], tangent[keep_sample],
-                                         breaks[keep_sample])
-    # A stripe shorter than MIN_SPACING (a band edge met right at a run's end)
-    # serves a sliver of views with a sliver of groove: drop it.
-    path_id = np.cumsum(breaks) - 1
-    first = np.flatnonzero(breaks)
-    last = np.r_[first[1:], len(breaks)] - 1
-    span = np.linalg.norm(pts[last] - pts[first], axis=1)
-    keep = (span >= MIN_SPACING)[path_id]
+    keep, breaks = kernel.tidy(run, stripe, pts, MIN_SPACING)
     pts, tangent, breaks, run = pts[keep], tangent[keep], breaks[keep], run[keep]
     vertices, bulges, offsets = arc_chain(pts, tangent, breaks)
     grooves = Grooves(vertices, bulges, offsets, far.stipple[run[breaks]])
