@@ -27,6 +27,7 @@ from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import Grooves
 
 METHODS = ("striped", "hyperbola", "arc")
+DEFAULT_STIPPLES = 2000
 
 
 @dataclass(frozen=True)
@@ -165,9 +166,7 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     model = place(load_model(model_path), config.size, config.center_z)
-    count = config.stipples if config.spacing is None and config.stipples is not None else None
-    if count is None and config.spacing is None:
-        count = 2000
+    count = None if config.spacing is not None else (config.stipples or DEFAULT_STIPPLES)
     st = stipple(model, rng, count=count, spacing=config.spacing)
     points = st.points
     check_points(points, setup)

@@ -1,0 +1,122 @@
+"""A one-page, self-contained HTML report of a design: settings, fabrication, accuracy."""
+
+from __future__ import annotations
+
+import base64
+import html
+import os
+from pathlib import Path
+from typing import Any
+
+from specholo.fabrication.atomic import atomic_open
+
+#: Pictures shown when present in the design folder, with their captions.
+PICTURES = (
+    ("preview.png", "What one eye sees from three places on the viewing arc."),
+    ("verify.png", "Stereo verification: apparent-point error and visibility by azimuth."),
+    ("render.png", "Rendered still."),
+    ("stereo.png", "Stereo pair."),
+)
+
+
+def _img(path: Path) -> str:
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return f'<img alt="{html.escape(path.name)}" src="data:image/png;base64,{data}">'
+
+
+def _rows(pairs: list[tuple[str, str]]) -> str:
+    return "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
+                   for k, v in pairs)
+
+
+def fabrication_figures(info: dict[str, Any]) -> list[tuple[str, str]]:
+    """Groove length, path count, extent and a cutting-time floor from hologram.json."""
+    stats, settings = info["stats"], info["settings"]
+    (x0, y0), (x1, y1) = info["plate"]["groove_extent_mm"]
+    length = float(stats["groove_length_mm"])
+    paths = int(stats["paths"])
+    # Cutting at feed plus plunging each path at the plunge rate; rapids excluded.
+    minutes = length / settings["feed"] + paths * settings["depth"] / settings["plunge"]
+    return [
+        ("grooves (paths)", f"{paths:,}"),
+        ("dimples", f"{int(stats['dots']):,}"),
+        ("groove length", f"{length / 1000:.2f} m"),
+        ("groove extent", f"{x1 - x0:.1f} × {y1 - y0:.1f} mm"),
+        ("cutting time, feeds only", f"{minutes / 60:.1f} h"),
+    ]
+
+
+def write_report(folder: str | os.PathLike[str], verify: dict[str, Any] | None) -> Path:
+    """Write ``folder/report.html`` from the design's files.
+
+    Args:
+        folder: a design folder (with hologram.json).
+        verify: the contents of verify.json, or None if not verified.
+
+    Returns:
+        The report's path.
+    """
+    import json
+
+    folder = Path(folder)
+    info = json.loads((folder / "hologram.json").read_text())
+    settings = info["settings"]
+    tool = info["tool"]
+    setup_rows = [
+        ("method", settings["method"]),
+        ("stipples", f"{info['stats']['stipples']:,}"),
+        ("model size, centre depth", f"{settings['size']} mm, z = {settings['center_z']} mm"),
+        ("light", f"elevation {settings['light_elevation']}°, "
+                  + ("sun" if settings["light_distance"] is None
+                     else f"point at {settings['light_distance']} mm")),
+        ("viewer", f"{settings['view_distance']} mm away, ±{settings['view_range']}°, "
+                   f"eye height {settings['eye_height']} mm, IPD {settings['ipd']} mm"),
+        ("tool", f"ball end r = {tool['radius_mm']} mm, depth {tool['depth_mm']} mm, "
+                 f"groove {tool['groove_width_mm']:.3f} mm wide"),
+        ("software", f"specholo {info['specholo_version']}"),
+    ]
+    accuracy = "<p>Not verified yet: run <code>specholo verify</code>.</p>"
+    if verify is not None:
+        s = verify["summary"]
+        head = ("<tr><th>azimuth</th><th>median mm</th><th>p95 mm</th><th>p95 depth mm</th>"
+                "<th>max mm</th><th>visibility</th><th>false glints</th></tr>")
+        body = "".join(
+            f"<tr><td>{r['azimuth']:+.1f}°</td><td>{r['median_error']:.3f}</td>"
+            f"<td>{r['p95_error']:.3f}</td><td>{r['p95_depth_error']:.3f}</td>"
+            f"<td>{r['max_error']:.3f}</td><td>{r['visibility']:.3f}</td>"
+            f"<td>{r['false_glints']:.3f}</td></tr>" for r in verify["azimuths"])
+        worst = s["worst_p95_error"]
+        accuracy = (
+            f"<p>Worst 95th-percentile error {worst:.3f} mm "
+            f"({'within' if worst <= 0.5 else 'beyond'} the ~0.5 mm a viewer's stereo acuity "
+            f"resolves at 600 mm), lowest visibility {s['min_visibility']:.3f}, "
+            f"most false glints {s['max_false_glints']:.3f}; verified from "
+            f"<code>{html.escape(verify['source'])}</code>.</p>"
+            f"<table class=num>{head}{body}</table>")
+    pictures = "".join(
+        f"<figure>{_img(folder / name)}<figcaption>{html.escape(text)}</figcaption></figure>"
+        for name, text in PICTURES if (folder / name).is_file())
+    page = f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8">
+<title>specholo report: {html.escape(folder.name)}</title>
+<style>
+body {{ font: 15px/1.45 system-ui, sans-serif; max-width: 980px; margin: 2em auto;
+       padding: 0 1em; color: #222; }}
+h1 {{ font-size: 1.5em; }} h2 {{ font-size: 1.15em; margin-top: 1.6em; }}
+table {{ border-collapse: collapse; margin: .5em 0; }}
+th, td {{ padding: .2em .7em; border-bottom: 1px solid #ddd; text-align: left; }}
+table.num td {{ text-align: right; font-variant-numeric: tabular-nums; }}
+figure {{ margin: 1em 0; }} img {{ max-width: 100%; }}
+figcaption {{ color: #666; font-size: .9em; }}
+</style></head><body>
+<h1>Specular hologram: {html.escape(folder.name)}</h1>
+<h2>Design</h2><table>{_rows(setup_rows)}</table>
+<h2>Fabrication</h2><table>{_rows(fabrication_figures(info))}</table>
+<h2>Accuracy, by head azimuth</h2>{accuracy}
+<h2>Pictures</h2>{pictures}
+</body></html>
+"""
+    out = folder / "report.html"
+    with atomic_open(out) as fh:
+        fh.write(page)
+    return out

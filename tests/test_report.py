@@ -1,0 +1,44 @@
+"""The shareable report: self-contained, and true to the design's files."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from specholo.preview.report import write_report
+from specholo_cli.cli import main
+
+BUNNY = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
+
+
+@pytest.fixture(scope="module")
+def verified(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("rep") / "holo"
+    assert main(["design", str(BUNNY), "--out", str(out), "--stipples", "120"]) == 0
+    assert main(["verify", str(out)]) == 0
+    return out
+
+
+def test_report_is_self_contained_and_matches_the_files(verified: Path):
+    verify = json.loads((verified / "verify.json").read_text())
+    info = json.loads((verified / "hologram.json").read_text())
+    page = write_report(verified, verify).read_text()
+    # One file a user can share: no network, no scripts, pictures inline.
+    assert not re.search(r"""(src|href)=["']?(https?:)?//""", page)
+    assert "<script" not in page
+    assert page.count('src="data:image/png;base64,') >= 2
+    # One table row per verified azimuth, with its figures.
+    for row in verify["azimuths"]:
+        assert f"<td>{row['azimuth']:+.1f}°</td><td>{row['median_error']:.3f}</td>" in page
+    assert f"{info['stats']['groove_length_mm'] / 1000:.2f} m" in page
+    assert f"{info['stats']['paths']:,}" in page
+
+
+def test_report_before_verification_says_so(tmp_path: Path):
+    out = tmp_path / "holo"
+    assert main(["design", str(BUNNY), "--out", str(out), "--stipples", "30"]) == 0
+    page = write_report(out, None).read_text()
+    assert "Not verified yet" in page
