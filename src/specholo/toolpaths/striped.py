@@ -1,13 +1,15 @@
 """The exact striped design: horizontal parallax at finite light and eye distances.
 
-For each stipple p and eye azimuth theta, the groove point c(theta) keeps x on
-the sightline crossing x_s(theta) and y follows the glint condition
-    c'(theta) . h(c, e(theta)) = 0,
-so the eye at theta sees its glint at c(theta), horizontally exact. The
-vertical offset u = y - y_s(theta) drifts; when it leaves the band |u| <= w a
-stripe ends and the next starts at the band's other edge (Brand's striping),
-so the vertical error never exceeds w. Samples carry exact tangents and are
-joined by biarcs, so the engraved grooves keep the tangents the glints need.
+For each stipple p and eye azimuth theta (eyes on the circle where real eyes
+are), the toolpath c(theta) is followed so that
+    c'(theta) . h(g, e(theta)) = 0,
+where g is the glint on the ball-end groove's wall, R h/|h| from the toolpath.
+The toolpath's x is chosen so that g lies on the eye's sightline through p
+(horizontally exact); g's vertical offset u from the sightline drifts, and when
+it leaves the band |u| <= w the stripe ends and the next starts at the band's
+other edge (Brand's striping), so the vertical error never exceeds w. Samples
+carry exact tangents and are joined by biarcs, so the engraved grooves keep the
+tangents the glints need. The walk itself is compiled (:mod:`._stripe_kernel`).
 """
 
 from __future__ import annotations
