@@ -144,6 +144,191 @@ def verify(folder: Path, step: float, from_gcode: bool) -> None:
                       f"{loaded.config.method}: stereo verification")
 
 
+
+def _check_folder(folder: Path) -> None:
+    if not folder.exists():
+        raise SpecholoError(f"design folder {folder} does not exist")
+    if not folder.is_dir():
+        raise SpecholoError(f"{folder} is not a folder")
+
+
+def _design_folder(folder: Path) -> Any:
+    from specholo.pipeline import load_design
+
+    _check_folder(folder)
+    return load_design(folder)
+
+
+def _finite_option(name: str, value: float) -> float:
+    if not math.isfinite(value):
+        raise SpecholoError(f"--{name} must be a finite number, got {value}")
+    return value
+
+
+def _fov(fov: float | None) -> float | None:
+    if fov is None:
+        return None
+    if not (math.isfinite(fov) and 0 < fov < 180):
+        raise SpecholoError(f"--fov must be in (0, 180) degrees, got {fov:g}")
+    return math.radians(fov)
+
+
+def _png_out(out: Path | None, folder: Path, default: str) -> Path:
+    _check_folder(folder)
+    out = folder / default if out is None else out
+    if out.suffix.lower() != ".png":
+        raise SpecholoError(f"output must be a .png file, got {out.name!r}")
+    if not out.parent.is_dir():
+        raise SpecholoError(f"folder {out.parent} does not exist")
+    return out
+
+
+_SIZE_HELP = "Image {} in pixels [{}]."
+
+
+@cli.command()
+@click.argument("folder", type=click.Path(path_type=Path))
+@click.option("--azimuth", type=float, default=0.0, show_default=True,
+              help="Camera azimuth, degrees right of straight-on.")
+@click.option("--elevation", type=float, default=0.0, show_default=True,
+              help="Camera elevation above the eyes' plane, degrees.")
+@click.option("--width", type=int, default=1024, help=_SIZE_HELP.format("width", 1024))
+@click.option("--height", type=int, default=1024, help=_SIZE_HELP.format("height", 1024))
+@click.option("--distance", type=float, default=None,
+              help="Camera distance, mm [the design's eyes' distance].")
+@click.option("--fov", type=float, default=None,
+              help="Vertical field of view, degrees [frames the plate].")
+@click.option("--roughness", type=float, default=1.0, show_default=True,
+              help="Width of the plate's specular lobe, degrees: rougher, bigger dimmer glints.")
+@click.option("--grooves/--no-grooves", default=False, show_default=True,
+              help="Draw the grooves faintly.")
+@click.option("--ghost/--no-ghost", default=False, show_default=True,
+              help="Draw the model faintly where it is in space.")
+@click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
+              help="PNG file [FOLDER/render.png].")
+def render(folder: Path, azimuth: float, elevation: float, width: int, height: int,
+           distance: float | None, fov: float | None, roughness: float, grooves: bool,
+           ghost: bool, out: Path | None) -> None:
+    """Render the lit plate of the design in FOLDER as a camera sees it (glints only)."""
+    from specholo.preview.render import design_camera, render_still, save_png
+
+    out = _png_out(out, folder, "render.png")
+    loaded = _design_folder(folder)
+    setup = loaded.config.setup()
+    camera = design_camera(
+        setup, loaded.grooves, math.radians(_finite_option("azimuth", azimuth)),
+        math.radians(_finite_option("elevation", elevation)),
+        None if distance is None else _finite_option("distance", distance), _fov(fov),
+        width, height)
+    model = (loaded.mesh if loaded.mesh is not None else loaded.points) if ghost else None
+    image = render_still(loaded.grooves, setup, camera,
+                         math.radians(_finite_option("roughness", roughness)),
+                         grooves_overlay=grooves, ghost=model)
+    save_png(image, out)
+    click.echo(f"{width}x{height} render at azimuth {azimuth:+g} -> {out}")
+
+
+@cli.command()
+@click.argument("folder", type=click.Path(path_type=Path))
+@click.option("--kind", type=click.Choice(["turntable", "light"]), default="turntable",
+              show_default=True,
+              help="Camera walking the viewing arc, or the light's elevation moving.")
+@click.option("--frames", type=int, default=90, show_default=True, help="Number of frames.")
+@click.option("--width", type=int, default=512, help=_SIZE_HELP.format("width", 512))
+@click.option("--height", type=int, default=512, help=_SIZE_HELP.format("height", 512))
+@click.option("--fps", type=float, default=30.0, show_default=True, help="Frames per second.")
+@click.option("--light-span", type=float, default=10.0, show_default=True,
+              help="--kind light: the light moves +- this many degrees about the design's.")
+@click.option("--azimuth", type=float, default=0.0, show_default=True,
+              help="--kind light: camera azimuth, degrees.")
+@click.option("--roughness", type=float, default=1.0, show_default=True,
+              help="Width of the plate's specular lobe, degrees.")
+@click.option("--grooves/--no-grooves", default=False, show_default=True,
+              help="Draw the grooves faintly.")
+@click.option("--ghost/--no-ghost", default=False, show_default=True,
+              help="Draw the model faintly.")
+@click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
+              help="GIF or MP4 file, by suffix [FOLDER/turntable.gif or FOLDER/light.gif].")
+def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: float,
+            light_span: float, azimuth: float, roughness: float, grooves: bool, ghost: bool,
+            out: Path | None) -> None:
+    """Animate the design in FOLDER: a walk along the viewing arc, or a moving light."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+    from specholo.preview.motion import FORMATS, light_sweep, turntable, write_animation
+
+    _check_folder(folder)
+    out = folder / f"{kind}.gif" if out is None else out
+    if out.suffix.lower() not in FORMATS:
+        raise SpecholoError(f"animation file must end in .gif or .mp4, got {out.name!r}")
+    if not out.parent.is_dir():
+        raise SpecholoError(f"folder {out.parent} does not exist")
+    if frames <= 0:
+        raise SpecholoError(f"--frames must be positive, got {frames}")
+    if not (math.isfinite(fps) and 0 < fps <= 240):
+        raise SpecholoError(f"--fps must be in (0, 240], got {fps:g}")
+    loaded = _design_folder(folder)
+    rough = math.radians(_finite_option("roughness", roughness))
+    with Progress("[progress.description]{task.description}", BarColumn(),
+                  MofNCompleteColumn(), TimeRemainingColumn(),
+                  console=_stderr_console(), transient=True) as bar:
+        task = bar.add_task(f"rendering {kind}", total=frames)
+
+        def advance(done: int, total: int) -> None:
+            bar.update(task, completed=done)
+
+        if kind == "turntable":
+            images = turntable(loaded, frames, (width, height), rough, grooves, ghost,
+                               progress=advance)
+        else:
+            images = light_sweep(loaded, frames, (width, height),
+                                 math.radians(_finite_option("light-span", light_span)),
+                                 math.radians(_finite_option("azimuth", azimuth)), rough,
+                                 grooves, ghost, progress=advance)
+        bar.update(task, description="encoding")
+        write_animation(images, out, fps)
+    click.echo(f"{frames} frames {width}x{height} at {fps:g} fps -> {out}")
+
+
+def _stderr_console() -> Any:
+    from rich.console import Console
+
+    return Console(stderr=True)
+
+
+@cli.command()
+@click.argument("folder", type=click.Path(path_type=Path))
+@click.option("--azimuth", type=float, default=0.0, show_default=True,
+              help="Head azimuth on the viewing arc, degrees.")
+@click.option("--mode", type=click.Choice(["parallel", "cross", "anaglyph"]),
+              default="anaglyph", show_default=True,
+              help="Side by side for parallel or cross-eyed viewing, or red-cyan anaglyph.")
+@click.option("--width", type=int, default=768, help=_SIZE_HELP.format("width per eye", 768))
+@click.option("--height", type=int, default=768, help=_SIZE_HELP.format("height", 768))
+@click.option("--fov", type=float, default=None,
+              help="Vertical field of view, degrees [frames the plate].")
+@click.option("--roughness", type=float, default=1.0, show_default=True,
+              help="Width of the plate's specular lobe, degrees.")
+@click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
+              help="PNG file [FOLDER/stereo.png].")
+def stereo(folder: Path, azimuth: float, mode: str, width: int, height: int,
+           fov: float | None, roughness: float, out: Path | None) -> None:
+    """Render what both eyes of a viewer see of the design in FOLDER, as one picture."""
+    from specholo.preview.render import save_png
+    from specholo.preview.stereo import anaglyph, head_camera, side_by_side, stereo_pair
+
+    out = _png_out(out, folder, "stereo.png")
+    loaded = _design_folder(folder)
+    setup = loaded.config.setup()
+    head = head_camera(setup, loaded.grooves, math.radians(_finite_option("azimuth", azimuth)),
+                       width, height, _fov(fov))
+    left, right = stereo_pair(loaded.grooves, setup, head,
+                              roughness=math.radians(_finite_option("roughness", roughness)))
+    image = anaglyph(left, right) if mode == "anaglyph" else side_by_side(
+        left, right, mode, gap=max(2, width // 32))
+    save_png(image, out)
+    click.echo(f"{mode} stereo at azimuth {azimuth:+g}, IPD {setup.viewer.ipd:g} mm -> {out}")
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; every failure is one line on stderr and a non-zero exit."""
     try:
