@@ -42,3 +42,12 @@ def test_report_before_verification_says_so(tmp_path: Path):
     assert main(["design", str(BUNNY), "--out", str(out), "--stipples", "30"]) == 0
     page = write_report(out, None).read_text()
     assert "Not verified yet" in page
+
+
+def test_report_command(verified: Path, capsys):
+    assert main(["report", str(verified)]) == 0
+    assert "report ->" in capsys.readouterr().out
+    assert (verified / "report.html").stat().st_size > 10_000
+    assert main(["report", str(verified / "nowhere")]) != 0
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1

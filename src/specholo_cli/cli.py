@@ -329,6 +329,25 @@ def stereo(folder: Path, azimuth: float, mode: str, width: int, height: int,
     save_png(image, out)
     click.echo(f"{mode} stereo at azimuth {azimuth:+g}, IPD {setup.viewer.ipd:g} mm -> {out}")
 
+@cli.command()
+@click.argument("folder", type=click.Path(path_type=Path))
+def report(folder: Path) -> None:
+    """Write FOLDER/report.html: settings, fabrication figures, accuracy and pictures.
+
+    Uses FOLDER/verify.json when present; run `specholo verify` first to include it.
+    """
+    from specholo.pipeline import load_design
+    from specholo.preview.report import write_report
+
+    load_design(folder)  # a clear error if this is not a design folder
+    verify_file = Path(folder) / "verify.json"
+    try:
+        verify = json.loads(verify_file.read_text()) if verify_file.is_file() else None
+    except (OSError, ValueError) as exc:
+        raise SpecholoError(f"cannot read {verify_file}: {exc}") from exc
+    click.echo(f"report -> {write_report(folder, verify)}")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; every failure is one line on stderr and a non-zero exit."""
     try:
