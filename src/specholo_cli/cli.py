@@ -348,6 +348,30 @@ def report(folder: Path) -> None:
     click.echo(f"report -> {write_report(folder, verify)}")
 
 
+@cli.command()
+@click.argument("folder", type=click.Path(path_type=Path))
+@click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
+              help="HTML file [FOLDER/view.html].")
+@click.option("--width", type=int, default=None,
+              help="Fixed canvas width in pixels [fills the window].")
+@click.option("--height", type=int, default=None,
+              help="Fixed canvas height in pixels [fills the window].")
+def view(folder: Path, out: Path | None, width: int | None, height: int | None) -> None:
+    """Write an interactive page of the design in FOLDER: drag to move the eye (WebGL2).
+
+    One self-contained HTML file: the glints are recomputed in the browser for
+    every viewpoint with the same physics as `verify`. Shift+drag moves the light.
+    """
+    from specholo.preview.page import write_page
+
+    _check_folder(folder)
+    if (width is None) != (height is None):
+        raise SpecholoError("give both --width and --height, or neither")
+    size = None if width is None or height is None else (width, height)
+    path = write_page(folder, out, size)
+    click.echo(f"interactive page ({path.stat().st_size / 1e6:.1f} MB) -> {path}")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; every failure is one line on stderr and a non-zero exit."""
     try:
