@@ -52,23 +52,28 @@ def target(theta: float, y: float, px: float, py: float, pz: float, params: np.n
     d, ey, r, zc = params[0], params[1], params[6], params[7]
     ex, ez = d * math.sin(theta), d * math.cos(theta)
     inv_dz = 1.0 / (ez - pz)
-    gx = gy = gz = line_y = 0.0
     for _ in range(iterations):
-        gz = zc - r * nz
-        tau = (ez - gz) * inv_dz
-        gx = ex + tau * (px - ex)
-        line_y = ey + tau * (py - ey)
-        gy = y - r * ny
+        gx, gy, gz, _ = _wall_point(y, px, py, ex, ey, ez, inv_dz, r, zc, ny, nz)
         hx, hy, hz = _h(gx, gy, gz, ex, ey, ez, params)
         inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
         nx, ny, nz = hx * inv, hy * inv, hz * inv
-    gz = zc - r * nz
-    tau = (ez - gz) * inv_dz
-    gx = ex + tau * (px - ex)
-    line_y = ey + tau * (py - ey)
-    gy = y - r * ny
+    gx, gy, gz, line_y = _wall_point(y, px, py, ex, ey, ez, inv_dz, r, zc, ny, nz)
     hx, hy, hz = _h(gx, gy, gz, ex, ey, ez, params)
     return gx + r * nx, line_y + r * ny, hx, hy, hz, nx, ny, nz
+
+
+@nb.njit(cache=True, inline="always")
+def _wall_point(y: float, px: float, py: float, ex: float, ey: float, ez: float,
+                inv_dz: float, r: float, zc: float, ny: float,
+                nz: float) -> tuple[float, float, float, float]:
+    """The wall glint for normal n, put on the sightline at its own depth.
+
+    Returns:
+        g (x, y, z) and the sightline's height at that depth.
+    """
+    gz = zc - r * nz
+    tau = (ez - gz) * inv_dz
+    return ex + tau * (px - ex), y - r * ny, gz, ey + tau * (py - ey)
 
 
 @nb.njit(cache=True)

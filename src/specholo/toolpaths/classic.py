@@ -22,9 +22,7 @@ def design_classic(runs: Runs, setup: Setup, near_plate: float | None = None) ->
         setup: light (its elevation sets the radius) and tool.
         near_plate: |p_z| below which a stipple becomes a dimple (mm).
     """
-    if near_plate is None:
-        near_plate = 0.5 * setup.tool.width
-    far, near = split_near_plate(runs, near_plate)
+    far, near = split_near_plate(runs, setup, near_plate)
     if len(far) == 0:
         return dots_for(near, setup)
     a = setup.light.elevation

@@ -89,8 +89,21 @@ def dot_grooves(points: np.ndarray, stipple: np.ndarray, setup: Setup) -> Groove
                    np.asarray(stipple, dtype=np.int64))
 
 
-def split_near_plate(runs: Runs, threshold: float) -> tuple[Runs, Runs]:
-    """Separate runs whose point lies within ``threshold`` mm of the plate."""
+def split_near_plate(runs: Runs, setup: Setup,
+                     threshold: float | None = None) -> tuple[Runs, Runs]:
+    """Separate runs whose point lies within ``threshold`` mm of the plate.
+
+    Args:
+        runs: the runs to design.
+        setup: the setup (its groove width sets the default).
+        threshold: |p_z| at or below which a stipple becomes a dimple; default
+            half the groove width, where a groove would be shorter than it is wide.
+
+    Returns:
+        The runs to engrave as grooves, and those to engrave as dimples.
+    """
+    if threshold is None:
+        threshold = 0.5 * setup.tool.width
     near = np.abs(runs.point[:, 2]) <= threshold
     return runs.take(~near), runs.take(near)
 

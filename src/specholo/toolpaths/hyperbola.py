@@ -29,9 +29,7 @@ def design_hyperbola(runs: Runs, setup: Setup, step: float = math.radians(0.5),
         step: azimuth spacing of the samples joined by biarcs, radians.
         near_plate: |p_z| below which a stipple becomes a dimple (mm).
     """
-    if near_plate is None:
-        near_plate = 0.5 * setup.tool.width
-    far, near = split_near_plate(runs, near_plate)
+    far, near = split_near_plate(runs, setup, near_plate)
     if len(far) == 0:
         return dots_for(near, setup)
     a = setup.light.elevation

@@ -106,9 +106,7 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     """
     opts = opts or StripeOptions()
     w = opts.band
-    if near_plate is None:
-        near_plate = 0.5 * setup.tool.width
-    far, near = split_near_plate(runs, near_plate)
+    far, near = split_near_plate(runs, setup, near_plate)
     if len(far) == 0:
         return dots_for(near, setup), np.zeros(0, dtype=np.int64)
     params = _params(setup, opts)
