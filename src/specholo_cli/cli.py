@@ -186,6 +186,17 @@ def _png_out(out: Path | None, folder: Path, default: str) -> Path:
 _SIZE_HELP = "Image {} in pixels [{}]."
 
 
+def _look_options(fn: Any) -> Any:
+    """The options every picture shares: surface roughness and faint overlays."""
+    fn = click.option("--ghost/--no-ghost", default=False, show_default=True,
+                      help="Draw the model faintly where it is in space.")(fn)
+    fn = click.option("--grooves/--no-grooves", default=False, show_default=True,
+                      help="Draw the grooves faintly.")(fn)
+    return click.option("--roughness", type=float, default=1.0, show_default=True,
+                        help="Width of the plate's specular lobe, degrees: rougher, "
+                             "bigger dimmer glints.")(fn)
+
+
 @cli.command()
 @click.argument("folder", type=click.Path(path_type=Path))
 @click.option("--azimuth", type=float, default=0.0, show_default=True,
@@ -198,12 +209,7 @@ _SIZE_HELP = "Image {} in pixels [{}]."
               help="Camera distance, mm [the design's eyes' distance].")
 @click.option("--fov", type=float, default=None,
               help="Vertical field of view, degrees [frames the plate].")
-@click.option("--roughness", type=float, default=1.0, show_default=True,
-              help="Width of the plate's specular lobe, degrees: rougher, bigger dimmer glints.")
-@click.option("--grooves/--no-grooves", default=False, show_default=True,
-              help="Draw the grooves faintly.")
-@click.option("--ghost/--no-ghost", default=False, show_default=True,
-              help="Draw the model faintly where it is in space.")
+@_look_options
 @click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
               help="PNG file [FOLDER/render.png].")
 def render(folder: Path, azimuth: float, elevation: float, width: int, height: int,
@@ -241,12 +247,7 @@ def render(folder: Path, azimuth: float, elevation: float, width: int, height: i
               help="--kind light: the light moves +- this many degrees about the design's.")
 @click.option("--azimuth", type=float, default=0.0, show_default=True,
               help="--kind light: camera azimuth, degrees.")
-@click.option("--roughness", type=float, default=1.0, show_default=True,
-              help="Width of the plate's specular lobe, degrees.")
-@click.option("--grooves/--no-grooves", default=False, show_default=True,
-              help="Draw the grooves faintly.")
-@click.option("--ghost/--no-ghost", default=False, show_default=True,
-              help="Draw the model faintly.")
+@_look_options
 @click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
               help="GIF or MP4 file, by suffix [FOLDER/turntable.gif or FOLDER/light.gif].")
 def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: float,
