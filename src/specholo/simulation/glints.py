@@ -24,6 +24,102 @@ _CHUNK = 1 << 19  # arcs screened at once
 
 
 @dataclass(frozen=True)
+class ArcIndex:
+    """Arcs sorted by plate cell, then by tangent direction, to skip hopeless ones.
+
+    An arc can glint for an eye only where its tangent is perpendicular to the
+    plate part of h, and h turns slowly across the plate (by about the cell size
+    over the eye's distance). So per cell only the arcs whose tangent lies near
+    that direction need the exact test; arcs that turn a lot are always tested.
+
+    Attributes:
+        cell_size: mm.
+        origin: (2,) lower-left corner of the cell grid.
+        ny: cells per grid column.
+        keys: (k',) sorted cell * 4 + tangent angle mod pi, for narrow arcs.
+        order: (k',) arc index of each key.
+        cells: (c,) distinct cells holding narrow arcs; centres (c, 2).
+        wide: (w,) arcs turning more than WIDE radians: always candidates.
+        half_length: half the longest narrow arc's chord, mm.
+    """
+
+    cell_size: float
+    origin: np.ndarray
+    ny: int
+    keys: np.ndarray
+    order: np.ndarray
+    cells: np.ndarray
+    centres: np.ndarray
+    wide: np.ndarray
+    half_length: float
+
+    WIDE = 0.01  # half-turn (radians) above which an arc is always tested
+    CELL = 5.0  # mm
+
+    @classmethod
+    def build(cls, mid: np.ndarray, tangent: np.ndarray, half_turn: np.ndarray,
+              chord: np.ndarray) -> ArcIndex:
+        """Index arcs by middle point (k, 2), tangent angle, half turn and chord (k,)."""
+        narrow = np.flatnonzero(half_turn <= cls.WIDE)
+        wide = np.flatnonzero(half_turn > cls.WIDE)
+        origin = mid.min(axis=0) if len(mid) else np.zeros(2)
+        ij = np.floor((mid[narrow] - origin) / cls.CELL).astype(np.int64)
+        ny = int(ij[:, 1].max()) + 1 if len(ij) else 1
+        cell = ij[:, 0] * ny + ij[:, 1]
+        keys = cell * 4.0 + np.mod(tangent[narrow], np.pi)
+        order = np.argsort(keys, kind="stable")
+        cells = np.unique(cell)
+        centres = origin + (np.stack([cells // ny, cells % ny], axis=1) + 0.5) * cls.CELL
+        half_length = float(0.5 * chord[narrow].max()) if len(narrow) else 0.0
+        # (half_turn is infinite for arcs at sharp corners: they join ``wide``.)
+        return cls(cls.CELL, origin, ny, keys[order], narrow[order], cells, centres, wide,
+                   half_length)
+
+    def candidates(self, eye: np.ndarray, light: Light, reach: float) -> np.ndarray:
+        """Arcs that may glint for an eye, sorted.
+
+        Args:
+            eye: (3,) eye position.
+            light: the light.
+            reach: how far (mm) a glint may sit from its arc's middle: half the
+                longest arc plus the wall offset.
+
+        Returns:
+            (m,) arc indices.
+        """
+        if len(self.cells) == 0:
+            return np.sort(self.wide)
+        c3 = np.concatenate([self.centres, np.zeros((len(self.cells), 1))], axis=1)
+        h = normality(c3, light, eye)
+        hxy = np.hypot(h[:, 0], h[:, 1])
+        # How far h may turn within a cell: both unit vectors move by about
+        # (distance from the cell centre) / (distance to eye or light).
+        span = 0.75 * self.cell_size + reach
+        turn = span / np.linalg.norm(eye - c3, axis=1)
+        if light.distance is not None:
+            turn = turn + span / np.linalg.norm(light.position - c3, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            delta = np.where(hxy > 4.0 * turn, 2.0 * turn / hxy, np.pi)
+        delta = delta + self.WIDE + 1e-3
+        want = np.mod(np.arctan2(h[:, 1], h[:, 0]) + 0.5 * np.pi, np.pi)
+        lo, hi = want - delta, want + delta
+        base = self.cells * 4.0
+        ranges = []
+        # Intervals may wrap around 0 or pi: query each part separately.
+        for a, b in ((np.maximum(lo, 0.0), np.minimum(hi, np.pi)),
+                     (np.mod(lo, np.pi) * (lo < 0) + np.pi * (lo >= 0), np.full_like(lo, np.pi)),
+                     (np.zeros_like(hi), np.mod(hi, np.pi) * (hi > np.pi))):
+            i0 = np.searchsorted(self.keys, base + a, side="left")
+            i1 = np.searchsorted(self.keys, base + b, side="right")
+            ranges.append((i0, np.maximum(i1, i0)))
+        i0 = np.concatenate([r[0] for r in ranges])
+        i1 = np.concatenate([r[1] for r in ranges])
+        n = i1 - i0
+        pos = np.repeat(i0 - (np.cumsum(n) - n), n) + np.arange(n.sum())
+        return np.unique(np.concatenate([self.order[pos], self.wide]))
+
+
+@dataclass(frozen=True)
 class Engraved:
     """Groove geometry prepared for glint finding (one row per arc).
 
@@ -37,6 +133,7 @@ class Engraved:
         direction: (k, 2) unit direction of straight segments.
         path: (k,) path index of each arc.
         dot_pos: (q, 2) dimples; dot_path (q,).
+        index: arcs sorted by plate cell and tangent direction (see :class:`ArcIndex`).
     """
 
     grooves: Grooves
@@ -51,6 +148,7 @@ class Engraved:
     path: np.ndarray
     dot_pos: np.ndarray
     dot_path: np.ndarray
+    index: ArcIndex
 
     @classmethod
     def from_grooves(cls, grooves: Grooves, tool: Tool) -> Engraved:
@@ -65,8 +163,20 @@ class Engraved:
         length = np.linalg.norm(chord, axis=1, keepdims=True)
         direction = chord / np.where(length > 0, length, 1.0)
         dot_pos, dot_path = grooves.dots()
+        # Tangent directions (mod pi: t and -t glint alike) along each arc.
+        line_angle = np.arctan2(direction[:, 1], direction[:, 0])
+        t_start = np.where(straight, line_angle, start_angle + 0.5 * np.pi)
+        mid_tangent = t_start + 0.5 * sweep
+        turn = 0.5 * np.abs(sweep)
+        # A corner sweeps every direction between its arcs' tangents: arcs at a
+        # corner wider than the index's margin are always tested.
+        kink = np.abs(_wrap_half(t_start[1:] - (t_start[:-1] + sweep[:-1])))
+        corner = (seg.path[1:] == seg.path[:-1]) & (kink > ArcIndex.WIDE)
+        turn[:-1][corner] = np.inf
+        turn[1:][corner] = np.inf
+        index = ArcIndex.build(0.5 * (seg.start + seg.end), mid_tangent, turn, length[:, 0])
         return cls(grooves, tool, seg.start, seg.end, centre, radius, start_angle, sweep,
-                   direction, seg.path, dot_pos, dot_path)
+                   direction, seg.path, dot_pos, dot_path, index)
 
     def at(self, idx: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points (k, 3) and unit tangents (k, 2) at parameters u in [0, 1] of arcs idx."""
@@ -94,6 +204,11 @@ class Glints:
     path: np.ndarray
     stipple: np.ndarray
     point: np.ndarray
+
+
+def _wrap_half(a: np.ndarray) -> np.ndarray:
+    """Angles folded to [-pi/2, pi/2): directions that differ by pi are the same line."""
+    return (a + 0.5 * np.pi) % np.pi - 0.5 * np.pi
 
 
 def _lift(xy: np.ndarray) -> np.ndarray:
@@ -140,7 +255,8 @@ def _condition(eng: Engraved, idx: np.ndarray, u: np.ndarray, eye: np.ndarray,
     return h[:, 0] * t[:, 0] + h[:, 1] * t[:, 1], pts, h
 
 
-def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 12) -> Glints:
+def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 12,
+                indexed: bool = True) -> Glints:
     """All glints an eye sees on the engraved grooves.
 
     At finite distances h turns along a groove nearly as fast as a gently
@@ -153,6 +269,8 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
         eye: (3,) eye position in mm.
         light: the light.
         iterations: root refinements.
+        indexed: test only the arcs the index says may glint (the result is the
+            same; False tests every arc).
 
     Returns:
         The glints, sorted by stipple.
@@ -166,18 +284,29 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
     if k:
         # Screen on the toolpath (the wall shifts h by only ~R / distance radians),
         # in chunks so memory stays bounded for millions of arcs.
-        near_parts, kink_parts = [], []
-        for lo in range(0, k, _CHUNK):
-            hi = min(k, lo + _CHUNK)
-            idx = np.arange(lo, min(k, hi + 1))  # one more: the pair across the boundary
+        near_parts = [np.zeros(0, np.int64)]
+        kink_parts = [np.zeros(0, np.int64)]
+        reach = eng.index.half_length + eng.tool.radius
+        cand_all = eng.index.candidates(eye, light, reach) if indexed else np.arange(k)
+        for lo in range(0, cand_all.size, _CHUNK):
+            idx = cand_all[lo:lo + _CHUNK]
             f0, _, h0 = _condition(eng, idx, np.zeros(idx.size), eye, light, wall=False)
             f1, _, _ = _condition(eng, idx, np.ones(idx.size), eye, light, wall=False)
             tol = 0.01 * np.linalg.norm(h0, axis=1)
-            near = (f0 * f1 <= 0) | (np.minimum(np.abs(f0), np.abs(f1)) < tol)
-            near_parts.append(idx[:hi - lo][near[:hi - lo]])
-            pair = (eng.path[idx[:-1]] == eng.path[idx[1:]]) & (
-                (f1[:-1] * f0[1:] <= 0) | (np.abs(f1[:-1]) < tol[:-1]))
-            kink_parts.append(idx[:-1][pair[:hi - lo] if idx.size > hi - lo else pair])
+            near_parts.append(idx[(f0 * f1 <= 0) | (np.minimum(np.abs(f0), np.abs(f1)) < tol)])
+        # Corners: consecutive arcs of one path, both candidates (a corner's
+        # directions lie between theirs, so both are near the wanted one).
+        nxt = np.searchsorted(cand_all, cand_all + 1)
+        has = nxt < cand_all.size
+        has[has] = cand_all[nxt[has]] == cand_all[has] + 1
+        j = cand_all[has]
+        j = j[eng.path[j] == eng.path[j + 1]]
+        for lo in range(0, j.size, _CHUNK):
+            a = j[lo:lo + _CHUNK]
+            f1, _, h1 = _condition(eng, a, np.ones(a.size), eye, light, wall=False)
+            f0, _, _ = _condition(eng, a + 1, np.zeros(a.size), eye, light, wall=False)
+            tol = 0.01 * np.linalg.norm(h1, axis=1)
+            kink_parts.append(a[(f1 * f0 <= 0) | (np.abs(f1) < tol)])
         near = np.concatenate(near_parts)
         kinks = np.concatenate(kink_parts)
         # A corner between two arcs (where rounding or a straight stretch breaks
