@@ -10,9 +10,38 @@ dot: a plunge that leaves a spherical dimple.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
+
+
+@nb.njit(cache=True, parallel=True)
+def _arc_geometry(start: np.ndarray, end: np.ndarray,
+                  bulge: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Centres (k, 2), radii, start angles and sweeps (k,) of arcs given by bulge."""
+    k = bulge.size
+    centre = np.empty((k, 2))
+    radius = np.empty(k)
+    start_angle = np.empty(k)
+    sweep = np.empty(k)
+    for i in nb.prange(k):
+        b = bulge[i]
+        sweep[i] = 4.0 * math.atan(b)
+        if b == 0.0:
+            centre[i, 0] = centre[i, 1] = math.nan
+            radius[i] = math.inf
+            start_angle[i] = math.nan
+            continue
+        cx, cy = end[i, 0] - start[i, 0], end[i, 1] - start[i, 1]
+        offset = (1.0 - b * b) / (4.0 * b)
+        # The centre lies off the chord's middle, to its left for b > 0.
+        centre[i, 0] = 0.5 * (start[i, 0] + end[i, 0]) - cy * offset
+        centre[i, 1] = 0.5 * (start[i, 1] + end[i, 1]) + cx * offset
+        radius[i] = math.hypot(cx, cy) * (1.0 + b * b) / (4.0 * abs(b))
+        start_angle[i] = math.atan2(start[i, 1] - centre[i, 1], start[i, 0] - centre[i, 0])
+    return centre, radius, start_angle, sweep
 
 
 @dataclass(frozen=True)
@@ -42,18 +71,9 @@ class Segments:
         Returns:
             centre (k, 2), radius (k,), start angle (k,), sweep (k,) in radians.
         """
-        chord = self.end - self.start
-        length = np.linalg.norm(chord, axis=1)
-        b = self.bulge
-        sweep = 4.0 * np.arctan(b)
-        left = np.stack([-chord[:, 1], chord[:, 0]], axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            offset = (1.0 - b * b) / (4.0 * b)
-            centre = 0.5 * (self.start + self.end) + left * offset[:, None]
-            radius = length * (1.0 + b * b) / (4.0 * np.abs(b))
-        rel = self.start - centre
-        start_angle = np.arctan2(rel[:, 1], rel[:, 0])
-        return centre, radius, start_angle, sweep
+        f = np.ascontiguousarray
+        return _arc_geometry(f(self.start, dtype=float), f(self.end, dtype=float),
+                             f(self.bulge, dtype=float))
 
     def lengths(self) -> np.ndarray:
         """Arc lengths (k,) in mm."""
