@@ -98,3 +98,14 @@ def random_grooves(
 def grooves_strategy() -> Callable[..., st.SearchStrategy[Grooves]]:
     """The :func:`random_grooves` strategy factory, for ``data.draw`` in tests."""
     return random_grooves
+
+
+@pytest.fixture(scope="session")
+def small_design(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 150-stipple design of the bundled bunny, shared by the picture tests."""
+    from specholo.pipeline import DesignConfig, design, write_design
+
+    out = tmp_path_factory.mktemp("small") / "bunny"
+    bunny = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
+    write_design(design(bunny, DesignConfig(stipples=150)), out)
+    return out

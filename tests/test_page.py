@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from specholo.pipeline import DesignConfig, design, load_design, write_design
+from specholo.pipeline import load_design
 from specholo.preview.page import build_page, write_page
 from specholo.preview.render import Camera
 from specholo.setup import Light
@@ -29,10 +29,8 @@ W, H = 800, 600
 HUD = 28  # the angle bar above the canvas, CSS px
 
 @pytest.fixture(scope="module")
-def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("page") / "bunny"
-    write_design(design(BUNNY, DesignConfig(stipples=150)), out)
-    return out
+def folder(small_design: Path) -> Path:
+    return small_design
 
 
 @pytest.fixture(scope="module")

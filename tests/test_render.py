@@ -11,7 +11,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from specholo.errors import SpecholoError
-from specholo.pipeline import DesignConfig, Loaded, design, load_design, write_design
+from specholo.pipeline import Loaded, load_design
 from specholo.preview.motion import light_sweep, sweep, turntable, write_animation
 from specholo.preview.render import (
     Camera,
@@ -31,10 +31,8 @@ SIZE = (1024, 512)
 
 
 @pytest.fixture(scope="module")
-def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("render") / "holo"
-    write_design(design(BUNNY, DesignConfig(stipples=150)), out)
-    return out
+def folder(small_design: Path) -> Path:
+    return small_design
 
 
 @pytest.fixture(scope="module")
