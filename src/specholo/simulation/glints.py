@@ -17,10 +17,10 @@ import numpy as np
 
 from specholo.optics.normality import normality, tilt, unit
 from specholo.setup import Light, Tool
+from specholo.simulation import _glint_kernel as _kernel
 from specholo.toolpaths.grooves import Grooves
 
 _LINE_BULGE = 1e-9
-_CHUNK = 1 << 19  # arcs screened at once
 
 
 @dataclass(frozen=True)
@@ -56,6 +56,11 @@ class ArcIndex:
     WIDE = 0.01  # half-turn (radians) above which an arc is always tested
     CELL = 5.0  # mm
 
+    @property
+    def size(self) -> int:
+        """Number of arcs indexed (narrow and wide)."""
+        return len(self.order) + len(self.wide)
+
     @classmethod
     def build(cls, mid: np.ndarray, tangent: np.ndarray, half_turn: np.ndarray,
               chord: np.ndarray) -> ArcIndex:
@@ -66,13 +71,17 @@ class ArcIndex:
         ij = np.floor((mid[narrow] - origin) / cls.CELL).astype(np.int64)
         ny = int(ij[:, 1].max()) + 1 if len(ij) else 1
         cell = ij[:, 0] * ny + ij[:, 1]
-        keys = cell * 4.0 + np.mod(tangent[narrow], np.pi)
-        order = np.argsort(keys, kind="stable")
-        cells = np.unique(cell)
+        angle = np.mod(tangent[narrow], np.pi)
+        nx = int(ij[:, 0].max()) + 1 if len(ij) else 1
+        order = _kernel.sort_by_cell(cell, angle, nx * ny)
+        sorted_cell = cell[order]
+        keys = sorted_cell * 4.0 + angle[order]
+        cells = sorted_cell[np.r_[True, sorted_cell[1:] != sorted_cell[:-1]]] if len(
+            order) else sorted_cell
         centres = origin + (np.stack([cells // ny, cells % ny], axis=1) + 0.5) * cls.CELL
         half_length = float(0.5 * chord[narrow].max()) if len(narrow) else 0.0
         # (half_turn is infinite for arcs at sharp corners: they join ``wide``.)
-        return cls(cls.CELL, origin, ny, keys[order], narrow[order], cells, centres, wide,
+        return cls(cls.CELL, origin, ny, keys, narrow[order], cells, centres, wide,
                    half_length)
 
     def candidates(self, eye: np.ndarray, light: Light, reach: float) -> np.ndarray:
@@ -116,7 +125,12 @@ class ArcIndex:
         i1 = np.concatenate([r[1] for r in ranges])
         n = i1 - i0
         pos = np.repeat(i0 - (np.cumsum(n) - n), n) + np.arange(n.sum())
-        return np.unique(np.concatenate([self.order[pos], self.wide]))
+        # A mask, not np.unique: the wrapped queries may overlap, and sorting
+        # millions of indices costs more than one pass over a flag per arc.
+        keep = np.zeros(self.size, np.bool_)
+        keep[self.order[pos]] = True
+        keep[self.wide] = True
+        return np.flatnonzero(keep)
 
 
 @dataclass(frozen=True)
@@ -153,28 +167,11 @@ class Engraved:
     @classmethod
     def from_grooves(cls, grooves: Grooves, tool: Tool) -> Engraved:
         seg = grooves.segments()
-        centre, radius, start_angle, sweep = seg.geometry()
-        straight = (np.abs(seg.bulge) < _LINE_BULGE) | ~np.isfinite(radius)
-        centre[straight] = seg.start[straight]
-        radius[straight] = 0.0
-        sweep[straight] = 0.0
-        start_angle[straight] = 0.0
-        chord = seg.end - seg.start
-        length = np.linalg.norm(chord, axis=1, keepdims=True)
-        direction = chord / np.where(length > 0, length, 1.0)
+        (centre, radius, start_angle, sweep, direction, mid_tangent, turn,
+         chord) = _kernel.prepare(seg.start, seg.end, seg.bulge, seg.path, _LINE_BULGE,
+                                  ArcIndex.WIDE)
         dot_pos, dot_path = grooves.dots()
-        # Tangent directions (mod pi: t and -t glint alike) along each arc.
-        line_angle = np.arctan2(direction[:, 1], direction[:, 0])
-        t_start = np.where(straight, line_angle, start_angle + 0.5 * np.pi)
-        mid_tangent = t_start + 0.5 * sweep
-        turn = 0.5 * np.abs(sweep)
-        # A corner sweeps every direction between its arcs' tangents: arcs at a
-        # corner wider than the index's margin are always tested.
-        kink = np.abs(_wrap_half(t_start[1:] - (t_start[:-1] + sweep[:-1])))
-        corner = (seg.path[1:] == seg.path[:-1]) & (kink > ArcIndex.WIDE)
-        turn[:-1][corner] = np.inf
-        turn[1:][corner] = np.inf
-        index = ArcIndex.build(0.5 * (seg.start + seg.end), mid_tangent, turn, length[:, 0])
+        index = ArcIndex.build(0.5 * (seg.start + seg.end), mid_tangent, turn, chord)
         return cls(grooves, tool, seg.start, seg.end, centre, radius, start_angle, sweep,
                    direction, seg.path, dot_pos, dot_path, index)
 
@@ -240,21 +237,6 @@ def wall_glint(centre: np.ndarray, tool: Tool, light: Light,
     return g, normality(g, light, eye)
 
 
-def _condition(eng: Engraved, idx: np.ndarray, u: np.ndarray, eye: np.ndarray,
-               light: Light, wall: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Glint condition h . t at parameters u of arcs idx, with the glint points and h.
-
-    With ``wall`` the glint is placed on the groove wall (see :func:`wall_glint`);
-    without it on the toolpath, a cheap first screen.
-    """
-    pts, t = eng.at(idx, u)
-    if wall:
-        pts, h = wall_glint(pts[:, :2], eng.tool, light, eye)
-    else:
-        h = normality(pts, light, eye)
-    return h[:, 0] * t[:, 0] + h[:, 1] * t[:, 1], pts, h
-
-
 def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 12,
                 indexed: bool = True) -> Glints:
     """All glints an eye sees on the engraved grooves.
@@ -282,67 +264,27 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
 
     k = len(eng.path)
     if k:
-        # Screen on the toolpath (the wall shifts h by only ~R / distance radians),
-        # in chunks so memory stays bounded for millions of arcs.
-        near_parts = [np.zeros(0, np.int64)]
-        kink_parts = [np.zeros(0, np.int64)]
         reach = eng.index.half_length + eng.tool.radius
-        cand_all = eng.index.candidates(eye, light, reach) if indexed else np.arange(k)
-        for lo in range(0, cand_all.size, _CHUNK):
-            idx = cand_all[lo:lo + _CHUNK]
-            f0, _, h0 = _condition(eng, idx, np.zeros(idx.size), eye, light, wall=False)
-            f1, _, _ = _condition(eng, idx, np.ones(idx.size), eye, light, wall=False)
-            tol = 0.01 * np.linalg.norm(h0, axis=1)
-            near_parts.append(idx[(f0 * f1 <= 0) | (np.minimum(np.abs(f0), np.abs(f1)) < tol)])
+        cand = eng.index.candidates(eye, light, reach) if indexed else np.arange(k)
+        is_point = light.distance is not None
+        lvec = light.position if is_point else light.direction
+        geometry = (eng.start, eng.end, eng.centre, eng.radius, eng.start_angle, eng.sweep,
+                    eng.direction, eng.tool.radius, eng.tool.depth, max_tilt, eye,
+                    np.asarray(lvec, dtype=float), is_point)
         # Corners: consecutive arcs of one path, both candidates (a corner's
-        # directions lie between theirs, so both are near the wanted one).
-        nxt = np.searchsorted(cand_all, cand_all + 1)
-        has = nxt < cand_all.size
-        has[has] = cand_all[nxt[has]] == cand_all[has] + 1
-        j = cand_all[has]
+        # directions lie between theirs, so both are near the wanted one). The
+        # ball sweeps every direction between the two tangents there.
+        nxt = np.searchsorted(cand, cand + 1)
+        has = nxt < cand.size
+        has[has] = cand[nxt[has]] == cand[has] + 1
+        j = cand[has]
         j = j[eng.path[j] == eng.path[j + 1]]
-        for lo in range(0, j.size, _CHUNK):
-            a = j[lo:lo + _CHUNK]
-            f1, _, h1 = _condition(eng, a, np.ones(a.size), eye, light, wall=False)
-            f0, _, _ = _condition(eng, a + 1, np.zeros(a.size), eye, light, wall=False)
-            tol = 0.01 * np.linalg.norm(h1, axis=1)
-            kink_parts.append(a[(f1 * f0 <= 0) | (np.abs(f1) < tol)])
-        near = np.concatenate(near_parts)
-        kinks = np.concatenate(kink_parts)
-        # A corner between two arcs (where rounding or a straight stretch breaks
-        # the tangent) is swept by the ball through every direction in between.
-        fe, s_end, h_end = _condition(eng, kinks, np.ones(kinks.size), eye, light)
-        fs, _, _ = _condition(eng, kinks + 1, np.zeros(kinks.size), eye, light)
-        corner = (fe * fs < 0) & (tilt(h_end) <= max_tilt)
-        paths.append(eng.path[kinks[corner]])
-        points.append(s_end[corner])
-        f0, _, _ = _condition(eng, near, np.zeros(near.size), eye, light)
-        f1, _, _ = _condition(eng, near, np.ones(near.size), eye, light)
-        # A root exactly on a shared vertex belongs to the arc that starts there.
-        hit = (f0 == 0) | (f0 * f1 < 0)
-        cand = near[hit]
-        a, b = np.zeros(cand.size), np.ones(cand.size)
-        fa, fb = f0[hit], f1[hit]
-        side = np.zeros(cand.size)
-        u = a
-        for _ in range(iterations):
-            with np.errstate(divide="ignore", invalid="ignore"):
-                u = np.where(fa == fb, a, (a * fb - b * fa) / (fb - fa))
-            fu, _, _ = _condition(eng, cand, u, eye, light)
-            left = fa * fu > 0  # root lies in [u, b]
-            a = np.where(left, u, a)
-            fa = np.where(left, fu, fa)
-            b = np.where(left, b, u)
-            fb = np.where(left, fb, fu)
-            # Illinois: halve the stale end's value so both ends keep moving.
-            fb = np.where(left & (side > 0), 0.5 * fb, fb)
-            fa = np.where(~left & (side < 0), 0.5 * fa, fa)
-            side = np.where(left, 1.0, -1.0)
-        u = np.clip(u, 0.0, 1.0)
-        _, s, h = _condition(eng, cand, u, eye, light)
-        ok = tilt(h) <= max_tilt
+        ok, pts = _kernel.corner_glints(j, *geometry)
+        paths.append(eng.path[j[ok]])
+        points.append(pts[ok])
+        ok, pts = _kernel.arc_glints(cand, *geometry, iterations)
         paths.append(eng.path[cand[ok]])
-        points.append(s[ok])
+        points.append(pts[ok])
 
     # Dimples offer every normal up to the wall tilt.
     if len(eng.dot_path):
