@@ -22,11 +22,13 @@ from specholo.toolpaths.striped import StripeOptions, design_striped
 WIDE_TOOL = Tool(radius=1.0, depth=1.0)  # walls offer every tilt: isolate the tangent condition
 
 
-def _design(points: np.ndarray, setup: Setup, band: float = 0.2, refusable: bool = False):
+def _design(points: np.ndarray, setup: Setup, band: float = 0.2, refusable: bool = False,
+            spacing: float = 0.0):
+    # A fixed band (no spacing) by default: these tests bound the error by the band.
     r = setup.viewer.design_range
     n = len(points)
     runs = make_runs(points, np.arange(n), np.full(n, -r), np.full(n, r))
-    grooves, dropped = design_striped(runs, setup, StripeOptions(band=band))
+    grooves, dropped = design_striped(runs, setup, StripeOptions(band=band, spacing=spacing))
     if refusable:
         # Light nearly in the eyes' plane makes grooves run vertically: refused.
         assume(dropped.size == 0)
@@ -232,7 +234,8 @@ def test_sample_buffers_that_overflow_are_retried_with_room():
     params = _params(setup, opts)
     u0, _, cap = kernel.start_offsets(runs.start, runs.end, runs.point, params, opts.band,
                                       opts.min_light_tilt)
-    full = _integrate(runs, params, u0, cap.copy(), opts.band)
-    tight = _integrate(runs, params, u0, np.full(3, 2, dtype=np.int64), opts.band)
+    full = _integrate(runs, params, u0, cap.copy(), opts.band, setup.tool.width)
+    tight = _integrate(runs, params, u0, np.full(3, 2, dtype=np.int64), opts.band,
+                       setup.tool.width)
     for a, b in zip(full, tight, strict=True):
         np.testing.assert_array_equal(a, b)

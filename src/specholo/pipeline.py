@@ -22,9 +22,11 @@ import numpy as np
 from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open, public_mode
-from specholo.setup import Light, Machining, Setup, Tool, Viewer
+from specholo.fabrication.tools import Cutter, ViewCheck, check_views, make_cutter
+from specholo.setup import Light, Machining, Setup, Viewer
 from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import Grooves
+from specholo.toolpaths.overlap import Overlaps, groove_overlaps
 
 METHODS = ("striped", "hyperbola", "arc")
 DEFAULT_STIPPLES = 2000
@@ -50,8 +52,16 @@ class DesignConfig:
     seed: int = 0
     method: str = "striped"
     band: float = 0.2
-    tool_radius: float = 0.25
+    tool: str = "ball"
+    tool_radius: float | None = None
+    tool_angle: float | None = None
+    tip_flat: float = 0.0
+    spot: float | None = None
     depth: float = 0.08
+    strict: bool = False
+    plate_width: float | None = None
+    plate_height: float | None = None
+    stock_thickness: float = 3.0
     feed: float = 300.0
     plunge: float = 100.0
     safe_z: float = 1.0
@@ -74,6 +84,19 @@ class DesignConfig:
                                     f"{getattr(self, name)}")
         if not self.band > 0:
             raise SpecholoError(f"band must be positive, got {self.band}")
+        for name in ("plate_width", "plate_height"):
+            v = getattr(self, name)
+            if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v)
+                                      and v > 0):
+                raise SpecholoError(f"{name.replace('_', '-')} must be a positive number of mm, "
+                                    f"got {v}")
+        if not (isinstance(self.stock_thickness, (int, float))
+                and math.isfinite(self.stock_thickness) and self.stock_thickness > 0):
+            raise SpecholoError(f"stock-thickness must be a positive number of mm, got "
+                                f"{self.stock_thickness}")
+        if isinstance(self.depth, (int, float)) and self.depth >= self.stock_thickness:
+            raise SpecholoError(f"groove depth {self.depth:g} mm must be less than the stock "
+                                f"thickness {self.stock_thickness:g} mm")
         self.setup()  # validates the physical settings
 
     @classmethod
@@ -91,6 +114,16 @@ class DesignConfig:
         except TypeError as exc:
             raise SpecholoError(f"bad setting: {exc}") from exc
 
+    def cutter(self) -> Cutter:
+        """The cutting tool."""
+        try:
+            return make_cutter(self.tool, self.tool_radius, self.tool_angle,
+                               float(self.tip_flat), self.spot)
+        except (TypeError, ValueError) as exc:
+            if isinstance(exc, SpecholoError):
+                raise
+            raise SpecholoError(f"bad setting: {exc}") from exc
+
     def setup(self) -> Setup:
         """The physical setup in library units (radians)."""
         try:
@@ -99,7 +132,7 @@ class DesignConfig:
                             None if self.light_distance is None else float(self.light_distance)),
                 viewer=Viewer(float(self.view_distance), float(self.eye_height),
                               math.radians(float(self.view_range)), float(self.ipd)),
-                tool=Tool(float(self.tool_radius), float(self.depth)),
+                tool=self.cutter().model(float(self.depth)),
                 machining=Machining(float(self.feed), float(self.plunge), float(self.safe_z),
                                     float(self.spindle)),
             )
@@ -121,6 +154,35 @@ class Design:
     grooves: Grooves
     dropped: np.ndarray  # stipple ids that could not be designed
     timings: dict[str, float]
+    views: ViewCheck | None = None  # the tool's walls against the tilts needed
+    overlaps: Overlaps | None = None  # where grooves cut into each other
+    plate: np.ndarray | None = None  # (2, 2) plate corners, mm
+
+
+#: Blank border around the grooves when the plate size is not given, mm.
+PLATE_MARGIN = 5.0
+
+
+def plate_rect(grooves: Grooves, width: float, config: DesignConfig) -> np.ndarray:
+    """The plate's corners (2, 2), centred on the plate origin; refuse one too small.
+
+    Args:
+        grooves: the design's grooves.
+        width: groove width, mm (grooves reach half of it past their centrelines).
+        config: plate_width / plate_height, or None to fit the grooves with a margin.
+    """
+    lo, hi = grooves.bounds() if grooves.n_paths else (np.zeros(2), np.zeros(2))
+    reach = np.maximum(np.abs(lo), np.abs(hi)) + 0.5 * width
+    need = 2.0 * reach
+    size = np.array([config.plate_width or 0.0, config.plate_height or 0.0])
+    given = size > 0
+    for axis, name in ((0, "width"), (1, "height")):
+        if given[axis] and size[axis] < need[axis]:
+            raise SpecholoError(
+                f"plate {name} {size[axis]:g} mm is smaller than the design, which needs "
+                f"{need[axis]:.1f} mm (grooves reach +-{reach[axis]:.1f} mm from the centre)")
+    size = np.where(given, size, np.ceil(need + 2.0 * PLATE_MARGIN))
+    return np.stack([-0.5 * size, 0.5 * size])
 
 
 def check_points(points: np.ndarray, setup: Setup) -> None:
@@ -148,13 +210,18 @@ def design_runs(runs: Runs, config: DesignConfig) -> tuple[Grooves, np.ndarray]:
 
 
 def design(model_path: str | os.PathLike[str], config: DesignConfig,
-           rng: np.random.Generator | None = None) -> Design:
-    """Load, place, stipple, crop by occlusion, and design the grooves.
+           rng: np.random.Generator | None = None, check_overlaps: bool = True) -> Design:
+    """Load, place, stipple, crop by occlusion, check the tool, design the grooves.
 
     Args:
         model_path: mesh or point-cloud file.
         config: the options.
         rng: random generator for stippling; default seeded from ``config.seed``.
+        check_overlaps: measure where grooves cut into each other.
+
+    Raises:
+        SpecholoError: on bad input, a plate smaller than the design, or (with
+            ``config.strict``) a tool whose walls lose views.
     """
     from specholo.scene.loading import load_model
     from specholo.scene.placement import place
@@ -176,9 +243,24 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     runs = make_runs(points, iv.stipple, iv.start, iv.end)
     timings["occlusion"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    cutter = config.cutter()
+    views = check_views(cutter, config.depth, points, runs.stipple, runs.start, runs.end,
+                        setup.light, setup.viewer)
+    if config.strict and views.lost > 0:
+        raise SpecholoError(
+            f"the {cutter.describe()} at {config.depth:g} mm loses {100 * views.lost:.1f}% "
+            f"of the views ({views.stipples_losing} stipples); {views.suggestion}")
+    timings["tool check"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     grooves, dropped = design_runs(runs, config)
     timings["toolpaths"] = time.perf_counter() - t0
-    return Design(config, model, points, st.normals, runs, grooves, dropped, timings)
+    section = cutter.section(config.depth)
+    plate = plate_rect(grooves, section.width, config)
+    t0 = time.perf_counter()
+    overlaps = groove_overlaps(grooves, section.width) if check_overlaps else None
+    timings["overlaps"] = time.perf_counter() - t0
+    return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
+                  views, overlaps, plate)
 
 
 def _intervals_deg(runs: Runs, n: int) -> list[list[list[float]]]:
@@ -198,10 +280,16 @@ def hologram_json(d: Design) -> dict[str, Any]:
         "specholo_version": __version__,
         "settings": asdict(d.config),
         "frame": "plate mm: x right, y up, z toward the viewer, plate at z = 0",
-        "tool": {"kind": "ball-end", "radius_mm": setup.tool.radius,
-                 "depth_mm": setup.tool.depth, "groove_width_mm": setup.tool.width,
-                 "max_wall_tilt_deg": math.degrees(setup.tool.max_tilt)},
-        "plate": {"groove_extent_mm": [lo.tolist(), hi.tolist()]},
+        "tool": {"kind": d.config.tool, "description": d.config.cutter().describe(),
+                 "depth_mm": d.config.depth,
+                 "groove_width_mm": d.config.cutter().section(d.config.depth).width,
+                 "round_model": {"radius_mm": setup.tool.radius, "depth_mm": setup.tool.depth,
+                                 "max_wall_tilt_deg": math.degrees(setup.tool.max_tilt)}},
+        "views": d.views.as_dict() if d.views is not None else None,
+        "overlaps": d.overlaps.as_dict() if d.overlaps is not None else None,
+        "plate": {"groove_extent_mm": [lo.tolist(), hi.tolist()],
+                  "plate_mm": d.plate.tolist() if d.plate is not None else None,
+                  "stock_thickness_mm": d.config.stock_thickness},
         "stats": {"stipples": len(d.points), "paths": d.grooves.n_paths,
                   "dots": int(d.grooves.is_dot.sum()),
                   "groove_length_mm": d.grooves.total_length(),

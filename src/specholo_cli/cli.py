@@ -28,8 +28,17 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("spacing", float, "Minimum stipple spacing in mm (instead of --stipples)."),
     ("seed", int, "Random seed for stippling [0]."),
     ("band", float, "Striped design: half-height of the band, bounds vertical error, mm [0.2]."),
-    ("tool-radius", float, "Ball-end tool radius, mm [0.25]."),
+    ("tool", click.Choice(["ball", "vbit", "drag", "scriber", "laser"]),
+     "Cutting tool: ball-end mill, V-bit, diamond drag tip, hand scriber or laser [ball]."),
+    ("tool-radius", float, "Ball or tip radius, mm [ball 0.25, drag 0.1, scriber 0.05]."),
+    ("tool-angle", float, "Included angle of a V-bit or tip cone, degrees "
+     "[vbit 60, drag 90, scriber 60]."),
+    ("tip-flat", float, "Width of a V-bit's tip flat, mm [0]."),
+    ("spot", float, "Laser spot diameter (1/e^2), mm [0.1]."),
     ("depth", float, "Groove depth, mm [0.08]."),
+    ("plate-width", float, "Plate width, mm [the grooves' extent plus 5 mm each side]."),
+    ("plate-height", float, "Plate height, mm [the grooves' extent plus 5 mm each side]."),
+    ("stock-thickness", float, "Plate thickness, mm [3]."),
     ("feed", float, "Cutting feed, mm/min [300]."),
     ("plunge", float, "Plunge feed, mm/min [100]."),
     ("safe-z", float, "Rapid (safe) height, mm [1]."),
@@ -73,9 +82,11 @@ def _design_options(fn: Any) -> Any:
                    "or the classic circular arc.")
 @click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
               help="TOML file with any of these options (same names).")
+@click.option("--strict", is_flag=True,
+              help="Refuse a design whose tool cannot serve every view.")
 @_design_options
 def design(model: Path, out: Path, method: str | None, config_path: Path | None,
-           **options: Any) -> None:
+           strict: bool, **options: Any) -> None:
     """Design a hologram of MODEL (OBJ, STL, PLY, OFF, GLB; PLY/XYZ/CSV point clouds)."""
     from rich.console import Console
 
@@ -85,6 +96,8 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     values = _read_config(config_path)
     if method is not None:
         options["method"] = method
+    if strict:
+        options["strict"] = True
     values.update({k: v for k, v in options.items() if v is not None})
     config = DesignConfig.from_dict(values)
     console = Console(stderr=True)
@@ -95,6 +108,20 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     stats = (f"{len(d.points)} stipples, {d.grooves.n_paths} paths, "
              f"{d.grooves.total_length() / 1000:.2f} m of groove")
     click.echo(f"{config.method}: {stats} -> {out}")
+    if d.views is not None:
+        lo, hi = (math.degrees(v) for v in d.views.needed)
+        click.echo(f"tool: {config.cutter().describe()}, {config.depth:g} mm deep; views need "
+                   f"walls tilted {lo:.1f}-{hi:.1f} deg, groove offers up to "
+                   f"{math.degrees(d.views.offered.max_tilt):.1f} deg")
+        if d.views.lost > 0:
+            click.echo(f"warning: {100 * d.views.lost:.1f}% of views lost "
+                       f"({d.views.stipples_losing} stipples); {d.views.suggestion}", err=True)
+    if d.overlaps is not None:
+        o = d.overlaps
+        click.echo(f"grooves: {o.neighbours} overlapping stripe pairs within a stipple; "
+                   f"{o.crossings} crossings between stipples, "
+                   f"{o.crossed_length / max(o.total_length, 1e-9):.0%} of the groove length "
+                   "within a groove width of another stipple's")
     if len(d.dropped):
         click.echo(f"warning: {len(d.dropped)} stipples could not be designed "
                    "(light in the eyes' plane)", err=True)

@@ -37,13 +37,28 @@ def fabrication_figures(info: dict[str, Any]) -> list[tuple[str, str]]:
     paths = int(stats["paths"])
     # Cutting at feed plus plunging each path at the plunge rate; rapids excluded.
     minutes = length / settings["feed"] + paths * settings["depth"] / settings["plunge"]
-    return [
+    rows = [
         ("grooves (paths)", f"{paths:,}"),
         ("dimples", f"{int(stats['dots']):,}"),
         ("groove length", f"{length / 1000:.2f} m"),
         ("groove extent", f"{x1 - x0:.1f} × {y1 - y0:.1f} mm"),
         ("cutting time, feeds only", f"{minutes / 60:.1f} h"),
     ]
+    plate = info["plate"].get("plate_mm")
+    if plate:
+        (px0, py0), (px1, py1) = plate
+        rows.append(("plate", f"{px1 - px0:.0f} × {py1 - py0:.0f} × "
+                              f"{info['plate']['stock_thickness_mm']} mm"))
+    views = info.get("views")
+    if views:
+        lo, hi = views["needed_tilt_deg"]
+        rows.append(("wall tilts needed", f"{lo:.1f}–{hi:.1f}°, views lost "
+                                          f"{100 * views['views_lost']:.1f}%"))
+    over = info.get("overlaps")
+    if over:
+        rows.append(("stripes cutting into each other", f"{over['neighbour_overlaps']:,}"))
+        rows.append(("crossings between stipples", f"{over['crossings']:,}"))
+    return rows
 
 
 def write_report(folder: str | os.PathLike[str], verify: dict[str, Any] | None) -> Path:
@@ -71,7 +86,7 @@ def write_report(folder: str | os.PathLike[str], verify: dict[str, Any] | None) 
                      else f"point at {settings['light_distance']} mm")),
         ("viewer", f"{settings['view_distance']} mm away, ±{settings['view_range']}°, "
                    f"eye height {settings['eye_height']} mm, IPD {settings['ipd']} mm"),
-        ("tool", f"ball end r = {tool['radius_mm']} mm, depth {tool['depth_mm']} mm, "
+        ("tool", f"{tool['description']}, depth {tool['depth_mm']} mm, "
                  f"groove {tool['groove_width_mm']:.3f} mm wide"),
         ("software", f"specholo {info['specholo_version']}"),
     ]

@@ -181,12 +181,15 @@ def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: 
 
 @nb.njit(cache=True, parallel=True)
 def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarray,
-              params: np.ndarray, w: float, offsets: np.ndarray, stripe_out: np.ndarray,
-              point_out: np.ndarray, tangent_out: np.ndarray) -> np.ndarray:
+              params: np.ndarray, w: float, spacing: float, offsets: np.ndarray,
+              stripe_out: np.ndarray, point_out: np.ndarray,
+              tangent_out: np.ndarray) -> np.ndarray:
     """Walk every run through its interval, striping where |u| reaches the band edge.
 
     Samples of run r go to slots offsets[r] .. offsets[r + 1] - 1: stripe
     number, toolpath point (x, y) and the path's direction there (unnormalised).
+    Where the paths are steep the band widens so that consecutive stripes'
+    centrelines stay ``spacing`` apart: a groove never cuts into its neighbour.
 
     Returns:
         (r,) number of samples written per run, or -1 where the slots ran out.
@@ -210,6 +213,9 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
             k1, c, x, dx, dc, _, _, _ = field(th, y, px, py, pz, params)
             point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x, dx, k1
             u_start = y - c
+            # Neighbouring stripes of one stipple are the band's height 2 wb apart
+            # vertically, so wb |cos(slope)| >= spacing / 2 keeps their grooves apart.
+            wb = max(w, 0.5 * spacing * math.hypot(dx, k1) / max(abs(dx), 1e-12))
             dth = min(max_step, max_chord / max(abs(dx), 1e-12))
             # |du| <= 2w per step: a step can cross at most one band edge.
             dth = min(dth, 2.0 * w / max(abs(k1 - dc), 1e-12))
@@ -218,14 +224,14 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
                 dth = end[i] - th
             y1, u1 = _heun(th, y, k1, dth, px, py, pz, params)
             edge = 0.0
-            if u1 > w:
-                edge = w
-            elif u1 < -w:
-                edge = -w
-            elif abs(u1) > (1.0 - _SNAP) * w and end[i] - th - dth > _NEAR_EDGE:
+            if u1 > wb:
+                edge = wb
+            elif u1 < -wb:
+                edge = -wb
+            elif abs(u1) > (1.0 - _SNAP) * wb and end[i] - th - dth > _NEAR_EDGE:
                 # Ending next to the edge would force a sliver of a step next:
                 # the stripe ends here instead.
-                edge = math.copysign(w, u1)
+                edge = math.copysign(wb, u1)
                 u1 = edge
             if edge != 0.0 and u1 != edge:
                 # Secant on the step length so the stripe ends on the band edge.
@@ -234,7 +240,7 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
                 for _ in range(2):
                     t_new = a_t + (edge - a_u) * (b_t - a_t) / (b_u - a_u)
                     y1, u_new = _heun(th, y, k1, t_new, px, py, pz, params)
-                    if abs(u_new) <= w:
+                    if abs(u_new) <= wb:
                         a_t, a_u = t_new, u_new
                     else:
                         b_t, b_u = t_new, u_new

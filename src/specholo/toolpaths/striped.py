@@ -28,6 +28,9 @@ from specholo.toolpaths.grooves import Grooves
 
 #: Closest two samples of one stripe may be, mm.
 MIN_SPACING = 0.02
+#: Extra stripe spacing over the groove width, as a fraction: the spacing is set
+#: where stripes hand over, and the paths' curvature brings them a little closer.
+SPACING_CLEARANCE = 0.02
 
 
 @dataclass(frozen=True)
@@ -40,16 +43,22 @@ class StripeOptions:
         max_chord: largest horizontal distance between samples, mm.
         min_light_tilt: smallest |h_y| / |h| accepted; below it grooves would run
             vertically and could not follow the eyes' horizontal motion.
+        spacing: closest two stripes of one stipple may be, centreline to
+            centreline, mm; None for the groove width (the paper's condition for
+            grooves that do not cut into each other), 0 for a fixed band.
     """
 
     band: float = 0.2
     max_step: float = math.radians(0.5)
     max_chord: float = 0.5
     min_light_tilt: float = 0.05
+    spacing: float | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.band) and self.band > 0):
             raise SpecholoError(f"band must be a positive number of mm, got {self.band}")
+        if self.spacing is not None and not (math.isfinite(self.spacing) and self.spacing >= 0):
+            raise SpecholoError(f"stripe spacing must be >= 0 mm, got {self.spacing}")
 
 
 def _params(setup: Setup, opts: StripeOptions) -> np.ndarray:
@@ -62,7 +71,7 @@ def _params(setup: Setup, opts: StripeOptions) -> np.ndarray:
 
 
 def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
-               w: float) -> tuple[np.ndarray, ...]:
+               w: float, spacing: float) -> tuple[np.ndarray, ...]:
     """Samples of every run, in travel order.
 
     Returns:
@@ -77,7 +86,7 @@ def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
         point, tangent = np.empty((m, 2)), np.empty((m, 2))
         count = kernel.integrate(runs.start[pending], runs.end[pending],
                                  np.ascontiguousarray(runs.point[pending]), u0[pending],
-                                 params, w, offsets, stripe, point, tangent)
+                                 params, w, spacing, offsets, stripe, point, tangent)
         parts.append(kernel.compact(offsets, count, pending, stripe, point, tangent))
         # Runs whose bound was too small go again with room to spare.
         cap[pending[count < 0]] *= 4
@@ -118,7 +127,8 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     u0, cap = u0[valid], cap[valid]
     if len(far) == 0:
         return dots_for(near, setup), dropped
-    run, stripe, pts, tangent = _integrate(far, params, u0, cap, w)
+    spacing = setup.tool.width * (1 + SPACING_CLEARANCE) if opts.spacing is None else opts.spacing
+    run, stripe, pts, tangent = _integrate(far, params, u0, cap, w, spacing)
     keep, breaks = kernel.tidy(run, stripe, pts, MIN_SPACING)
     pts, tangent, breaks, run = pts[keep], tangent[keep], breaks[keep], run[keep]
     vertices, bulges, offsets = arc_chain(pts, tangent, breaks)

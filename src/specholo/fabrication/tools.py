@@ -1,0 +1,394 @@
+"""Cutting tools, the grooves they leave, and the views those grooves can serve.
+
+A groove glints where its wall's normal is the normality vector h, so the tilts
+of h a design needs (the paper's orthogonal tangent t2: the angle between the
+plate normal and h along the toolpath) must be among the wall tilts the tool's
+cross-section offers. A round tip (ball-end mill, diamond drag tip, scriber
+point) offers every tilt from 0 up to where the cut meets the surface; a V-bit
+offers only its flank's tilt (and 0 on its tip flat); a laser's Gaussian trough
+every tilt up to its steepest slope.
+
+Every tool is rotationally symmetric, described by the height of its cutting
+surface above its tip at distance r from its axis (``height``), which is what a
+cut simulation sweeps. For designing and the ideal-groove simulation each tool
+also gives a ball-end model of its round part (``model``): the glint on a round
+wall sits R h/|h| from the ball centre.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from specholo.errors import SpecholoError
+from specholo.setup import Light, Tool, Viewer
+
+#: Tolerance when comparing a needed tilt with a facet's, radians (~0.06 degrees).
+TILT_TOLERANCE = 1e-3
+#: Names accepted by :func:`make_cutter`.
+KINDS = ("ball", "vbit", "drag", "scriber", "laser")
+
+
+def _positive(name: str, value: float) -> float:
+    value = float(value)
+    if not (math.isfinite(value) and value > 0):
+        raise SpecholoError(f"{name} must be a positive number, got {value}")
+    return value
+
+
+@dataclass(frozen=True)
+class Section:
+    """What a groove's cross-section offers.
+
+    Attributes:
+        width: groove width at the plate surface, mm.
+        tilts: wall tilt intervals (lo, hi) in radians, lo == hi for a flat facet.
+    """
+
+    width: float
+    tilts: tuple[tuple[float, float], ...]
+
+    def covers(self, tilt: np.ndarray, tolerance: float = TILT_TOLERANCE) -> np.ndarray:
+        """Which needed tilts (n,) some wall offers; (n,) bool."""
+        tilt = np.asarray(tilt, dtype=float)
+        ok = np.zeros(tilt.shape, dtype=bool)
+        for lo, hi in self.tilts:
+            ok |= (tilt >= lo - tolerance) & (tilt <= hi + tolerance)
+        return ok
+
+    @property
+    def max_tilt(self) -> float:
+        """Steepest wall tilt, radians."""
+        return max(hi for _, hi in self.tilts)
+
+
+@dataclass(frozen=True)
+class BallEnd:
+    """Ball-end mill. Attributes: radius (mm)."""
+
+    radius: float = 0.25
+    kind = "ball"
+
+    def __post_init__(self) -> None:
+        _positive("ball radius", self.radius)
+
+    def height(self, r: np.ndarray) -> np.ndarray:
+        """Cutting surface height above the tip (n,) at distances r (n,) mm; inf past the ball."""
+        r = np.asarray(r, dtype=float)
+        R = self.radius
+        with np.errstate(invalid="ignore"):
+            return np.where(r <= R, R - np.sqrt(np.maximum(R * R - r * r, 0.0)), np.inf)
+
+    def check_depth(self, depth: float) -> None:
+        """Refuse depths the tool cannot cut as a round groove."""
+        _positive("groove depth", depth)
+        if depth > self.radius:
+            raise SpecholoError(
+                f"groove depth {depth:g} mm exceeds the ball radius {self.radius:g} mm: the "
+                "shank would cut vertical walls that never glint; use a larger ball")
+
+    def section(self, depth: float) -> Section:
+        self.check_depth(depth)
+        return Section(Tool(self.radius, depth).width,
+                       ((0.0, math.acos((self.radius - depth) / self.radius)),))
+
+    def model(self, depth: float) -> Tool:
+        self.check_depth(depth)
+        return Tool(self.radius, depth)
+
+    def describe(self) -> str:
+        return f"ball end, radius {self.radius:g} mm"
+
+
+@dataclass(frozen=True)
+class RoundCone:
+    """A cone with a spherical tip: diamond drag engraver or hand scriber point.
+
+    Attributes:
+        tip_radius: radius of the rounded tip, mm.
+        angle: the cone's included angle, radians.
+    """
+
+    tip_radius: float = 0.1
+    angle: float = math.radians(90.0)
+    kind = "drag"
+
+    def __post_init__(self) -> None:
+        _positive("tip radius", self.tip_radius)
+        if not (math.isfinite(self.angle) and 0 < self.angle < math.pi):
+            raise SpecholoError(
+                f"tool angle must be in (0, 180) degrees, got {math.degrees(self.angle):g}")
+
+    @property
+    def _joint(self) -> tuple[float, float]:
+        """Where the sphere meets the cone: distance from the axis and height."""
+        half = 0.5 * self.angle
+        r = self.tip_radius
+        return r * math.cos(half), r * (1.0 - math.sin(half))
+
+    def height(self, r: np.ndarray) -> np.ndarray:
+        r = np.asarray(r, dtype=float)
+        rj, hj = self._joint
+        R = self.tip_radius
+        sphere = R - np.sqrt(np.maximum(R * R - np.minimum(r, rj) ** 2, 0.0))
+        return np.where(r <= rj, sphere, hj + (r - rj) / math.tan(0.5 * self.angle))
+
+    def check_depth(self, depth: float) -> None:
+        _positive("groove depth", depth)
+
+    def section(self, depth: float) -> Section:
+        self.check_depth(depth)
+        rj, hj = self._joint
+        if depth <= hj:
+            return Section(Tool(self.tip_radius, depth).width,
+                           ((0.0, math.acos((self.tip_radius - depth) / self.tip_radius)),))
+        flank = 0.5 * math.pi - 0.5 * self.angle
+        width = 2.0 * (rj + (depth - hj) * math.tan(0.5 * self.angle))
+        return Section(width, ((0.0, flank),))
+
+    def model(self, depth: float) -> Tool:
+        self.check_depth(depth)
+        return Tool(self.tip_radius, min(depth, self._joint[1]))
+
+    def describe(self) -> str:
+        name = "diamond drag tip" if self.kind == "drag" else "scriber point"
+        return (f"{name}, tip radius {self.tip_radius:g} mm, "
+                f"{math.degrees(self.angle):g} degree cone")
+
+
+@dataclass(frozen=True)
+class Scriber(RoundCone):
+    """A hand scriber's hardened point (a sharper, finer round cone)."""
+
+    tip_radius: float = 0.05
+    angle: float = math.radians(60.0)
+    kind = "scriber"
+
+
+@dataclass(frozen=True)
+class VBit:
+    """V-bit engraving cutter.
+
+    Attributes:
+        angle: included angle, radians.
+        tip_flat: width of the flat at its tip, mm (0 for a sharp point).
+    """
+
+    angle: float = math.radians(60.0)
+    tip_flat: float = 0.0
+    kind = "vbit"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.angle) and 0 < self.angle < math.pi):
+            raise SpecholoError(
+                f"tool angle must be in (0, 180) degrees, got {math.degrees(self.angle):g}")
+        if not (math.isfinite(self.tip_flat) and self.tip_flat >= 0):
+            raise SpecholoError(f"tip flat must be >= 0 mm, got {self.tip_flat}")
+
+    def height(self, r: np.ndarray) -> np.ndarray:
+        r = np.asarray(r, dtype=float)
+        return np.maximum(r - 0.5 * self.tip_flat, 0.0) / math.tan(0.5 * self.angle)
+
+    def check_depth(self, depth: float) -> None:
+        _positive("groove depth", depth)
+
+    def section(self, depth: float) -> Section:
+        self.check_depth(depth)
+        flank = 0.5 * math.pi - 0.5 * self.angle
+        tilts = ((flank, flank),) if self.tip_flat == 0 else ((0.0, 0.0), (flank, flank))
+        return Section(self.tip_flat + 2.0 * depth * math.tan(0.5 * self.angle), tilts)
+
+    def model(self, depth: float) -> Tool:
+        # No round part: a round tip of a hundredth of the groove's width reaching the
+        # flank's tilt places glints on the centreline; the section says which survive.
+        self.check_depth(depth)
+        flank = 0.5 * math.pi - 0.5 * self.angle
+        r = 0.01 * self.section(depth).width
+        return Tool(r, r * (1.0 - math.cos(flank)))
+
+    def describe(self) -> str:
+        flat = f", {self.tip_flat:g} mm tip flat" if self.tip_flat else ""
+        return f"V-bit, {math.degrees(self.angle):g} degrees{flat}"
+
+
+@dataclass(frozen=True)
+class Laser:
+    """A laser ablating a Gaussian trough: depth d exp(-2 r^2 / w0^2), w0 = spot / 2.
+
+    Attributes:
+        spot: 1/e^2 spot diameter, mm.
+    """
+
+    spot: float = 0.1
+    kind = "laser"
+
+    def __post_init__(self) -> None:
+        _positive("laser spot diameter", self.spot)
+
+    def height(self, r: np.ndarray, depth: float = 1.0) -> np.ndarray:
+        """Trough floor height above its deepest point for a trough ``depth`` deep."""
+        w0 = 0.5 * self.spot
+        return depth * (1.0 - np.exp(-2.0 * np.asarray(r, dtype=float) ** 2 / (w0 * w0)))
+
+    def check_depth(self, depth: float) -> None:
+        _positive("groove depth", depth)
+
+    def section(self, depth: float) -> Section:
+        self.check_depth(depth)
+        w0 = 0.5 * self.spot
+        # Steepest slope of the Gaussian, at r = w0 / 2: 2 d / w0 * exp(-1/2).
+        return Section(self.spot, ((0.0, math.atan(2.0 * depth / w0 * math.exp(-0.5))),))
+
+    def model(self, depth: float) -> Tool:
+        # The trough's floor is a circle of radius w0^2 / (4 d) near its bottom.
+        self.check_depth(depth)
+        w0 = 0.5 * self.spot
+        radius = w0 * w0 / (4.0 * depth)
+        return Tool(radius, radius * (1.0 - math.cos(self.section(depth).max_tilt)))
+
+    def describe(self) -> str:
+        return f"laser, {self.spot:g} mm spot"
+
+
+Cutter = BallEnd | RoundCone | VBit | Laser
+
+
+def make_cutter(kind: str, radius: float | None = None, angle_deg: float | None = None,
+                tip_flat: float = 0.0, spot: float | None = None) -> Cutter:
+    """A cutter from command-line style settings (mm, degrees).
+
+    Args:
+        kind: one of :data:`KINDS`.
+        radius: ball or tip radius (ball, drag, scriber), mm.
+        angle_deg: included angle (vbit, drag, scriber), degrees.
+        tip_flat: V-bit tip flat, mm.
+        spot: laser spot diameter, mm.
+    """
+    angle = None if angle_deg is None else math.radians(float(angle_deg))
+    if kind == "ball":
+        return BallEnd() if radius is None else BallEnd(float(radius))
+    if kind in ("drag", "scriber"):
+        cls = RoundCone if kind == "drag" else Scriber
+        base = cls()
+        return cls(base.tip_radius if radius is None else float(radius),
+                   base.angle if angle is None else angle)
+    if kind == "vbit":
+        return VBit(VBit().angle if angle is None else angle, float(tip_flat))
+    if kind == "laser":
+        return Laser() if spot is None else Laser(float(spot))
+    raise SpecholoError(f"tool must be one of {', '.join(KINDS)}, got {kind!r}")
+
+
+@dataclass(frozen=True)
+class ViewCheck:
+    """The wall tilts a design needs against those its tool offers.
+
+    Attributes:
+        needed: (lo, hi) range of tilts of h over every served view, radians.
+        offered: the tool's section.
+        lost: share of served views (sampled per degree of azimuth) the walls
+            cannot serve.
+        stipples_losing: stipples losing at least one view.
+        suggestion: a tool or depth that covers every view, in words ('' if none
+            is needed).
+    """
+
+    needed: tuple[float, float]
+    offered: Section
+    lost: float
+    stipples_losing: int
+    suggestion: str
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "needed_tilt_deg": [math.degrees(v) for v in self.needed],
+            "offered_tilt_deg": [[math.degrees(a), math.degrees(b)]
+                                 for a, b in self.offered.tilts],
+            "groove_width_mm": self.offered.width,
+            "views_lost": self.lost, "stipples_losing_views": self.stipples_losing,
+            "suggestion": self.suggestion,
+        }
+
+
+def needed_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray, end: np.ndarray,
+                 light: Light, viewer: Viewer,
+                 step: float = math.radians(1.0)) -> tuple[np.ndarray, np.ndarray]:
+    """Tilt of h where each stipple's sightlines cross the plate, over its served views.
+
+    Args:
+        points: (n, 3) stipples.
+        stipple, start, end: (r,) view intervals (stipple id, eye azimuths in radians).
+        light: the :class:`~specholo.setup.Light`.
+        viewer: the :class:`~specholo.setup.Viewer` (eyes on its circle, at its height).
+        step: azimuth sampling, radians (each interval's ends are always sampled).
+
+    Returns:
+        tilts (s,) in radians and the stipple of each sample (s,).
+    """
+    from specholo.hosts.flat import sightline_crossing
+    from specholo.optics.normality import normality, tilt
+
+    count = np.maximum(np.ceil((end - start) / step).astype(np.int64), 0) + 1
+    idx = np.repeat(np.arange(len(start)), count)
+    k = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    frac = k / np.maximum(np.repeat(count - 1, count), 1)
+    theta = start[idx] + frac * (end - start)[idx]
+    eyes = viewer.eye(theta)
+    p = points[stipple[idx]]
+    g = sightline_crossing(eyes, p)
+    return tilt(normality(g, light, eyes)), stipple[idx]
+
+
+def check_views(cutter: Cutter, depth: float, points: np.ndarray, stipple: np.ndarray,
+                start: np.ndarray, end: np.ndarray, light: Light,
+                viewer: Viewer) -> ViewCheck:
+    """Check that the tool's walls offer every tilt the served views need.
+
+    Args:
+        cutter: the tool.
+        depth: groove depth, mm.
+        points, stipple, start, end, light, viewer: as :func:`needed_tilts`.
+
+    Returns:
+        The check, with a suggestion when views are lost.
+    """
+    section = cutter.section(depth)
+    tilts, owner = needed_tilts(points, stipple, start, end, light, viewer)
+    if tilts.size == 0:
+        return ViewCheck((0.0, 0.0), section, 0.0, 0, "")
+    ok = section.covers(tilts)
+    lost = float(1.0 - ok.mean())
+    losing = int(np.unique(owner[~ok]).size)
+    needed = (float(tilts.min()), float(tilts.max()))
+    return ViewCheck(needed, section, lost, losing,
+                     "" if lost == 0 else suggest(cutter, depth, needed[1]))
+
+
+def suggest(cutter: Cutter, depth: float, tilt: float) -> str:
+    """A depth or tool whose walls reach ``tilt`` radians, in words."""
+    deg = math.degrees(tilt)
+    need = f"walls up to {deg:.1f} degrees"
+
+    def mm(v: float) -> str:  # rounded up: the suggestion must suffice
+        return f"{math.ceil(v * 1000.0) / 1000.0:.3f}"
+
+    if tilt >= 0.5 * math.pi - 1e-6:
+        return f"{need} cannot be cut; lower the view range or raise the light"
+    if isinstance(cutter, BallEnd):
+        d = cutter.radius * (1.0 - math.cos(tilt))
+        return f"{need}: cut at least {mm(d)} mm deep with this ball"
+    if isinstance(cutter, RoundCone):
+        flank = 0.5 * math.pi - 0.5 * cutter.angle
+        if tilt <= flank:
+            d = cutter.tip_radius * (1.0 - math.cos(tilt))
+            return f"{need}: cut at least {mm(d)} mm deep with this tip"
+        return (f"{need}: use a cone of at most {180 - 2 * deg:.0f} degrees included angle, "
+                "or a ball end")
+    if isinstance(cutter, Laser):
+        d = math.tan(tilt) * 0.25 * cutter.spot * math.exp(0.5)
+        return f"{need}: ablate at least {mm(d)} mm deep with this spot"
+    r = 0.25
+    return (f"{need}: a V-bit offers a single wall tilt; use a ball end (e.g. radius {r:g} mm, "
+            f"depth {mm(r * (1.0 - math.cos(tilt)))} mm) or a round drag tip")
