@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.gcode import is_straight
-from specholo.fabrication.svg import arc_bounds, write_svg
+from specholo.fabrication.svg import LAYER_COLOURS, arc_bounds, plan_layers, write_svg
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -60,10 +60,12 @@ def read(path: Path) -> ET.Element:
     return root
 
 
-def layer(root: ET.Element) -> ET.Element:
-    g = root.find(f"{SVG}g")
-    assert g is not None
-    return g
+def layers(root: ET.Element) -> list[ET.Element]:
+    """The top-level groups, all of them Inkscape layers."""
+    groups = root.findall(f"{SVG}g")
+    assert all(g.get(f"{INKSCAPE}groupmode") == "layer" for g in groups)
+    assert len(root) == len(groups)  # nothing outside the layers
+    return groups
 
 
 def test_golden(tmp_path, groove_example, golden):
@@ -86,20 +88,21 @@ def test_document(tmp_path, groove_example):
     # grooves span x in [-5, 20] and y in [-5, 10]; the 270-degree arc stays inside that
     pad = 5.0 + 0.5 * tool.width
     assert np.allclose(vb, [-5 - pad, -10 - pad, 25 + 2 * pad, 15 + 2 * pad], atol=1e-4)
-    g = layer(root)
-    assert g.get("id") == "grooves"
-    assert g.get(f"{INKSCAPE}groupmode") == "layer"
-    assert g.get(f"{INKSCAPE}label") == "grooves"
-    assert g.get("fill") == "none" and g.get("stroke") == "#000000"
-    assert float(g.get("stroke-width", "0")) == round(tool.width, 4)
-    paths = g.findall(f"{SVG}path")
-    circles = g.findall(f"{SVG}circle")
-    assert len(paths) == 2 and len(circles) == 1
+    grooves, dots = layers(root)
+    assert grooves.get("id") == "layer1" and dots.get("id") == "layer2"
+    assert grooves.get(f"{INKSCAPE}label") == "1 GROOVES_D0.080_R0.250"
+    assert dots.get(f"{INKSCAPE}label") == "2 DOTS_D0.080_R0.250"
+    assert grooves.get("fill") == "none" and grooves.get("stroke") == "#000000"
+    assert float(grooves.get("stroke-width", "0")) == round(tool.width, 4)
+    assert dots.get("fill") == "#FF0000" and dots.get("stroke") == "none"
+    paths = grooves.findall(f"{SVG}path")
+    assert len(paths) == 2 and len(grooves) == 2
     assert all(p.get("fill") is None for p in paths)  # inherit fill="none"
-    c = circles[0]
+    (c,) = dots
+    assert c.tag == f"{SVG}circle"
     assert (float(c.get("cx", "nan")), float(c.get("cy", "nan"))) == (-5.0, 5.0)  # y flipped
     assert float(c.get("r", "nan")) == round(0.5 * tool.width, 4)
-    assert c.get("fill") == "#000000"
+    assert c.get("fill") is None  # inherits the layer's colour
     assert [cmd for cmd, _ in parse_path(paths[0].get("d", ""))] == ["M", "A", "A", "L"]
     # 270 degrees counter-clockwise on the plate, then a clockwise semicircle
     (_, _), (_, a1), (_, a2) = parse_path(paths[1].get("d", ""))
@@ -109,14 +112,17 @@ def test_document(tmp_path, groove_example):
 def test_empty(tmp_path):
     out = tmp_path / "empty.svg"
     write_svg(out, Grooves.empty(), Tool())
-    assert len(list(layer(read(out)))) == 0
+    assert layers(read(out)) == []
 
 
-def check_drawing(path: Path, g: Grooves) -> None:
-    """Every groove is drawn where it is, y flipped: end points, arc midpoints, dots."""
+def check_drawing(path: Path, g: Grooves, depths: np.ndarray | None = None) -> None:
+    """Every groove is drawn where it is, y flipped, in its layer: end points, arc
+    midpoints, dots."""
+    tool = Tool()
     root = read(path)
-    items = list(layer(root))
-    assert len(items) == g.n_paths
+    plan = plan_layers(g, tool, depths)
+    groups = layers(root)
+    assert [grp.get("id") for grp in groups] == [f"layer{p.number}" for p in plan]
     segs = g.segments()
     straight = is_straight(segs)
     with np.errstate(all="ignore"):  # subnormal bulges of straight segments overflow
@@ -124,34 +130,46 @@ def check_drawing(path: Path, g: Grooves) -> None:
     flip = np.array([1.0, -1.0])
     vb = np.array([float(v) for v in root.get("viewBox", "").split()])
     lo, hi = vb[:2], vb[:2] + vb[2:]
-    s = 0
-    for j, item in enumerate(items):
-        v = g.vertices[g.offsets[j]:g.offsets[j + 1]] * flip
-        if len(v) == 1:
-            assert item.tag == f"{SVG}circle"
-            xy = np.array([float(item.get("cx", "nan")), float(item.get("cy", "nan"))])
-            assert np.allclose(xy, v[0], atol=1e-4)
-            continue
-        assert item.tag == f"{SVG}path"
-        cmds = parse_path(item.get("d", ""))
-        assert len(cmds) == len(v) and cmds[0][0] == "M"
-        pen = np.array(cmds[0][1])
-        assert np.allclose(pen, v[0], atol=1e-4)
-        for i, (cmd, args) in enumerate(cmds[1:], start=1):
-            end = np.array(args[-2:])
-            assert np.allclose(end, v[i], atol=1e-4)
-            if straight[s]:
-                assert cmd == "L"
-            else:
-                assert cmd == "A" and args[0] == args[1] and args[2] == 0
-                mid = svg_arc_midpoint(pen, args[0], int(args[3]), int(args[4]), end)
-                a = start[s] + 0.5 * sweep[s]
-                want = (centre[s] + radius[s] * np.array([np.cos(a), np.sin(a)])) * flip
-                assert np.allclose(mid, want, atol=1e-3), (mid, want)
-                assert np.all(mid >= lo) and np.all(mid <= hi)
-            pen = end
-            s += 1
-        assert np.all(v >= lo) and np.all(v <= hi)
+    drawn = np.zeros(g.n_paths, dtype=int)
+    for spec, group in zip(plan, groups, strict=True):
+        assert group.get(f"{INKSCAPE}label") == f"{spec.number} {spec.name}"
+        items = list(group)
+        assert len(items) == len(spec.paths)
+        if spec.dots:
+            assert float(group.get("stroke-width", "0")) == 0.0
+        else:
+            assert float(group.get("stroke-width", "nan")) == round(spec.width, 4)
+        for j, item in zip(spec.paths, items, strict=True):
+            drawn[j] += 1
+            v = g.vertices[g.offsets[j]:g.offsets[j + 1]] * flip
+            if spec.dots:
+                assert len(v) == 1 and item.tag == f"{SVG}circle"
+                xy = np.array([float(item.get("cx", "nan")), float(item.get("cy", "nan"))])
+                assert np.allclose(xy, v[0], atol=1e-4)
+                assert float(item.get("r", "nan")) == round(0.5 * spec.width, 4)
+                continue
+            assert item.tag == f"{SVG}path"
+            cmds = parse_path(item.get("d", ""))
+            assert len(cmds) == len(v) > 1 and cmds[0][0] == "M"
+            pen = np.array(cmds[0][1])
+            assert np.allclose(pen, v[0], atol=1e-4)
+            s = g.offsets[j] - j  # arcs of the paths before j
+            for i, (cmd, args) in enumerate(cmds[1:], start=1):
+                end = np.array(args[-2:])
+                assert np.allclose(end, v[i], atol=1e-4)
+                if straight[s]:
+                    assert cmd == "L"
+                else:
+                    assert cmd == "A" and args[0] == args[1] and args[2] == 0
+                    mid = svg_arc_midpoint(pen, args[0], int(args[3]), int(args[4]), end)
+                    a = start[s] + 0.5 * sweep[s]
+                    want = (centre[s] + radius[s] * np.array([np.cos(a), np.sin(a)])) * flip
+                    assert np.allclose(mid, want, atol=1e-3), (mid, want)
+                    assert np.all(mid >= lo) and np.all(mid <= hi)
+                pen = end
+                s += 1
+            assert np.all(v >= lo) and np.all(v <= hi)
+    assert np.all(drawn == 1)  # every path in exactly one layer
 
 
 def test_example_drawing(tmp_path, groove_example):
@@ -165,9 +183,105 @@ def test_example_drawing(tmp_path, groove_example):
 @given(data=st.data())
 def test_random_drawing(tmp_path, grooves_strategy, data):
     g = data.draw(grooves_strategy(max_bulge=3.0))
+    depths = None
+    if data.draw(st.booleans()):
+        # a few depth classes, some closer than the 1 um of the layer names
+        choices = st.sampled_from([0.05, 0.08, 0.0802, 0.1, 0.25])
+        depths = np.array([data.draw(choices) for _ in range(g.n_paths)])
     out = tmp_path / "r.svg"
-    write_svg(out, g, Tool(), margin=data.draw(st.floats(0.0, 10.0)))
-    check_drawing(out, g)
+    write_svg(out, g, Tool(), margin=data.draw(st.floats(0.0, 10.0)), depths=depths)
+    check_drawing(out, g, depths)
+
+
+def test_depth_layers(tmp_path, groove_example):
+    tool = Tool()
+    depths = np.array([0.1, 0.1, 0.05])  # the dot (path 1) shares the first groove's depth
+    out = tmp_path / "d.svg"
+    write_svg(out, groove_example, tool, depths=depths)
+    check_drawing(out, groove_example, depths)
+    plan = plan_layers(groove_example, tool, depths)
+    # grooves of classes 0.05 and 0.1 are layers 1 and 2; dots of class 0.1 are 4
+    assert [(p.number, p.name, p.paths.tolist()) for p in plan] == [
+        (1, "GROOVES_D0.050_R0.250", [2]),
+        (2, "GROOVES_D0.100_R0.250", [0]),
+        (4, "DOTS_D0.100_R0.250", [1]),
+    ]
+    assert np.allclose([p.width for p in plan],
+                       [Tool(depth=0.05).width, Tool(depth=0.1).width, Tool(depth=0.1).width])
+    assert len({p.colour for p in plan}) == len(plan)
+    # depths 0.3 um apart share a class; its depth is their mean
+    two = Grooves(groove_example.vertices[:4], groove_example.bulges[:4], np.array([0, 2, 4]),
+                  np.array([1, 2]))
+    (one,) = plan_layers(two, tool, np.array([0.0801, 0.0804]))
+    assert one.name == "GROOVES_D0.080_R0.250" and np.isclose(one.depth, 0.08025)
+
+
+def test_layer_colours_distinct():
+    assert len({aci for aci, _ in LAYER_COLOURS}) == len(LAYER_COLOURS)
+    assert len({rgb for _, rgb in LAYER_COLOURS}) == len(LAYER_COLOURS)
+
+
+@pytest.mark.parametrize("depths, match", [
+    (np.array([0.08, 0.08]), "one depth per path"),
+    (np.array([0.08, 0.0, 0.08]), "depth of path 1"),
+    (np.array([0.08, 0.08, 0.3]), "depth of path 2"),
+    (np.array([np.nan, 0.08, 0.08]), "depth of path 0"),
+])
+def test_rejects_bad_depths(tmp_path, groove_example, depths, match):
+    with pytest.raises(SpecholoError, match=match):
+        write_svg(tmp_path / "x.svg", groove_example, Tool(), depths=depths)
+    assert not (tmp_path / "x.svg").exists()
+
+
+def subset(g: Grooves, paths: np.ndarray) -> Grooves:
+    """The given paths of some grooves."""
+    return Grooves.concatenate([
+        Grooves(g.vertices[g.offsets[j]:g.offsets[j + 1]], g.bulges[g.offsets[j]:g.offsets[j + 1]],
+                np.array([0, g.path_sizes[j]]), np.array([g.stipple[j]]))
+        for j in paths])
+
+
+def test_vpype_reads_layers(tmp_path, groove_example):
+    """vpype (as plotter pipelines use it) finds the layers by number, with the
+    geometry where the grooves are."""
+    vpype = pytest.importorskip("vpype")
+    tool = Tool()
+    depths = np.array([0.08, 0.1, 0.1])
+    out = tmp_path / "v.svg"
+    write_svg(out, groove_example, tool, depths=depths)
+    doc = vpype.read_multilayer_svg(str(out), quantization=0.01)
+    plan = plan_layers(groove_example, tool, depths)
+    assert sorted(doc.layers) == [p.number for p in plan] == [1, 2, 4]
+    root = read(out)
+    x0, y0 = (float(v) for v in root.get("viewBox", "").split()[:2])
+    px = 96.0 / 25.4  # vpype works in CSS pixels
+    for p in plan:
+        lc = doc.layers[p.number]
+        assert lc.property("vp_name") == f"{p.number} {p.name}"
+        assert len(lc) == len(p.paths)
+        sub = subset(groove_example, p.paths)
+        if p.dots:
+            r = 0.5 * p.width
+            box = np.stack([sub.vertices.min(axis=0) - r, sub.vertices.max(axis=0) + r])
+        else:
+            box = arc_bounds(sub.segments())
+        # plate (x, y) is SVG (x, -y), offset by the viewBox origin
+        want = np.array([box[0, 0] - x0, -box[1, 1] - y0, box[1, 0] - x0, -box[0, 1] - y0])
+        assert np.allclose(np.array(lc.bounds()) / px, want, atol=2e-3), (p.name, lc.bounds())
+
+
+def test_vpype_cli(tmp_path, groove_example):
+    """The ``vpype read`` command line sees both layers."""
+    pytest.importorskip("vpype")
+    cli = pytest.importorskip("vpype_cli")
+    out = tmp_path / "v.svg"
+    write_svg(out, groove_example, Tool())
+    from click.testing import CliRunner
+
+    result = CliRunner().invoke(cli.cli, ["read", str(out), "stat"])
+    assert result.exit_code == 0, result.output
+    assert "Layer 1" in result.output and "Layer 2" in result.output
+    assert "Layer 3" not in result.output
 
 
 def test_arc_bounds():

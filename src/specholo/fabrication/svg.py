@@ -7,16 +7,27 @@ radii, so they are exact. Flipping y mirrors the turning sense: an arc turning
 counter-clockwise on the plate (bulge > 0) turns towards negative angles in SVG
 coordinates, which is sweep-flag 0. Dots are filled circles as wide as a groove.
 
+Grooves and dots go in separate layers, one pair per depth class (see
+:func:`plan_layers`, shared with the DXF writer): Inkscape layer groups with
+``id="layer<N>"`` and the label ``"<N> <NAME>"``. vpype's ``read`` numbers a
+layer by the first run of digits in its label, so the label starts with the
+layer number (a name like ``GROOVES_D0.080_R0.250`` alone would read as layer
+0, i.e. 1, for every layer). Each layer has its own colour, which is also how
+laser software such as LightBurn tells layers apart.
+
 Like the G-code writer, rows of text are built as byte tables (one row per
 vertex) so no Python code runs per element.
 """
 
 from __future__ import annotations
 
+import math
 import os
+from dataclasses import dataclass
 
 import numpy as np
 
+from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import (
     TextRows,
@@ -34,6 +45,121 @@ _SCALE = 10**_DECIMALS
 _RADIUS_DECIMALS = 8
 _RADIUS_SCALE = 10**_RADIUS_DECIMALS
 _INKSCAPE = "http://www.inkscape.org/namespaces/inkscape"
+
+#: Decimals of the depth and radius in layer names: depth classes are 1 um wide.
+LAYER_DECIMALS = 3
+#: Layer colours in order of layer number: (AutoCAD colour index, the same colour
+#: as SVG ``#rrggbb``); they repeat from the 17th layer. ACI 7 is black on paper
+#: (white on a dark CAD background). Dark shades come before lime, cyan and
+#: yellow, which are faint on white.
+LAYER_COLOURS: tuple[tuple[int, str], ...] = (
+    (7, "#000000"), (1, "#FF0000"), (5, "#0000FF"), (94, "#007F00"), (6, "#FF00FF"),
+    (30, "#FF7F00"), (134, "#007F7F"), (174, "#00007F"), (14, "#7F0000"), (214, "#7F007F"),
+    (34, "#7F3F00"), (154, "#003F7F"), (3, "#00FF00"), (4, "#00FFFF"), (2, "#FFFF00"),
+    (8, "#808080"),
+)
+
+
+@dataclass(frozen=True)
+class Layer:
+    """One named layer of an exported drawing: the grooves or the dots of one depth.
+
+    Attributes:
+        number: layer number from 1, fixed by kind and depth class (grooves of
+            class c are c + 1, dots are n_classes + c + 1), so it does not
+            change when another layer happens to be empty.
+        name: ``GROOVES_D<depth>_R<tool radius>`` or ``DOTS_...``, mm with 3 decimals.
+        dots: True for a layer of dots (single plunges).
+        depth: depth of the class, mm (the mean of its paths' depths, which
+            agree to the 1 um of the name).
+        width: groove (or dot) width at the plate surface for that depth, mm.
+        aci: AutoCAD colour index of the layer.
+        colour: the same colour as SVG ``#rrggbb``.
+        paths: (k,) indices of the layer's paths, ascending.
+    """
+
+    number: int
+    name: str
+    dots: bool
+    depth: float
+    width: float
+    aci: int
+    colour: str
+    paths: np.ndarray
+
+
+def surface_width(radius: float, depth: float | np.ndarray) -> np.ndarray:
+    """Width at the plate surface of a groove cut by a ball of ``radius`` to ``depth`` (mm)."""
+    d = np.asarray(depth, dtype=float)
+    return 2.0 * np.sqrt(np.maximum(radius * radius - (radius - d) ** 2, 0.0))
+
+
+def plan_layers(grooves: Grooves, tool: Tool, depths: np.ndarray | None = None) -> list[Layer]:
+    """Sort the paths into layers by kind (groove or dot) and depth class.
+
+    Args:
+        grooves: n paths.
+        tool: the ball-end tool; its ``depth`` is every path's depth unless
+            ``depths`` is given.
+        depths: optional (n,) depth of each path, mm, each in (0, tool radius].
+            Depths equal to 1 um (the precision of the layer names) share a layer.
+
+    Returns:
+        The non-empty layers, by number: grooves of each depth class from the
+        shallowest, then dots likewise.
+
+    Raises:
+        SpecholoError: if ``depths`` has the wrong shape or a depth out of range.
+    """
+    n = grooves.n_paths
+    r = tool.radius
+    if depths is None:
+        d = np.full(n, tool.depth)
+    else:
+        d = np.asarray(depths, dtype=float)
+        if d.shape != (n,):
+            raise SpecholoError(f"depths must hold one depth per path ({n}), got shape {d.shape}")
+        bad = ~((d > 0.0) & (d <= r))  # also catches NaN
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise SpecholoError(
+                f"depth of path {i} must be in (0, tool radius {r:g}] mm, got {d[i]:g}")
+    scale = 10**LAYER_DECIMALS
+    keys, cls = np.unique(np.rint(d * scale).astype(np.int64), return_inverse=True)
+    count = np.bincount(cls, minlength=len(keys))
+    mean = np.bincount(cls, weights=d, minlength=len(keys)) / np.maximum(count, 1)
+    widths = surface_width(r, mean)
+    dot = grooves.is_dot
+    radius = format_number(r, LAYER_DECIMALS)
+    layers = []
+    for kind, is_dot in enumerate((False, True)):
+        for c, key in enumerate(keys):
+            paths = np.flatnonzero((cls == c) & (dot == is_dot))
+            if len(paths) == 0:
+                continue
+            number = kind * len(keys) + c + 1
+            aci, colour = LAYER_COLOURS[(number - 1) % len(LAYER_COLOURS)]
+            name = (f"{'DOTS' if is_dot else 'GROOVES'}_D{format_number(key / scale, 3)}"
+                    f"_R{radius}")
+            layers.append(Layer(number, name, is_dot, float(mean[c]), float(widths[c]), aci,
+                                colour, paths))
+    return layers
+
+
+def path_rows(offsets: np.ndarray, paths: np.ndarray) -> np.ndarray:
+    """Vertex indices of the given paths, path after path.
+
+    Args:
+        offsets: (n + 1,) path offsets of the grooves.
+        paths: (k,) path indices.
+
+    Returns:
+        (sum of the paths' sizes,) indices into the vertices.
+    """
+    starts = offsets[paths]
+    sizes = offsets[paths + 1] - starts
+    first = np.cumsum(sizes) - sizes  # where each path begins in the output
+    return np.repeat(starts - first, sizes) + np.arange(int(sizes.sum()), dtype=np.int64)
 
 
 def arc_bounds(segments: Segments) -> np.ndarray:
@@ -66,24 +192,29 @@ def arc_bounds(segments: Segments) -> np.ndarray:
 
 
 def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
-              margin: float = 5.0) -> None:
+              margin: float = 5.0, depths: np.ndarray | None = None) -> None:
     """Write the grooves as an SVG drawing in mm, atomically.
 
     Args:
         path: destination ``.svg`` file.
         grooves: m vertices in n paths; dots become filled circles.
-        tool: the groove width ``tool.width`` is the stroke width and dot diameter.
+        tool: the groove width for each depth is the stroke width and dot diameter.
         margin: blank border around the grooves, mm.
+        depths: optional (n,) depth of each path, mm; each depth class gets its
+            own groove and dot layers (see :func:`plan_layers`).
 
     Raises:
-        SpecholoError: if the grooves hold an empty path or non-finite numbers.
+        SpecholoError: if the grooves hold an empty path or non-finite numbers,
+            or ``depths`` is malformed.
     """
     check_grooves(grooves)
+    margin = float(margin)
+    if not (math.isfinite(margin) and margin >= 0.0):
+        raise SpecholoError(f"SVG margin must be a finite number >= 0 mm, got {margin}")
+    layers = plan_layers(grooves, tool, depths)
     verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
     m = len(verts)
     offsets = np.asarray(grooves.offsets, dtype=np.int64)
-    sizes = np.diff(offsets)
-    width = tool.width
 
     segs = grooves.segments()
     dots, _ = grooves.dots()
@@ -91,21 +222,18 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     if len(extent) == 0:
         extent = np.zeros((1, 2))
     box = np.stack([extent.min(axis=0), extent.max(axis=0)])
-    pad = margin + 0.5 * width
+    pad = margin + 0.5 * max([layer.width for layer in layers] or [tool.width])
     x0, x1 = box[0, 0] - pad, box[1, 0] + pad
     y0, y1 = -box[1, 1] - pad, -box[0, 1] + pad  # SVG y = -plate y
     w, h = x1 - x0, y1 - y0
 
     last = np.zeros(m, dtype=bool)
     last[offsets[1:] - 1] = True
-    dot = np.repeat(sizes == 1, sizes)
-
     straight = is_straight(segs)
-    arc_start = np.flatnonzero(~last)
-    rows = arc_start + 1  # each arc is drawn on its end vertex's row
-    kind = np.where(dot, 1, 0)  # 0 path start, 1 dot, 2 arc, 3 line
-    kind[rows] = np.where(straight, 3, 2)
-    arc = kind == 2
+    rows = np.flatnonzero(~last) + 1  # each arc is drawn on its end vertex's row
+    kind = np.zeros(m, dtype=np.int64)  # 0 path start, 1 arc, 2 line
+    kind[rows] = np.where(straight, 2, 1)
+    arc = kind == 1
     qx = np.rint(verts[:, 0] * _SCALE).astype(np.int64)
     qy = np.rint(-verts[:, 1] * _SCALE).astype(np.int64)
     # An SVG arc is placed by its radius, and near a half circle its centre moves
@@ -131,30 +259,46 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
         f'     viewBox="{num(x0)} {num(y0)} '
         f'{num(w)} {num(h)}">\n'
         "<!-- specholo grooves; units mm; origin at the plate centre; "
-        "plate y up = SVG -y -->\n"
-        '<g id="grooves" inkscape:groupmode="layer" inkscape:label="grooves" fill="none"'
-        f' stroke="#000000" stroke-width="{num(width)}" stroke-linecap="round"'
-        ' stroke-linejoin="round">\n'
+        "plate y up = SVG -y; layers GROOVES/DOTS_D<depth>_R<tool radius> -->\n"
     )
-    dot_end = f'" r="{num(0.5 * width)}" fill="#000000" stroke="none"/>\n'
     with atomic_open(path, "wb") as fh:
         fh.write(head.encode("ascii"))
-        for lo in range(0, m, _CHUNK_ROWS):
-            s = slice(lo, min(lo + _CHUNK_ROWS, m))
-            t = TextRows(s.stop - s.start)
-            t.choice(['<path d="M ', '<circle cx="', " A ", " L "], kind[s])
-            a = arc[s]
-            t.number(q_radius[s], _RADIUS_DECIMALS, a)
-            t.text(" ", a)
-            t.number(q_radius[s], _RADIUS_DECIMALS, a)
-            t.text(" 0 ", a)
-            t.choice(["", "0", "1"], np.where(a, 1 + large[s], 0))
-            t.text(" ", a)
-            t.choice(["", "0", "1"], np.where(a, 1 + sweep[s], 0))
-            t.text(" ", a)
-            t.number(qx[s], _DECIMALS)
-            t.choice([" ", '" cy="'], dot[s].astype(np.int64))
-            t.number(qy[s], _DECIMALS)
-            t.choice(["", '"/>\n', dot_end], np.where(dot[s], 2, last[s].astype(np.int64)))
-            fh.write(t.tobytes())
-        fh.write(b"</g>\n</svg>\n")
+        for layer in layers:
+            group = (f'<g id="layer{layer.number}" inkscape:groupmode="layer"'
+                     f' inkscape:label="{layer.number} {layer.name}"')
+            if layer.dots:
+                group += f' fill="{layer.colour}" stroke="none">\n'
+            else:
+                group += (f' fill="none" stroke="{layer.colour}"'
+                          f' stroke-width="{num(layer.width)}" stroke-linecap="round"'
+                          ' stroke-linejoin="round">\n')
+            fh.write(group.encode("ascii"))
+            idx = path_rows(offsets, layer.paths)
+            dot_end = f'" r="{num(0.5 * layer.width)}"/>\n'
+            for lo in range(0, len(idx), _CHUNK_ROWS):
+                s = idx[lo:lo + _CHUNK_ROWS]
+                t = TextRows(len(s))
+                if layer.dots:
+                    t.text('<circle cx="')
+                    t.number(qx[s], _DECIMALS)
+                    t.text('" cy="')
+                    t.number(qy[s], _DECIMALS)
+                    t.text(dot_end)
+                else:
+                    t.choice(['<path d="M ', " A ", " L "], kind[s])
+                    a = arc[s]
+                    t.number(q_radius[s], _RADIUS_DECIMALS, a)
+                    t.text(" ", a)
+                    t.number(q_radius[s], _RADIUS_DECIMALS, a)
+                    t.text(" 0 ", a)
+                    t.choice(["", "0", "1"], np.where(a, 1 + large[s], 0))
+                    t.text(" ", a)
+                    t.choice(["", "0", "1"], np.where(a, 1 + sweep[s], 0))
+                    t.text(" ", a)
+                    t.number(qx[s], _DECIMALS)
+                    t.text(" ")
+                    t.number(qy[s], _DECIMALS)
+                    t.choice(["", '"/>\n'], last[s].astype(np.int64))
+                fh.write(t.tobytes())
+            fh.write(b"</g>\n")
+        fh.write(b"</svg>\n")

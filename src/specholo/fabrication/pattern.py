@@ -1,0 +1,806 @@
+"""A printable 1:1 pattern for scratching the `arc` design by hand with a compass.
+
+The `arc` design is the classic scratch hologram: one circular arc per groove,
+which a person can scratch with a compass (or dividers) set to the arc's
+radius, its point on the arc's centre. The pattern shows, at true size, every
+arc, its centre as a small cross and its radius (mm, 1 decimal) beside the
+cross.
+
+When the radii do not all fit beside their crosses, the crosses are numbered
+instead (the numbers follow the pages and run across each page in bands, so
+neighbours have neighbouring numbers) and the radii are listed in a table at
+the end, which doubles as a checklist. Labels never overlap: where even the
+numbers do not fit (a leader line may tie a number to its cross from a little
+further away), the arcs that found no room go on a further *sheet*: another
+set of the same pages, laid on the plate in the same place after the first.
+
+A drawing larger than the paper is tiled over pages that overlap by a strip
+holding registration targets; every page carries crop marks on its frame and
+two 50 mm scale bars (across and down) to check that it was printed at 100 %.
+The first page says how to print, assemble and use the pattern.
+
+Geometry is in the plate frame (mm, x right, y up, origin at the plate
+centre), seen from the viewer's side. Figures are 72 dpi, so their display
+units are PDF points, and every axes maps 1 mm of plate to 72 / 25.4 pt.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import textwrap
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from matplotlib import patheffects, rc_context
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.figure import Figure
+from matplotlib.font_manager import FontProperties
+from matplotlib.patches import PathPatch, Rectangle
+from matplotlib.path import Path
+from matplotlib.textpath import TextToPath
+
+from specholo.errors import SpecholoError
+from specholo.fabrication.atomic import atomic_open
+from specholo.fabrication.gcode import check_grooves, format_number, is_straight
+from specholo.fabrication.svg import arc_bounds
+from specholo.toolpaths.grooves import Grooves, Segments
+
+#: Paper sizes (width, height) in mm, portrait.
+PAPERS: dict[str, tuple[float, float]] = {"a4": (210.0, 297.0), "letter": (215.9, 279.4)}
+#: PDF points per mm.
+PT_PER_MM = 72.0 / 25.4
+#: Length of the scale bars, mm.
+SCALE_BAR_MM = 50.0
+
+# Page layout, mm from the paper's edges to the tile frame: room for the title
+# above, the scale bar below, crop marks and the down scale bar at the sides.
+_SIDE = 12.0
+_TOP = 14.0
+_BOTTOM = 26.0
+_FONT = "DejaVu Sans"
+_MONO = "DejaVu Sans Mono"
+_LABEL_PT = 6.0  # labels beside the crosses: small, but read at arm's length
+_TEXT_PT = 8.0
+_CROSS_MM = 3.0  # span of a centre cross
+_DOT_MM = 1.2
+_LABEL_PAD = 0.25  # blank around a label's digits, mm
+_LABEL_GAP = 0.5 * _CROSS_MM + 0.4  # from a centre to its nearest label
+# labels keep this far from other crosses, so a label is not read as theirs
+_CROSS_CLEAR = 1.2
+# extra distances (mm) tried for a numbered label that does not fit beside its
+# cross; it is then tied to the cross by a leader line
+_RINGS = (0.0, 2.5, 5.0)
+#: Most sheets a pattern is spread over; labels left over after that overlap.
+MAX_SHEETS = 12
+# label positions around a cross, in order of preference: right, then anticlockwise
+_DIRECTIONS = ((1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1))
+_BAND_MM = 20.0  # height of the bands the numbers run along
+_TABLE_LINE = 1.4  # table line spacing, in font sizes
+_TARGET_MM = 5.0  # diameter of a registration target
+
+
+@dataclass(frozen=True)
+class PatternPlan:
+    """What a scratch pattern shows and where, before anything is drawn.
+
+    Attributes:
+        paper: paper name (a key of ``PAPERS``).
+        page: (2,) paper width and height, mm.
+        frame: (2,) width and height of one tile (the drawing area of a page), mm.
+        overlap: width of the strip neighbouring tiles share, mm.
+        origin: (2,) plate point at the top-left corner of tile A1, mm.
+        columns: tiles across.
+        rows: tiles down.
+        centre: (k, 2) centres of the arcs, mm.
+        radius: (k,) radii, mm.
+        start: (k,) start angles, radians.
+        sweep: (k,) signed sweeps, radians (> 0 anticlockwise).
+        path: (k,) index of each arc's path in the grooves.
+        dots: (d, 2) dimples (single plunges), mm; drawn on the first sheet.
+        sheet: (k,) sheet of each arc, from 0.
+        sheets: number of sheets (copies of the tiled pages, each with some of
+            the arcs); 1 unless the numbers do not fit on one.
+        number: (k,) arc numbers from 1, in reading order over the pages.
+        numbered: True when the crosses carry numbers and the radii are in a table.
+        text: (k,) label text of each arc (its radius, or ``#`` and its number).
+        label: (k, 2) centre of each label, mm.
+        label_size: (k, 2) width and height of each label's box, mm.
+        leader: (k,) True where a line ties a label to its cross.
+        crowded: labels that found no free place even on the last sheet and
+            overlap another (0 unless the design needs over ``MAX_SHEETS`` sheets).
+        table_rows: table lines per page (and per column of the table).
+        table_columns: table columns per page.
+    """
+
+    paper: str
+    page: np.ndarray
+    frame: np.ndarray
+    overlap: float
+    origin: np.ndarray
+    columns: int
+    rows: int
+    centre: np.ndarray
+    radius: np.ndarray
+    start: np.ndarray
+    sweep: np.ndarray
+    path: np.ndarray
+    dots: np.ndarray
+    sheet: np.ndarray
+    sheets: int
+    number: np.ndarray
+    numbered: bool
+    text: np.ndarray
+    label: np.ndarray
+    label_size: np.ndarray
+    leader: np.ndarray
+    crowded: int
+    table_rows: int
+    table_columns: int
+
+    @property
+    def tiles(self) -> int:
+        """Number of tiles (pages) of one sheet; 0 when there is nothing to draw."""
+        return self.columns * self.rows if len(self.centre) or len(self.dots) else 0
+
+    @property
+    def tile_pages(self) -> int:
+        """Number of pattern pages, all sheets."""
+        return self.tiles * self.sheets
+
+    @property
+    def table_pages(self) -> int:
+        """Number of radius-table pages (0 unless numbered)."""
+        per_page = self.table_rows * self.table_columns
+        return -(-len(self.radius) // per_page) if self.numbered else 0
+
+    @property
+    def pages(self) -> int:
+        """Total pages: instructions, tiles of every sheet, radius table."""
+        return 1 + self.tile_pages + self.table_pages
+
+    @property
+    def step(self) -> np.ndarray:
+        """(2,) distance between neighbouring tiles across and down, mm."""
+        return self.frame - self.overlap
+
+    def tile_box(self, column: int, row: int) -> np.ndarray:
+        """(2, 2) lower-left and upper-right plate corners of a tile, mm."""
+        x0 = self.origin[0] + column * self.step[0]
+        y1 = self.origin[1] - row * self.step[1]
+        return np.array([[x0, y1 - self.frame[1]], [x0 + self.frame[0], y1]])
+
+    def tile_of(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Column and row (k,) of the tile whose own part (left of and above the
+        next tiles' overlap) holds each point (k, 2)."""
+        col = np.floor((points[:, 0] - self.origin[0]) / self.step[0])
+        row = np.floor((self.origin[1] - points[:, 1]) / self.step[1])
+        return (np.clip(col, 0, self.columns - 1).astype(np.int64),
+                np.clip(row, 0, self.rows - 1).astype(np.int64))
+
+    def tile_page(self, sheet: int, column: int, row: int) -> int:
+        """Page number (from 1) of a tile of a sheet."""
+        return 2 + sheet * self.tiles + row * self.columns + column
+
+    def page_name(self, sheet: int, column: int, row: int) -> str:
+        """How the pages call a tile: its name, after its sheet's number if there
+        are several, e.g. ``B3`` or ``2:B3``."""
+        name = tile_name(column, row)
+        return f"{sheet + 1}:{name}" if self.sheets > 1 else name
+
+
+def tile_name(column: int, row: int) -> str:
+    """Name of a tile: column letters then row number from 1, e.g. ``B3``."""
+    letters = ""
+    c = column + 1
+    while c:
+        c, rem = divmod(c - 1, 26)
+        letters = chr(ord("A") + rem) + letters
+    return f"{letters}{row + 1}"
+
+
+def _paper(paper: str) -> tuple[str, np.ndarray]:
+    key = str(paper).lower()
+    if key not in PAPERS:
+        raise SpecholoError(f"paper must be one of {', '.join(PAPERS)}, got {paper!r}")
+    return key, np.array(PAPERS[key])
+
+
+def _arcs(grooves: Grooves) -> tuple[Segments, np.ndarray]:
+    """The single arcs of an `arc` design, and its dots; refuse anything else."""
+    check_grooves(grooves)
+    sizes = grooves.path_sizes
+    bad = sizes > 2
+    if bad.any():
+        j = int(np.argmax(bad))
+        raise SpecholoError(
+            f"the scratch pattern is for the `arc` design (one circular arc per groove), "
+            f"but path {j} has {sizes[j]} vertices")
+    segs = grooves.segments()
+    straight = is_straight(segs)
+    if straight.any():
+        j = int(segs.path[np.argmax(straight)])
+        raise SpecholoError(
+            f"the scratch pattern is for the `arc` design (one circular arc per groove), "
+            f"but path {j} is straight")
+    dots, _ = grooves.dots()
+    return segs, dots
+
+
+def _char_widths(family: str, size_pt: float, chars: str) -> dict[str, float]:
+    """Advance width of each character, mm (DejaVu digits do not kern)."""
+    prop = FontProperties(family=family, size=size_pt)
+    t2p = TextToPath()
+    return {c: t2p.get_text_width_height_descent(c, prop, ismath=False)[0] / PT_PER_MM
+            for c in chars}
+
+
+def _text_width(texts: np.ndarray, widths: dict[str, float]) -> np.ndarray:
+    return np.array([sum(widths[c] for c in t) for t in texts.tolist()])
+
+
+class _Boxes:
+    """Axis-aligned boxes in a uniform grid, for quick overlap queries."""
+
+    def __init__(self, cell: float) -> None:
+        self.cell = cell
+        self.grid: dict[tuple[int, int], list[int]] = {}
+        self.boxes: list[tuple[float, float, float, float]] = []
+        self.owner: list[int] = []
+
+    def _cells(self, box: tuple[float, float, float, float]) -> Iterator[tuple[int, int]]:
+        c = self.cell
+        for i in range(math.floor(box[0] / c), math.floor(box[2] / c) + 1):
+            for j in range(math.floor(box[1] / c), math.floor(box[3] / c) + 1):
+                yield i, j
+
+    def add(self, box: tuple[float, float, float, float], owner: int = -1) -> None:
+        k = len(self.boxes)
+        self.boxes.append(box)
+        self.owner.append(owner)
+        for key in self._cells(box):
+            self.grid.setdefault(key, []).append(k)
+
+    def hits(self, box: tuple[float, float, float, float], owner: int = -1) -> bool:
+        """Whether ``box`` overlaps a box of another owner."""
+        boxes, owners = self.boxes, self.owner
+        for key in self._cells(box):
+            for k in self.grid.get(key, ()):
+                b = boxes[k]
+                if (box[0] < b[2] and b[0] < box[2] and box[1] < b[3] and b[1] < box[3]
+                        and (owner < 0 or owners[k] != owner)):
+                    return True
+        return False
+
+
+def _place_labels(centre: np.ndarray, size: np.ndarray, dots: np.ndarray,
+                  rings: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Greedy label placement around the crosses, nearest free place first.
+
+    A label may not cover a dot, another label, or come within ``_CROSS_CLEAR``
+    of another arc's cross.
+
+    Args:
+        centre: (k, 2) crosses, mm.
+        size: (k, 2) label box sizes, mm.
+        dots: (d, 2) dots, mm.
+        rings: extra distances from the cross to try, mm, nearest first.
+
+    Returns:
+        Label centres (k, 2) (where the first place tried for those that found
+        none), whether each found a free place (k,), and the ring index it was
+        placed at (k,).
+    """
+    k = len(centre)
+    boxes = _Boxes(10.0)
+    half = 0.5 * _CROSS_MM + _CROSS_CLEAR
+    for i, (x, y) in enumerate(centre.tolist()):
+        boxes.add((x - half, y - half, x + half, y + half), i)
+    half = 0.5 * _DOT_MM + 0.3
+    for x, y in dots.tolist():
+        boxes.add((x - half, y - half, x + half, y + half))
+    pos = np.zeros((k, 2))
+    ok = np.zeros(k, dtype=bool)
+    ring = np.zeros(k, dtype=np.int64)
+    # the crowded crosses first, while there is room around them
+    crowd = np.zeros(k, dtype=np.int64)
+    if k:
+        cell = np.floor(centre / 10.0).astype(np.int64)
+        _, inv, count = np.unique(cell, axis=0, return_inverse=True, return_counts=True)
+        crowd = count[inv.ravel()]
+    for i in np.lexsort((np.arange(k), -crowd)).tolist():
+        cx, cy = centre[i]
+        hw, hh = 0.5 * size[i]
+        for r_index, extra in enumerate(rings):
+            d = _LABEL_GAP + extra
+            for sx, sy in _DIRECTIONS:
+                f = 0.7 if sx and sy else 1.0  # diagonal places sit on a circle of radius d
+                x = cx + sx * (f * d + hw)
+                y = cy + sy * (f * d + hh)
+                box = (x - hw, y - hh, x + hw, y + hh)
+                if not boxes.hits(box, i):
+                    pos[i] = x, y
+                    ok[i] = True
+                    ring[i] = r_index
+                    boxes.add(box, i)
+                    break
+            if ok[i]:
+                break
+        if not ok[i]:
+            pos[i] = cx + _LABEL_GAP + hw, cy
+    return pos, ok, ring
+
+
+def plan_pattern(grooves: Grooves, paper: str = "a4", overlap: float = 10.0) -> PatternPlan:
+    """Lay out the scratch pattern of an `arc` design.
+
+    Args:
+        grooves: one circular arc per path (dots allowed), as the `arc` design makes.
+        paper: ``"a4"`` or ``"letter"``.
+        overlap: width of the strip neighbouring pages share, mm (5 to 50).
+
+    Returns:
+        The plan: tiles, arcs, labels and page count.
+
+    Raises:
+        SpecholoError: if a path is not a single circular arc or a dot, or the
+            paper or overlap is not allowed.
+    """
+    key, page = _paper(paper)
+    overlap = float(overlap)
+    if not 5.0 <= overlap <= 50.0:  # also refuses NaN
+        raise SpecholoError(f"page overlap must be in [5, 50] mm, got {overlap}")
+    segs, dots = _arcs(grooves)
+    centre, radius, start, sweep = segs.geometry()
+    k = len(radius)
+
+    # Labels: radii beside the crosses if they all fit there, else numbers, on
+    # as many sheets as it takes for every number to find room.
+    em = _LABEL_PT / PT_PER_MM
+    height = 0.73 * em + 2 * _LABEL_PAD  # digits' height
+    widths = _char_widths(_FONT, _LABEL_PT, "0123456789.#")
+    text = np.array([format_number(r, 1) for r in radius.tolist()], dtype=object)
+    size = np.column_stack([_text_width(text, widths) + 2 * _LABEL_PAD, np.full(k, height)])
+    label, ok, ring = _place_labels(centre, size, dots, _RINGS[:1])
+    sheet = np.zeros(k, dtype=np.int64)
+    numbered = not ok.all()
+    if numbered:
+        # every number as wide as the longest, so the plan holds before numbering
+        longest = "#" + "8" * len(str(k))
+        size[:, 0] = _text_width(np.array([longest]), widths)[0] + 2 * _LABEL_PAD
+        left = np.arange(k)
+        for s in range(MAX_SHEETS):
+            sheet[left] = s
+            label[left], ok[left], ring[left] = _place_labels(
+                centre[left], size[left], dots if s == 0 else np.zeros((0, 2)), _RINGS)
+            left = left[~ok[left]]
+            if len(left) == 0:
+                break
+    sheets = int(sheet.max(initial=0)) + 1
+
+    # Tiles: centred on everything drawn, the plate centre included.
+    parts = [np.zeros((1, 2)), centre - _CROSS_MM, centre + _CROSS_MM, dots,
+             label - 0.5 * size, label + 0.5 * size]
+    if k:
+        parts.append(arc_bounds(segs))
+    pts = np.concatenate(parts)
+    lo, hi = pts.min(axis=0) - 2.0, pts.max(axis=0) + 2.0
+    frame = page - np.array([2 * _SIDE, _TOP + _BOTTOM])
+    step = frame - overlap
+    count = 1 + np.ceil(np.maximum(hi - lo - frame, 0.0) / step).astype(np.int64)
+    covered = frame + (count - 1) * step
+    mid = 0.5 * (lo + hi)
+    origin = np.array([mid[0] - 0.5 * covered[0], mid[1] + 0.5 * covered[1]])
+
+    # the table: lines per column and columns per page
+    line = _TABLE_LINE * _TEXT_PT / PT_PER_MM
+    table_rows = max(1, int((frame[1] - 12.0) // line) - 1)
+    mono = _char_widths(_MONO, _TEXT_PT, "0")["0"]
+    table_columns = max(1, int((frame[0] + 8.0) // (len(_table_line(0, "", "")) * mono
+                                                     + 8.0)))
+
+    plan = PatternPlan(key, page, frame, overlap, origin, int(count[0]), int(count[1]),
+                       centre, radius, start, sweep, segs.path.copy(), dots, sheet, sheets,
+                       np.zeros(k, dtype=np.int64), numbered, text, label, size,
+                       ring > 0, int(np.sum(~ok)), table_rows, table_columns)
+    # number in reading order: sheet, page, then bands down the page, across each band
+    col, row = plan.tile_of(centre)
+    top = origin[1] - row * step[1]
+    band = np.floor((top - centre[:, 1]) / _BAND_MM).astype(np.int64)
+    across = np.where(band % 2 == 0, centre[:, 0], -centre[:, 0])  # boustrophedon
+    order = np.lexsort((across, band, col, row, sheet))
+    number = np.empty(k, dtype=np.int64)
+    number[order] = np.arange(1, k + 1)
+    if numbered:
+        text = np.array([f"#{n}" for n in number.tolist()], dtype=object)
+    return replace(plan, number=number, text=text)
+
+
+def arc_path(centre: np.ndarray, radius: np.ndarray, start: np.ndarray,
+             sweep: np.ndarray) -> Path:
+    """Circular arcs as one path of cubic Béziers (at most 45 degrees each).
+
+    Args:
+        centre: (k, 2) centres.
+        radius: (k,) radii.
+        start: (k,) start angles, radians.
+        sweep: (k,) signed sweeps, radians.
+
+    Returns:
+        A path with one MOVETO per arc; its distance from the true circle is
+        below 1e-5 of the radius.
+    """
+    k = len(radius)
+    pieces = np.maximum(1, np.ceil(np.abs(sweep) / (0.25 * np.pi))).astype(np.int64)
+    arc = np.repeat(np.arange(k), pieces)
+    first = np.cumsum(pieces) - pieces
+    index = np.arange(len(arc)) - first[arc]
+    phi = sweep[arc] / pieces[arc]
+    a0 = start[arc] + index * phi
+    a1 = a0 + phi
+    c, r = centre[arc], radius[arc][:, None]
+    u0 = np.column_stack([np.cos(a0), np.sin(a0)])
+    u1 = np.column_stack([np.cos(a1), np.sin(a1)])
+    t = (4.0 / 3.0 * np.tan(phi / 4.0))[:, None]  # handle length of a Bézier arc
+    p0, p3 = c + r * u0, c + r * u1
+    p1 = p0 + t * r * np.column_stack([-u0[:, 1], u0[:, 0]])
+    p2 = p3 - t * r * np.column_stack([-u1[:, 1], u1[:, 0]])
+    verts = np.zeros((k + 3 * len(arc), 2))
+    codes = np.full(len(verts), Path.CURVE4, dtype=np.uint8)
+    move = 3 * first + np.arange(k)  # each arc's MOVETO comes before its pieces
+    verts[move] = p0[first]
+    codes[move] = Path.MOVETO
+    base = 3 * np.arange(len(arc)) + arc + 1
+    verts[base], verts[base + 1], verts[base + 2] = p1, p2, p3
+    return Path(verts, codes)
+
+
+def _segments_path(a: np.ndarray, b: np.ndarray) -> Path:
+    """Straight segments a[i] to b[i] (k, 2) as one path."""
+    verts = np.empty((2 * len(a), 2))
+    verts[0::2], verts[1::2] = a, b
+    codes = np.tile(np.array([Path.MOVETO, Path.LINETO], dtype=np.uint8), len(a))
+    return Path(verts, codes)
+
+
+def _page(plan: PatternPlan) -> tuple[Figure, Axes]:
+    """A blank page and its paper axes (mm from the lower-left corner)."""
+    w, h = plan.page
+    fig = Figure(figsize=(w / 25.4, h / 25.4), dpi=72)
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0), label="paper")
+    ax.set_xlim(0.0, w)
+    ax.set_ylim(0.0, h)
+    ax.set_axis_off()
+    return fig, ax
+
+
+def _scale_bars(ax: Axes) -> None:
+    """The 50 mm bars, across (under the frame) and down (in the left margin)."""
+    x0, y0 = _SIDE, 9.0
+    ticks = np.arange(0.0, SCALE_BAR_MM + 1e-9, 10.0)
+    tall = np.where((ticks == 0) | (ticks == SCALE_BAR_MM), 2.5, 1.5)
+    ax.plot([x0, x0 + SCALE_BAR_MM], [y0, y0], color="black", lw=0.8, gid="scale bar")
+    ax.add_patch(PathPatch(_segments_path(np.column_stack([x0 + ticks, np.full_like(ticks, y0)]),
+                                          np.column_stack([x0 + ticks, y0 + tall])),
+                           fill=False, lw=0.5))
+    for t in ticks.tolist():
+        ax.text(x0 + t, y0 - 1.2, f"{t:g}" + (" mm" if t == SCALE_BAR_MM else ""),
+                fontsize=6, ha="center", va="top")
+    ax.text(x0 + SCALE_BAR_MM + 6.0, y0 + 1.0,
+            "Print at 100 % (actual size). Both bars must measure 50 mm;\n"
+            "if not, fix the print scaling before you scratch.", fontsize=7, va="center")
+    # down: clear of the crop marks at the frame's corners
+    xv, yv = 6.0, _BOTTOM + 12.0
+    ax.plot([xv, xv], [yv, yv + SCALE_BAR_MM], color="black", lw=0.8, gid="scale bar down")
+    ax.add_patch(PathPatch(_segments_path(np.column_stack([np.full_like(ticks, xv), yv + ticks]),
+                                          np.column_stack([xv + tall, yv + ticks])),
+                           fill=False, lw=0.5))
+    ax.text(xv - 1.0, yv + 0.5 * SCALE_BAR_MM, "50 mm", fontsize=6, rotation=90,
+            ha="right", va="center")
+
+
+def _instructions(plan: PatternPlan, arcs: Path) -> Figure:
+    fig, ax = _page(plan)
+    w, h = plan.page
+    k, d = len(plan.radius), len(plan.dots)
+    x = _SIDE
+    y = h - _TOP - 4.0
+    ax.text(x, y, f"Scratch pattern: {k} arc{'s' * (k != 1)}"
+            + (f", {d} dimple{'s' * (d != 1)}" if d else ""), fontsize=15, weight="bold",
+            gid="title")
+    pages = (f"{plan.pages} pages: this one, {plan.tile_pages} pattern page"
+             f"{'s' * (plan.tile_pages != 1)} ({plan.columns} across \u00d7 {plan.rows} down"
+             + (f", {plan.sheets} sheets" if plan.sheets > 1 else "") + ")")
+    if plan.table_pages:
+        pages += f" and {plan.table_pages} page{'s' * (plan.table_pages != 1)} of radii"
+    ax.text(x, y - 7.0, f"{pages}; paper {plan.paper.upper()}, portrait.", fontsize=9)
+    steps = [
+        "Print at 100 % (\u201cactual size\u201d; no \u201cfit to page\u201d). Every page has "
+        "two 50 mm scale bars, across and down: measure both with a ruler. If either is "
+        "not 50 mm, fix the print settings and print again.",
+    ]
+    if plan.tiles > 1:
+        steps.append(
+            "Join the pages as in the map below (A1 at the top left). Trim each page along "
+            "its frame on the sides marked \u201ccut\u201d, lay it over the grey overlap strip "
+            "of its neighbour so the round targets coincide, and tape.")
+    steps.append(
+        "Fix the pattern to the plate with \u201cplate top\u201d up (towards the light): under "
+        "a clear plate, or on an opaque one (then prick each cross and arc end through the "
+        "paper). The pattern shows the plate's front as the viewer sees it; the diamond "
+        "marks the plate centre.")
+    if plan.numbered:
+        steps.append(
+            "For each cross: look up its number (#) in the table at the end, set the compass "
+            "(dividers) to that radius in mm, put its point on the cross and scratch the drawn "
+            "arc from end tick to end tick. Tick the box in the table when done.")
+    else:
+        steps.append(
+            "For each cross: set the compass (dividers) to the radius written beside it (mm), "
+            "put its point on the cross and scratch the drawn arc from end tick to end tick.")
+    if plan.sheets > 1:
+        steps.append(
+            f"The arcs are spread over {plan.sheets} sheets so that every number stays "
+            "legible; each sheet is a full set of pages (page titles start with the sheet "
+            "number). Scratch one sheet, then put the next exactly where it was: hinge the "
+            "sheets with tape along the same edge, or line up their diamonds and targets "
+            "with marks made on the plate.")
+    if d:
+        steps.append("At each dot, press a small dimple with the compass point"
+                     + (" (dots are on sheet 1)." if plan.sheets > 1 else "."))
+    y -= 16.0
+    for i, step in enumerate(steps, start=1):
+        body = textwrap.fill(step, 100)
+        ax.text(x, y, f"{i}.", fontsize=9, va="top")
+        ax.text(x + 5.0, y, body, fontsize=9, va="top", linespacing=1.4)
+        y -= 5.2 * (body.count("\n") + 1) + 2.0
+    if k:
+        facts = (f"Radii {format_number(plan.radius.min(), 1)} to "
+                 f"{format_number(plan.radius.max(), 1)} mm.")
+        if plan.crowded:
+            facts += f" {plan.crowded} numbers found no free place and overlap others."
+        ax.text(x, y, facts, fontsize=9, va="top")
+        y -= 8.0
+
+    if plan.tiles:
+        # the map of the pages, not to scale
+        box = np.array([x, _BOTTOM + 2.0, w - 2 * _SIDE, y - _BOTTOM - 6.0])
+        total = plan.frame + (np.array([plan.columns, plan.rows]) - 1) * plan.step
+        scale = min(box[2] / total[0], box[3] / total[1])
+        size = total * scale
+        left = box[0] + 0.5 * (box[2] - size[0])
+        bottom = box[1] + 0.5 * (box[3] - size[1])
+        m = fig.add_axes((left / w, bottom / h, size[0] / w, size[1] / h), label="map")
+        m.set_xlim(plan.origin[0], plan.origin[0] + total[0])
+        m.set_ylim(plan.origin[1] - total[1], plan.origin[1])
+        m.set_axis_off()
+        m.add_patch(PathPatch(arcs, fill=False, lw=0.4, color="0.4"))
+        if d:
+            m.plot(plan.dots[:, 0], plan.dots[:, 1], ".", color="0.4", ms=1.5)
+        for row in range(plan.rows):
+            for col in range(plan.columns):
+                (x0, y0), (x1, y1) = plan.tile_box(col, row)
+                m.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, lw=0.6,
+                                      color="tab:blue"))
+                m.text(x0 + 3.0 / scale, y1 - 3.0 / scale, tile_name(col, row), fontsize=8,
+                       color="tab:blue", ha="left", va="top")
+        m.plot([0.0], [0.0], "D", color="black", ms=3)
+    _scale_bars(ax)
+    return fig
+
+
+def _crop_marks(ax: Axes, x0: float, y0: float, x1: float, y1: float) -> None:
+    a, b = 1.5, 5.5  # gap and end of each mark, mm from the corner
+    starts, ends = [], []
+    for cx, sx in ((x0, -1.0), (x1, 1.0)):
+        for cy, sy in ((y0, -1.0), (y1, 1.0)):
+            starts += [(cx + sx * a, cy), (cx, cy + sy * a)]
+            ends += [(cx + sx * b, cy), (cx, cy + sy * b)]
+    ax.add_patch(PathPatch(_segments_path(np.array(starts), np.array(ends)), fill=False,
+                           lw=0.4, gid="crop marks"))
+
+
+def _targets(plan: PatternPlan) -> np.ndarray:
+    """Registration targets (t, 2), mm: in the middle of each overlap strip, a
+    quarter and three quarters along it, so they show on both pages."""
+    pts = []
+    half = 0.5 * plan.overlap
+    for row in range(plan.rows):
+        for col in range(plan.columns):
+            (x0, y0), (x1, y1) = plan.tile_box(col, row)
+            if col + 1 < plan.columns:
+                pts += [(x1 - half, y0 + f * (y1 - y0)) for f in (0.25, 0.75)]
+            if row + 1 < plan.rows:
+                pts += [(x0 + f * (x1 - x0), y0 + half) for f in (0.25, 0.75)]
+    return np.array(pts).reshape(-1, 2)
+
+
+def _inside(points: np.ndarray, box: np.ndarray, pad: float = 0.0) -> np.ndarray:
+    """(k,) whether points (k, 2) lie in a (2, 2) box grown by ``pad``."""
+    return np.all((points >= box[0] - pad) & (points <= box[1] + pad), axis=1)
+
+
+def _tile(plan: PatternPlan, sheet: int, col: int, row: int, targets: np.ndarray) -> Figure:
+    fig, paper = _page(plan)
+    w, h = plan.page
+    fw, fh = plan.frame
+    box = plan.tile_box(col, row)
+    (x0, y0), (x1, y1) = box
+    ax = fig.add_axes((_SIDE / w, _BOTTOM / h, fw / w, fh / h), label="tile")
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_axis_off()
+
+    if col + 1 < plan.columns:
+        ax.add_patch(Rectangle((x1 - plan.overlap, y0), plan.overlap, y1 - y0, color="0.88",
+                               lw=0, zorder=0))
+    if row + 1 < plan.rows:
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, plan.overlap, color="0.88", lw=0, zorder=0))
+    t = targets[_inside(targets, box)]
+    if len(t):
+        ax.plot(t[:, 0], t[:, 1], "o", ms=_TARGET_MM * PT_PER_MM, mfc="none", mec="0.3",
+                mew=0.5, gid="targets")
+        ax.plot(t[:, 0], t[:, 1], "+", ms=1.6 * _TARGET_MM * PT_PER_MM, mec="0.3", mew=0.5)
+
+    # this sheet's arcs that may show on this tile (their circles reach it)
+    c, r = plan.centre, plan.radius
+    near = np.all((c + r[:, None] >= box[0]) & (c - r[:, None] <= box[1]), axis=1)
+    mine = np.flatnonzero((plan.sheet == sheet) & near)
+    ax.add_patch(PathPatch(arc_path(c[mine], r[mine], plan.start[mine], plan.sweep[mine]),
+                           fill=False, lw=0.6, color="black", gid="arcs"))
+    # ticks across each arc's ends, where the scratch starts and stops
+    end = np.concatenate([plan.start[mine], plan.start[mine] + plan.sweep[mine]])
+    u = np.column_stack([np.cos(end), np.sin(end)])
+    cc = np.concatenate([c[mine], c[mine]])
+    rr = np.concatenate([r[mine], r[mine]])[:, None]
+    ax.add_patch(PathPatch(_segments_path(cc + (rr - 1.0) * u, cc + (rr + 1.0) * u),
+                           fill=False, lw=0.5, color="black", gid="arc ends"))
+    here = mine[_inside(c[mine], box, 2.0 * _CROSS_MM)]
+    if len(here):
+        ax.plot(c[here, 0], c[here, 1], "+", ms=_CROSS_MM * PT_PER_MM, mec="tab:red", mew=0.6,
+                gid="centres")
+    if len(plan.dots) and sheet == 0:
+        ax.plot(plan.dots[:, 0], plan.dots[:, 1], "o", ms=_DOT_MM * PT_PER_MM, mfc="black",
+                mec="none", gid="dots")
+    ax.plot([0.0], [0.0], "D", ms=2.0 * PT_PER_MM, mfc="none", mec="black", mew=0.6,
+            gid="plate centre")
+
+    lab, size = plan.label, plan.label_size
+    shown = mine[np.all((lab[mine] + 0.5 * size[mine] > box[0])
+                        & (lab[mine] - 0.5 * size[mine] < box[1]), axis=1)]
+    lead = shown[plan.leader[shown]]
+    if len(lead):
+        # from the cross's arm to the nearest point of the label's box
+        tip = np.clip(c[lead], lab[lead] - 0.5 * size[lead], lab[lead] + 0.5 * size[lead])
+        v = tip - c[lead]
+        unit = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-9)
+        ax.add_patch(PathPatch(_segments_path(c[lead] + 0.6 * _CROSS_MM * unit, tip),
+                               fill=False, lw=0.3, color="tab:red", gid="leaders"))
+    halo = [patheffects.withStroke(linewidth=1.5, foreground="white")]
+    em = _LABEL_PT / PT_PER_MM
+    for i in shown.tolist():
+        # the digits' middle on the box's middle
+        ax.text(lab[i, 0], lab[i, 1] - 0.365 * em, plan.text[i], fontsize=_LABEL_PT,
+                ha="center", va="baseline", color="tab:red", path_effects=halo, clip_on=True,
+                gid=f"label {i}")
+
+    # the paper around the frame
+    fx0, fy0, fx1, fy1 = _SIDE, _BOTTOM, _SIDE + fw, _BOTTOM + fh
+    paper.add_patch(Rectangle((fx0, fy0), fw, fh, fill=False, lw=0.4, gid="frame"))
+    _crop_marks(paper, fx0, fy0, fx1, fy1)
+    title = (f"{tile_name(col, row)}  (column {col + 1} of {plan.columns}, row {row + 1} of "
+             f"{plan.rows})")
+    if plan.sheets > 1:
+        title = f"Sheet {sheet + 1} of {plan.sheets}: " + title
+    paper.text(fx0, h - 6.0, title, fontsize=10, weight="bold", va="center")
+    paper.text(fx1, h - 6.0, f"\u2191 plate top     page {plan.tile_page(sheet, col, row)} of "
+               f"{plan.pages}", fontsize=8, ha="right", va="center")
+    paper.text(fx0 + 2.0, fy1 + 1.0, f"plate x {x0:.1f} to {x1:.1f} mm, y {y0:.1f} to {y1:.1f} mm",
+               fontsize=6, color="0.4", va="bottom")
+    # how the pages join, in the margins beside the edges concerned
+    if col > 0:
+        paper.text(fx0 - 1.5, 0.5 * (fy0 + fy1), f"cut \u2014 lay over {tile_name(col - 1, row)}",
+                   rotation=90, fontsize=6, ha="right", va="center")
+    if row > 0:
+        paper.text(0.5 * (fx0 + fx1), fy1 + 1.0, f"cut \u2014 lay over {tile_name(col, row - 1)}",
+                   fontsize=6, ha="center", va="bottom")
+    if col + 1 < plan.columns:
+        paper.text(fx1 + 1.5, 0.5 * (fy0 + fy1), f"grey strip: {tile_name(col + 1, row)} lies "
+                   "over it", rotation=90, fontsize=6, ha="left", va="center")
+    if row + 1 < plan.rows:
+        paper.text(0.5 * (fx0 + fx1), fy0 - 1.5, f"grey strip: {tile_name(col, row + 1)} lies "
+                   "over it", fontsize=6, ha="center", va="top")
+    _scale_bars(paper)
+    return fig
+
+
+def _table_line(number: int, radius: str, page: str) -> str:
+    """One line of the radius table (number 0: the heading)."""
+    return f"{'#' + str(number) if number else 'No.':>7} {radius:>9}  {page:>6}  \u25a1"
+
+
+def _table(plan: PatternPlan, index: int) -> Figure:
+    fig, ax = _page(plan)
+    h = plan.page[1]
+    per_page = plan.table_rows * plan.table_columns
+    order = np.argsort(plan.number)[index * per_page:(index + 1) * per_page]
+    col, row = plan.tile_of(plan.centre[order])
+    lines = [_table_line(int(plan.number[i]), format_number(plan.radius[i], 1),
+                         plan.page_name(int(plan.sheet[i]), int(c), int(r)))
+             for i, c, r in zip(order.tolist(), col.tolist(), row.tolist(), strict=True)]
+    ax.text(_SIDE, h - 7.0, f"Compass radii (mm), by cross number \u2014 page "
+            f"{1 + plan.tile_pages + index + 1} of {plan.pages}", fontsize=10, weight="bold",
+            va="center")
+    header = _table_line(0, "radius mm", "page")[:-1]
+    column_w = (plan.frame[0] + 8.0) / plan.table_columns
+    line = _TABLE_LINE * _TEXT_PT / PT_PER_MM
+    for c in range(plan.table_columns):
+        chunk = lines[c * plan.table_rows:(c + 1) * plan.table_rows]
+        if not chunk:
+            break
+        x = _SIDE + c * column_w
+        ax.text(x, h - _TOP - 2.0, header, family=_MONO, fontsize=_TEXT_PT, va="top",
+                weight="bold")
+        ax.text(x, h - _TOP - 2.0 - line, "\n".join(chunk), family=_MONO, fontsize=_TEXT_PT,
+                va="top", linespacing=_TABLE_LINE, gid=f"table {c}")
+    _scale_bars(ax)
+    return fig
+
+
+def pattern_figures(plan: PatternPlan) -> Iterator[Figure]:
+    """The pages of a scratch pattern, one figure at a time.
+
+    Args:
+        plan: from :func:`plan_pattern`.
+
+    Yields:
+        ``plan.pages`` figures of the paper's size at 72 dpi: the instructions,
+        the tiles of each sheet row by row from the top left, then the radius
+        table. Each tile figure has an axes labelled ``"tile"`` in plate mm and
+        one labelled ``"paper"`` in mm from the paper's lower-left corner, both
+        at 1:1.
+    """
+    def build(make: Callable[..., Figure], *args: Any) -> Figure:
+        # texts take their font when made, so the setting need not outlive this
+        with rc_context({"font.family": _FONT}):
+            return make(*args)
+
+    yield build(_instructions, plan, arc_path(plan.centre, plan.radius, plan.start, plan.sweep))
+    targets = _targets(plan)
+    for sheet in range(plan.sheets if plan.tiles else 0):
+        for row in range(plan.rows):
+            for col in range(plan.columns):
+                yield build(_tile, plan, sheet, col, row, targets)
+    for index in range(plan.table_pages):
+        yield build(_table, plan, index)
+
+
+def write_pattern(path: str | os.PathLike[str], grooves: Grooves, paper: str = "a4",
+                  overlap: float = 10.0) -> PatternPlan:
+    """Write the printable scratch pattern of an `arc` design as a PDF, atomically.
+
+    Args:
+        path: destination ``.pdf`` file.
+        grooves: one circular arc per path (dots allowed), as the `arc` design makes.
+        paper: ``"a4"`` or ``"letter"``.
+        overlap: width of the strip neighbouring pages share, mm.
+
+    Returns:
+        The plan that was drawn (its ``pages``, ``tiles``, ``numbered`` ...).
+
+    Raises:
+        SpecholoError: if a path is not a single circular arc or a dot (the
+            pattern is for the `arc` design), or the paper or overlap is not allowed.
+    """
+    plan = plan_pattern(grooves, paper, overlap)
+    # no creation date, so the same design gives the same file
+    meta = {"Title": "specholo scratch pattern", "Creator": "specholo", "CreationDate": None}
+    # never "tight": the page must keep the paper's size for 1:1 printing
+    with rc_context({"savefig.bbox": "standard", "pdf.fonttype": 42}), \
+            atomic_open(path, "wb") as fh, PdfPages(fh, metadata=meta) as pdf:
+        for fig in pattern_figures(plan):
+            pdf.savefig(fig)
+    return plan
