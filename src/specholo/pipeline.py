@@ -333,27 +333,63 @@ def staged_output(out: str | os.PathLike[str],  # type: ignore[no-untyped-def]
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def write_design(d: Design, out: str | os.PathLike[str]) -> dict[str, float]:
+#: Files ``write_design`` can add besides the design data, by format name.
+FORMATS = {"gcode": "hologram.gcode", "svg": "hologram.svg", "dxf": "hologram.dxf",
+           "pdf": "pattern.pdf"}
+DEFAULT_FORMATS = ("gcode", "svg")
+
+
+def check_formats(formats: tuple[str, ...], method: str) -> None:
+    """Refuse unknown formats, and a compass pattern of grooves that are not arcs."""
+    for f in formats:
+        if f not in FORMATS:
+            raise SpecholoError(f"format must be among {', '.join(FORMATS)}, got {f!r}")
+    if "pdf" in formats and method != "arc":
+        raise SpecholoError("the pdf pattern is for scratching circular arcs by hand: "
+                            f"design with --method arc (got {method!r})")
+
+
+def write_design(d: Design, out: str | os.PathLike[str],
+                 formats: tuple[str, ...] = DEFAULT_FORMATS) -> dict[str, float]:
     """Write every output of a design into ``out`` (all or nothing).
+
+    Args:
+        d: the design.
+        out: output folder.
+        formats: fabrication files to write, from :data:`FORMATS`.
 
     Returns:
         Seconds spent per output.
     """
+    from specholo.fabrication.dxf import write_dxf
     from specholo.fabrication.gcode import write_gcode
+    from specholo.fabrication.pattern import write_pattern
     from specholo.fabrication.svg import write_svg
     from specholo.preview.preview import render_preview
 
+    check_formats(formats, d.config.method)
     setup = d.config.setup()
     info = hologram_json(d)
     timings: dict[str, float] = {}
-    with staged_output(out, stale=("verify.json", "verify.png", "model.ply")) as tmp:
-        t0 = time.perf_counter()
-        write_gcode(tmp / "hologram.gcode", d.grooves, setup.tool, setup.machining,
-                    header={"design": d.config.method, "stipples": str(len(d.points))})
-        timings["gcode"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        write_svg(tmp / "hologram.svg", d.grooves, setup.tool)
-        timings["svg"] = time.perf_counter() - t0
+    stale = ("verify.json", "verify.png", "model.ply", *FORMATS.values())
+    with staged_output(out, stale=stale) as tmp:
+        if "gcode" in formats:
+            t0 = time.perf_counter()
+            write_gcode(tmp / "hologram.gcode", d.grooves, setup.tool, setup.machining,
+                        header={"design": d.config.method, "stipples": str(len(d.points))})
+            timings["gcode"] = time.perf_counter() - t0
+        if "svg" in formats:
+            t0 = time.perf_counter()
+            write_svg(tmp / "hologram.svg", d.grooves, setup.tool)
+            timings["svg"] = time.perf_counter() - t0
+        if "dxf" in formats:
+            t0 = time.perf_counter()
+            write_dxf(tmp / "hologram.dxf", d.grooves, setup.tool)
+            timings["dxf"] = time.perf_counter() - t0
+        if "pdf" in formats:
+            t0 = time.perf_counter()
+            write_pattern(tmp / "pattern.pdf", d.grooves)
+            timings["pdf"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         d.grooves.save(str(tmp / "grooves.npz"))
         with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:

@@ -84,13 +84,16 @@ def _design_options(fn: Any) -> Any:
               help="TOML file with any of these options (same names).")
 @click.option("--strict", is_flag=True,
               help="Refuse a design whose tool cannot serve every view.")
+@click.option("--formats", default="gcode,svg", show_default=True,
+              help="Fabrication files, comma-separated: gcode, svg, dxf, pdf (the compass "
+                   "pattern of an arc design).")
 @_design_options
 def design(model: Path, out: Path, method: str | None, config_path: Path | None,
-           strict: bool, **options: Any) -> None:
+           strict: bool, formats: str, **options: Any) -> None:
     """Design a hologram of MODEL (OBJ, STL, PLY, OFF, GLB; PLY/XYZ/CSV point clouds)."""
     from rich.console import Console
 
-    from specholo.pipeline import DesignConfig, write_design
+    from specholo.pipeline import DesignConfig, check_formats, write_design
     from specholo.pipeline import design as run_design
 
     values = _read_config(config_path)
@@ -100,11 +103,13 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
         options["strict"] = True
     values.update({k: v for k, v in options.items() if v is not None})
     config = DesignConfig.from_dict(values)
+    wanted = tuple(f.strip().lower() for f in formats.split(",") if f.strip())
+    check_formats(wanted, config.method)
     console = Console(stderr=True)
     with console.status("designing..."):
         d = run_design(model, config)
     with console.status("writing..."):
-        write_design(d, out)
+        write_design(d, out, wanted)
     stats = (f"{len(d.points)} stipples, {d.grooves.n_paths} paths, "
              f"{d.grooves.total_length() / 1000:.2f} m of groove")
     click.echo(f"{config.method}: {stats} -> {out}")
