@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -22,6 +23,7 @@ from specholo.preview.render import (
     save_png,
 )
 from specholo.preview.stereo import anaglyph, head_camera, side_by_side, stereo_cameras, stereo_pair
+from specholo.setup import Tool
 from specholo.simulation.glints import Engraved
 from specholo_cli.cli import main
 
@@ -104,7 +106,8 @@ def test_elevation_zero_camera_is_the_designs_eye(loaded: Loaded):
 
 
 def test_roughness_changes_spot_size_not_position(loaded: Loaded, engraved: Engraved):
-    setup = loaded.config.setup()
+    # Spots of a 0.37 mm groove are resolved at this scale (a fine tip's are points).
+    setup = dataclasses.replace(loaded.config.setup(), tool=Tool(0.25, 0.08))
     cam = design_camera(setup, loaded.grooves, math.radians(-10.0), width=SIZE[0],
                         height=SIZE[1])
     smooth = render_still(loaded.grooves, setup, cam, math.radians(1.0), engraved=engraved)

@@ -7,6 +7,7 @@ speak (degrees, mm) and are converted once, here, to the library's radians.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import math
 import os
@@ -22,7 +23,14 @@ import numpy as np
 from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open, public_mode
-from specholo.fabrication.tools import Cutter, ViewCheck, check_views, make_cutter
+from specholo.fabrication.tools import (
+    Cutter,
+    ViewCheck,
+    check_views,
+    depth_for,
+    make_cutter,
+    needed_tilts,
+)
 from specholo.setup import Light, Machining, Setup, Viewer
 from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import Grooves
@@ -30,6 +38,13 @@ from specholo.toolpaths.overlap import Overlaps, groove_overlaps
 
 METHODS = ("striped", "hyperbola", "arc")
 DEFAULT_STIPPLES = 2000
+#: Fallback groove depth (mm) and spindle speed (rpm) by tool. A design without a
+#: depth cuts just deep enough for the wall tilts its views need (see
+#: :data:`TILT_MARGIN`); drag tips, scribers and lasers do not spin.
+#: Extra wall tilt (radians) over the steepest a design needs, when choosing its depth.
+TILT_MARGIN = math.radians(2.0)
+TOOL_DEFAULTS = {"ball": (0.08, 12000.0), "drag": (0.012, 0.0), "scriber": (0.012, 0.0),
+                 "vbit": (0.05, 12000.0), "laser": (0.04, 0.0)}
 
 
 @dataclass(frozen=True)
@@ -52,12 +67,12 @@ class DesignConfig:
     seed: int = 0
     method: str = "striped"
     band: float = 0.2
-    tool: str = "ball"
+    tool: str = "drag"
     tool_radius: float | None = None
     tool_angle: float | None = None
     tip_flat: float = 0.0
     spot: float | None = None
-    depth: float = 0.08
+    depth: float | None = None
     strict: bool = False
     plate_width: float | None = None
     plate_height: float | None = None
@@ -65,9 +80,14 @@ class DesignConfig:
     feed: float = 300.0
     plunge: float = 100.0
     safe_z: float = 1.0
-    spindle: float = 12000.0
+    spindle: float | None = None
 
     def __post_init__(self) -> None:
+        # The spindle defaults by tool (a frozen dataclass: filled in once here); the
+        # depth is chosen by design() from the wall tilts the views need.
+        _, spindle = TOOL_DEFAULTS.get(self.tool, (0.08, 0.0))
+        if self.spindle is None:
+            object.__setattr__(self, "spindle", spindle)
         if self.method not in METHODS:
             raise SpecholoError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.stipples is not None and self.spacing is not None:
@@ -114,6 +134,13 @@ class DesignConfig:
         except TypeError as exc:
             raise SpecholoError(f"bad setting: {exc}") from exc
 
+    @property
+    def depth_mm(self) -> float:
+        """Groove depth, mm: as given, else the tool's fallback default."""
+        if self.depth is not None:
+            return float(self.depth)
+        return TOOL_DEFAULTS.get(self.tool, (0.08, 0.0))[0]
+
     def cutter(self) -> Cutter:
         """The cutting tool."""
         try:
@@ -132,9 +159,9 @@ class DesignConfig:
                             None if self.light_distance is None else float(self.light_distance)),
                 viewer=Viewer(float(self.view_distance), float(self.eye_height),
                               math.radians(float(self.view_range)), float(self.ipd)),
-                tool=self.cutter().model(float(self.depth)),
+                tool=self.cutter().model(self.depth_mm),
                 machining=Machining(float(self.feed), float(self.plunge), float(self.safe_z),
-                                    float(self.spindle)),
+                                    float(self.spindle or 0.0)),
             )
         except (TypeError, ValueError) as exc:
             if isinstance(exc, SpecholoError):
@@ -195,6 +222,25 @@ def check_points(points: np.ndarray, setup: Setup) -> None:
             f"(nearest eye depth {nearest_eye:.1f} mm); move it back with --center-z")
 
 
+def auto_depth(cutter: Cutter, config: DesignConfig, points: np.ndarray, runs: Runs) -> float:
+    """Shallowest depth, to the micrometre above, whose walls serve every view, plus
+    :data:`TILT_MARGIN`; the tool's fallback depth when no depth can (a V-bit)."""
+    setup = config.setup()
+    tilts, _ = needed_tilts(points, runs.stipple, runs.start, runs.end, setup.light,
+                            setup.viewer)
+    need = float(tilts.max()) + TILT_MARGIN if tilts.size else TILT_MARGIN
+    depth = depth_for(cutter, min(need, 0.5 * math.pi - 1e-6))
+    if depth is None:
+        return config.depth_mm
+    depth = math.ceil(depth * 1000.0) / 1000.0
+    # A ball or round tip shallower than its reach: beyond it the walls stop at the shank.
+    try:
+        cutter.check_depth(depth)
+    except SpecholoError:
+        return config.depth_mm
+    return depth
+
+
 def design_runs(runs: Runs, config: DesignConfig) -> tuple[Grooves, np.ndarray]:
     """Grooves for the given view intervals with the configured method."""
     from specholo.toolpaths.classic import design_classic
@@ -244,17 +290,20 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     timings["occlusion"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     cutter = config.cutter()
-    views = check_views(cutter, config.depth, points, runs.stipple, runs.start, runs.end,
+    if config.depth is None:
+        config = dataclasses.replace(config, depth=auto_depth(cutter, config, points, runs))
+        setup = config.setup()
+    views = check_views(cutter, config.depth_mm, points, runs.stipple, runs.start, runs.end,
                         setup.light, setup.viewer)
     if config.strict and views.lost > 0:
         raise SpecholoError(
-            f"the {cutter.describe()} at {config.depth:g} mm loses {100 * views.lost:.1f}% "
+            f"the {cutter.describe()} at {config.depth_mm:g} mm loses {100 * views.lost:.1f}% "
             f"of the views ({views.stipples_losing} stipples); {views.suggestion}")
     timings["tool check"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     grooves, dropped = design_runs(runs, config)
     timings["toolpaths"] = time.perf_counter() - t0
-    section = cutter.section(config.depth)
+    section = cutter.section(config.depth_mm)
     plate = plate_rect(grooves, section.width, config)
     t0 = time.perf_counter()
     overlaps = groove_overlaps(grooves, section.width) if check_overlaps else None
@@ -281,8 +330,8 @@ def hologram_json(d: Design) -> dict[str, Any]:
         "settings": asdict(d.config),
         "frame": "plate mm: x right, y up, z toward the viewer, plate at z = 0",
         "tool": {"kind": d.config.tool, "description": d.config.cutter().describe(),
-                 "depth_mm": d.config.depth,
-                 "groove_width_mm": d.config.cutter().section(d.config.depth).width,
+                 "depth_mm": d.config.depth_mm,
+                 "groove_width_mm": d.config.cutter().section(d.config.depth_mm).width,
                  "round_model": {"radius_mm": setup.tool.radius, "depth_mm": setup.tool.depth,
                                  "max_wall_tilt_deg": math.degrees(setup.tool.max_tilt)}},
         "views": d.views.as_dict() if d.views is not None else None,
@@ -452,12 +501,10 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
     return Loaded(config, points, normals, grooves, mesh)
 
 
-def verify_design(loaded: Loaded, max_step_deg: float = 5.0) -> list[Any]:
-    """Run the stereo verification on a loaded design."""
-    from specholo.simulation.verify import verify, view_azimuths
+def _visibility(loaded: Loaded) -> Any:
+    """The occlusion test of a loaded design's model, or None for point clouds."""
     from specholo.visibility.occlusion import visible
 
-    setup = loaded.config.setup()
     vis = None
     if loaded.mesh is not None and loaded.normals is not None:
         mesh, normals = loaded.mesh, loaded.normals
@@ -465,5 +512,39 @@ def verify_design(loaded: Loaded, max_step_deg: float = 5.0) -> list[Any]:
         def vis(points: np.ndarray, eyes: np.ndarray) -> np.ndarray:
             return visible(mesh, points, normals, eyes)
 
+    return vis
+
+
+def verify_design(loaded: Loaded, max_step_deg: float = 5.0) -> list[Any]:
+    """Run the stereo verification on a loaded design."""
+    from specholo.simulation.verify import verify, view_azimuths
+
+    setup = loaded.config.setup()
     az = view_azimuths(setup.viewer.half_range, math.radians(max_step_deg))
-    return verify(loaded.grooves, loaded.points, setup, vis, az)
+    return verify(loaded.grooves, loaded.points, setup, _visibility(loaded), az)
+
+
+def verify_cut_design(loaded: Loaded, max_step_deg: float = 5.0, resolution: float = 0.02,
+                      stl: str | os.PathLike[str] | None = None) -> tuple[list[Any], Any]:
+    """Cut the design's grooves into a simulated plate and verify on that surface.
+
+    Args:
+        loaded: the design (grooves read back from its G-code, usually).
+        max_step_deg: largest azimuth step between eye pairs, degrees.
+        resolution: height-field sample spacing, mm.
+        stl: also write the cut plate here as a watertight STL.
+
+    Returns:
+        The per-azimuth reports on the cut plate, and the height field.
+    """
+    from specholo.simulation.cut import cut_design, verify_cut, write_stl
+    from specholo.simulation.verify import view_azimuths
+
+    if not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
+        raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
+    setup = loaded.config.setup()
+    field = cut_design(loaded, resolution)
+    if stl is not None:
+        write_stl(stl, field, loaded.config.stock_thickness)
+    az = view_azimuths(setup.viewer.half_range, math.radians(max_step_deg))
+    return verify_cut(field, loaded.points, setup, _visibility(loaded), az), field

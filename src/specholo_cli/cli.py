@@ -29,20 +29,20 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("seed", int, "Random seed for stippling [0]."),
     ("band", float, "Striped design: half-height of the band, bounds vertical error, mm [0.2]."),
     ("tool", click.Choice(["ball", "vbit", "drag", "scriber", "laser"]),
-     "Cutting tool: ball-end mill, V-bit, diamond drag tip, hand scriber or laser [ball]."),
-    ("tool-radius", float, "Ball or tip radius, mm [ball 0.25, drag 0.1, scriber 0.05]."),
+     "Cutting tool: ball-end mill, V-bit, diamond drag tip, hand scriber or laser [drag]."),
+    ("tool-radius", float, "Ball or tip radius, mm [ball 0.25, drag 0.05, scriber 0.05]."),
     ("tool-angle", float, "Included angle of a V-bit or tip cone, degrees "
      "[vbit 60, drag 90, scriber 60]."),
     ("tip-flat", float, "Width of a V-bit's tip flat, mm [0]."),
     ("spot", float, "Laser spot diameter (1/e^2), mm [0.1]."),
-    ("depth", float, "Groove depth, mm [0.08]."),
+    ("depth", float, "Groove depth, mm [ball 0.08, vbit 0.05, laser 0.04, else 0.012]."),
     ("plate-width", float, "Plate width, mm [the grooves' extent plus 5 mm each side]."),
     ("plate-height", float, "Plate height, mm [the grooves' extent plus 5 mm each side]."),
     ("stock-thickness", float, "Plate thickness, mm [3]."),
     ("feed", float, "Cutting feed, mm/min [300]."),
     ("plunge", float, "Plunge feed, mm/min [100]."),
     ("safe-z", float, "Rapid (safe) height, mm [1]."),
-    ("spindle", float, "Spindle speed, rpm; 0 for none [12000]."),
+    ("spindle", float, "Spindle speed, rpm; 0 for none [12000 for ball and vbit, else 0]."),
 ]
 
 
@@ -115,7 +115,7 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     click.echo(f"{config.method}: {stats} -> {out}")
     if d.views is not None:
         lo, hi = (math.degrees(v) for v in d.views.needed)
-        click.echo(f"tool: {config.cutter().describe()}, {config.depth:g} mm deep; views need "
+        click.echo(f"tool: {d.config.cutter().describe()}, {d.config.depth_mm:g} mm deep; views need "
                    f"walls tilted {lo:.1f}-{hi:.1f} deg, groove offers up to "
                    f"{math.degrees(d.views.offered.max_tilt):.1f} deg")
         if d.views.lost > 0:
@@ -127,6 +127,12 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
                    f"{o.crossings} crossings between stipples, "
                    f"{o.crossed_length / max(o.total_length, 1e-9):.0%} of the groove length "
                    "within a groove width of another stipple's")
+        click.echo(f"grooves cover {o.coverage:.2f}x their area: about {o.surviving:.0%} of "
+                   "each eye's glints survive the other grooves' cuts")
+        if o.surviving < 0.5:
+            click.echo("warning: most glints will be cut away by other grooves; use fewer "
+                       "stipples, a finer tip (e.g. --tool drag --tool-radius 0.05 --depth "
+                       "0.012) or a larger model (check with `specholo verify --cut`)", err=True)
     if len(d.dropped):
         click.echo(f"warning: {len(d.dropped)} stipples could not be designed "
                    "(light in the eyes' plane)", err=True)
@@ -138,43 +144,75 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
               help="Largest azimuth step between simulated eye pairs, degrees.")
 @click.option("--from-gcode", is_flag=True,
               help="Verify the grooves parsed from hologram.gcode, the file that will be cut.")
-def verify(folder: Path, step: float, from_gcode: bool) -> None:
+@click.option("--cut", is_flag=True,
+              help="Also simulate cutting hologram.gcode into the plate and verify the glints "
+                   "on that surface (writes verify_cut.json).")
+@click.option("--resolution", type=float, default=0.02, show_default=True,
+              help="Cut simulation: height-field sample spacing, mm.")
+@click.option("--stl", type=click.Path(path_type=Path), default=None,
+              help="Cut simulation: write the cut plate as a watertight STL here.")
+def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: float,
+           stl: Path | None) -> None:
     """Simulate stereo eye pairs along the arc and measure where each stipple appears."""
     from rich.console import Console
     from rich.table import Table
 
     from specholo.fabrication.atomic import atomic_open
-    from specholo.pipeline import load_design, verify_design
+    from specholo.pipeline import load_design, verify_cut_design, verify_design
     from specholo.preview.preview import plot_verification
     from specholo.simulation.verify import reports_to_dicts, summarise
 
     if not (math.isfinite(step) and 0 < step <= 5.0):
         raise SpecholoError(f"step must be in (0, 5] degrees, got {step}")
-    loaded = load_design(folder, from_gcode=from_gcode)
+    if stl is not None and not cut:
+        raise SpecholoError("--stl needs --cut")
+    if stl is not None and stl.suffix.lower() != ".stl":
+        raise SpecholoError(f"--stl must name an .stl file, got {stl.name!r}")
+    if not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
+        raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
+    loaded = load_design(folder, from_gcode=from_gcode or cut)
     with Console(stderr=True).status("simulating eye pairs..."):
         reports = verify_design(loaded, step)
     rows = reports_to_dicts(reports)
     summary = summarise(reports)
+    cut_rows: list[dict[str, Any]] = []
+    if cut:
+        with Console(stderr=True).status("cutting the plate and simulating eye pairs..."):
+            cut_reports, _ = verify_cut_design(loaded, step, resolution, stl)
+        cut_rows = reports_to_dicts(cut_reports)
     table = Table(title=f"{loaded.config.method} design, {len(loaded.points)} stipples")
     for col in ("azimuth", "median mm", "p95 mm", "p95 depth mm", "max mm", "visibility",
                 "false"):
         table.add_column(col, justify="right")
-    for r in rows:
+    if cut:
+        table.add_column("cut p95 mm", justify="right")
+        table.add_column("cut visibility", justify="right")
+    for i, r in enumerate(rows):
+        extra = [] if not cut else [f"{cut_rows[i]['p95_error']:.3f}",
+                                    f"{cut_rows[i]['visibility']:.3f}"]
         table.add_row(f"{r['azimuth']:+.1f}", f"{r['median_error']:.3f}",
                       f"{r['p95_error']:.3f}", f"{r['p95_depth_error']:.3f}",
                       f"{r['max_error']:.3f}",
-                      f"{r['visibility']:.3f}", f"{r['false_glints']:.3f}")
+                      f"{r['visibility']:.3f}", f"{r['false_glints']:.3f}", *extra)
     Console().print(table)
     click.echo(f"worst p95 error {summary['worst_p95_error']:.3f} mm, "
                f"min visibility {summary['min_visibility']:.3f}, "
                f"max false glints {summary['max_false_glints']:.3f}")
+    source = "hologram.gcode" if from_gcode or cut else "grooves.npz"
     with atomic_open(Path(folder) / "verify.json") as fh:
-        json.dump({"method": loaded.config.method, "source":
-                   "hologram.gcode" if from_gcode else "grooves.npz",
+        json.dump({"method": loaded.config.method, "source": source,
                    "summary": summary, "azimuths": rows}, fh, indent=1)
+    if cut:
+        cut_summary = summarise(cut_reports)
+        click.echo(f"cut plate: worst p95 error {cut_summary['worst_p95_error']:.3f} mm, "
+                   f"min visibility {cut_summary['min_visibility']:.3f} "
+                   f"(other grooves cut away the rest)")
+        with atomic_open(Path(folder) / "verify_cut.json") as fh:
+            json.dump({"method": loaded.config.method, "source": source,
+                       "resolution_mm": resolution, "summary": cut_summary,
+                       "azimuths": cut_rows}, fh, indent=1)
     plot_verification(rows, Path(folder) / "verify.png",
                       f"{loaded.config.method}: stereo verification")
-
 
 
 def _check_folder(folder: Path) -> None:

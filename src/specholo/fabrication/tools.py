@@ -109,10 +109,12 @@ class RoundCone:
     Attributes:
         tip_radius: radius of the rounded tip, mm.
         angle: the cone's included angle, radians.
+        max_depth: deepest groove the tip can drag or scratch, mm.
     """
 
-    tip_radius: float = 0.1
+    tip_radius: float = 0.05
     angle: float = math.radians(90.0)
+    max_depth: float = 0.3
     kind = "drag"
 
     def __post_init__(self) -> None:
@@ -137,6 +139,9 @@ class RoundCone:
 
     def check_depth(self, depth: float) -> None:
         _positive("groove depth", depth)
+        if depth > self.max_depth:
+            raise SpecholoError(f"groove depth {depth:g} mm is deeper than a {self.kind} tip "
+                                f"can cut ({self.max_depth:g} mm)")
 
     def section(self, depth: float) -> Section:
         self.check_depth(depth)
@@ -174,10 +179,12 @@ class VBit:
     Attributes:
         angle: included angle, radians.
         tip_flat: width of the flat at its tip, mm (0 for a sharp point).
+        max_depth: length of its cutting flank, mm.
     """
 
     angle: float = math.radians(60.0)
     tip_flat: float = 0.0
+    max_depth: float = 3.0
     kind = "vbit"
 
     def __post_init__(self) -> None:
@@ -193,6 +200,9 @@ class VBit:
 
     def check_depth(self, depth: float) -> None:
         _positive("groove depth", depth)
+        if depth > self.max_depth:
+            raise SpecholoError(f"groove depth {depth:g} mm is deeper than the V-bit's "
+                                f"flank ({self.max_depth:g} mm)")
 
     def section(self, depth: float) -> Section:
         self.check_depth(depth)
@@ -219,9 +229,11 @@ class Laser:
 
     Attributes:
         spot: 1/e^2 spot diameter, mm.
+        max_depth: deepest trough it ablates cleanly, mm.
     """
 
     spot: float = 0.1
+    max_depth: float = 0.5
     kind = "laser"
 
     def __post_init__(self) -> None:
@@ -234,6 +246,9 @@ class Laser:
 
     def check_depth(self, depth: float) -> None:
         _positive("groove depth", depth)
+        if depth > self.max_depth:
+            raise SpecholoError(f"groove depth {depth:g} mm is deeper than the laser ablates "
+                                f"cleanly ({self.max_depth:g} mm)")
 
     def section(self, depth: float) -> Section:
         self.check_depth(depth)
@@ -364,6 +379,21 @@ def check_views(cutter: Cutter, depth: float, points: np.ndarray, stipple: np.nd
     needed = (float(tilts.min()), float(tilts.max()))
     return ViewCheck(needed, section, lost, losing,
                      "" if lost == 0 else suggest(cutter, depth, needed[1]))
+
+
+def depth_for(cutter: Cutter, tilt: float) -> float | None:
+    """Shallowest depth (mm) whose walls reach ``tilt`` radians, or None if none does."""
+    if not 0.0 <= tilt < 0.5 * math.pi:
+        return None
+    if isinstance(cutter, BallEnd):
+        return cutter.radius * (1.0 - math.cos(tilt))
+    if isinstance(cutter, RoundCone):
+        if tilt > 0.5 * math.pi - 0.5 * cutter.angle:
+            return None
+        return cutter.tip_radius * (1.0 - math.cos(tilt))
+    if isinstance(cutter, Laser):
+        return math.tan(tilt) * 0.25 * cutter.spot * math.exp(0.5)
+    return None
 
 
 def suggest(cutter: Cutter, depth: float, tilt: float) -> str:

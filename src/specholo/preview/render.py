@@ -35,6 +35,9 @@ MAX_SIDE = 8192  # pixels; larger images are refused rather than exhausting memo
 
 _GAIN = 3.0  # exposure: a reference-roughness spot peaks at 1 - exp(-3) of full white
 _MIN_SIGMA_PX = 0.5  # a spot never gets narrower than a pixel's own footprint
+#: Groove width (mm) whose glints set the exposure: an unresolved glint of a finer
+#: groove is drawn as bright as this one's, only no larger (the eye sees a point).
+_EXPOSURE_WIDTH = 0.37
 _STAMP_ENTRIES = 1 << 22  # splat weights held at once
 _HALO = 5.0  # bloom halo width, in spot widths
 
@@ -448,7 +451,10 @@ def render_still(grooves: Grooves, setup: Setup, camera: Camera,
         sigma = np.hypot(sigma_px, _MIN_SIGMA_PX)
         # Fixed power per glint: peak radiance ~ 1 / sigma_mm^2, and an unresolved
         # spot spreads over the pixel footprint, lowering its peak by the same area.
-        amp = _GAIN * (REFERENCE_ROUGHNESS / roughness) ** 2 * (sigma_px / sigma) ** 2
+        expo_px = np.maximum(sigma_px, 0.5 * _EXPOSURE_WIDTH * roughness
+                             / REFERENCE_ROUGHNESS * camera.focal / depth)
+        amp = (_GAIN * (REFERENCE_ROUGHNESS / roughness) ** 2
+               * (expo_px / np.hypot(expo_px, _MIN_SIGMA_PX)) ** 2)
         glow = np.zeros(shape)
         _splat(glow, pixel, sigma, amp)
         if bloom > 0 and len(pixel):

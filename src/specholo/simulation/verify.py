@@ -85,6 +85,8 @@ def stereo_errors(points: np.ndarray, left: Glints, right: Glints, eye_l: np.nda
     within = np.arange(pair_l.size) - np.repeat(np.cumsum(reps) - reps, reps)
     pair_r = start_r[left.stipple[pair_l]] + within
     k = pair_l.size
+    if k == 0:
+        return np.zeros(0), np.zeros(0)
     apparent, gap = triangulate(np.broadcast_to(eye_l, (k, 3)), left.point[pair_l],
                                 np.broadcast_to(eye_r, (k, 3)), right.point[pair_r])
     stip = left.stipple[pair_l]

@@ -41,6 +41,11 @@ class Overlaps:
         crossed_length: total groove length within a width of another stipple's
             groove (where the two cuts overlap), mm.
         total_length: total groove length, mm.
+        coverage: groove area (length times width) over the area of the grooves'
+            bounding box. A glint survives the other stipples' cuts only where
+            none of them passes, so about exp(-coverage) of each eye's glints
+            are left on the cut plate (random grooves; the cut simulation
+            measures it).
     """
 
     width: float
@@ -49,6 +54,12 @@ class Overlaps:
     crossings: int
     crossed_length: float
     total_length: float
+    coverage: float = 0.0
+
+    @property
+    def surviving(self) -> float:
+        """Expected share of one eye's glints not cut away by other grooves."""
+        return math.exp(-self.coverage)
 
     def as_dict(self) -> dict[str, float]:
         """Plain numbers for JSON."""
@@ -56,6 +67,7 @@ class Overlaps:
             "width_mm": self.width, "neighbour_overlaps": self.neighbours,
             "closest_neighbours_mm": self.closest_neighbours, "crossings": self.crossings,
             "crossed_length_mm": self.crossed_length, "groove_length_mm": self.total_length,
+            "coverage": self.coverage, "expected_surviving_glints": self.surviving,
         }
 
 
@@ -270,6 +282,8 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
     first = np.searchsorted(path, np.arange(grooves.n_paths + 1))
     gaps = _neighbour_gaps(pts, first, stipple)
     near = (gaps < width - tolerance) & (gaps > RETRACE)
+    span = pts.max(axis=0) - pts.min(axis=0) + width
+    area = float(span[0] * span[1])
     query = np.arange(len(pts))
     scale = 1.0
     if sample is not None and len(pts) > sample:
@@ -287,4 +301,5 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
         crossings=int(round(0.5 * scale * hits.sum())),
         crossed_length=float(scale * share[query][crossed].sum()),
         total_length=total,
+        coverage=total * width / area,
     )
