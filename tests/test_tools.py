@@ -156,3 +156,36 @@ def test_striping_keeps_one_stipples_grooves_a_width_apart():
     spaced, _ = design_striped(runs, setup, StripeOptions(band=0.2))
     o = groove_overlaps(spaced, width)
     assert o.neighbours == 0 and o.closest_neighbours >= width - 1e-3
+
+
+def test_default_depth_is_just_deep_enough_for_the_views():
+    from specholo.pipeline import TILT_MARGIN, DesignConfig, design
+
+    d = design(BUNNY, DesignConfig(stipples=60), check_overlaps=False)
+    assert d.views is not None and d.views.lost == 0
+    tip = d.config.cutter()
+    assert isinstance(tip, RoundCone)
+    need = d.views.needed[1] + TILT_MARGIN
+    assert d.config.depth == pytest.approx(tip.tip_radius * (1 - math.cos(need)), abs=1e-3)
+    assert d.config.depth >= tip.tip_radius * (1 - math.cos(need))
+
+
+def test_cut_plate_keeps_about_exp_minus_coverage_of_the_glints():
+    # Other stipples' grooves cut away glints at random: one eye keeps ~exp(-coverage).
+    from specholo.pipeline import DesignConfig, Loaded, design
+    from specholo.simulation.cut import cut_design, find_cut_glints
+    from specholo.simulation.glints import Engraved, find_glints
+
+    d = design(BUNNY, DesignConfig(stipples=400, tool="ball"))
+    assert d.overlaps is not None
+    loaded = Loaded(d.config, d.points, d.normals, d.grooves, d.model.mesh)
+    field = cut_design(loaded, resolution=0.02)
+    setup = d.config.setup()
+    eng = Engraved.from_grooves(d.grooves, setup.tool)
+    kept = []
+    for deg in (-30.0, 0.0, 30.0):
+        eye = setup.viewer.eye(np.array([math.radians(deg)]))[0]
+        ideal = len(find_glints(eng, eye, setup.light).path)
+        cut = len(find_cut_glints(field, eye, setup.light).designed().path)
+        kept.append(cut / ideal)
+    assert np.mean(kept) == pytest.approx(d.overlaps.surviving, abs=0.15)
