@@ -17,6 +17,10 @@ import numpy as np
 SCREEN = 0.01
 #: Fixed-point steps placing the glint on the groove wall (see wall_glint).
 WALL_STEPS = 3
+#: Joins turning less than this (radians) are smooth: a tangent-continuous join
+#: has the same h . t on both sides, so it cannot glint as a corner (it would
+#: only double the glint of the arc that starts there).
+SMOOTH = 1e-9
 
 
 @nb.njit(cache=True, inline="always")
@@ -195,7 +199,8 @@ def prepare(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np.ndar
     Returns:
         centre (k, 2) (start point for straight segments), radius (0 for straight),
         start_angle, sweep, direction (k, 2) of the chord, mid-arc tangent angle,
-        half turn (infinite next to a corner) and chord length (k,).
+        half turn (infinite next to a corner), chord length (k,), and whether the
+        path turns at the end of each arc (k,) (a corner of any size).
     """
     k = bulge.size
     centre = np.empty((k, 2))
@@ -234,9 +239,11 @@ def prepare(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np.ndar
         turn[i] = 0.5 * abs(sweep[i])
     # A corner sweeps every direction between its arcs' tangents: arcs at a
     # corner wider than the index's margin are always tested.
+    kinked = np.zeros(k, np.bool_)
     for i in nb.prange(k - 1):
         d = t_start[i + 1] - (t_start[i] + sweep[i])
         d = (d + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+        kinked[i] = path[i + 1] == path[i] and abs(d) > SMOOTH
         corner = path[i + 1] == path[i] and abs(d) > wide
         prev = False
         if i > 0:
@@ -250,7 +257,7 @@ def prepare(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np.ndar
         e = (e + 0.5 * math.pi) % math.pi - 0.5 * math.pi
         if path[k - 1] == path[k - 2] and abs(e) > wide:
             turn[k - 1] = math.inf
-    return centre, radius, start_angle, sweep, direction, mid_tangent, turn, chord
+    return centre, radius, start_angle, sweep, direction, mid_tangent, turn, chord, kinked
 
 
 @nb.njit(cache=True, parallel=True)

@@ -148,6 +148,7 @@ class Engraved:
         path: (k,) path index of each arc.
         dot_pos: (q, 2) dimples; dot_path (q,).
         index: arcs sorted by plate cell and tangent direction (see :class:`ArcIndex`).
+        kinked: (k,) whether the path turns at the end of each arc (a corner).
     """
 
     grooves: Grooves
@@ -163,17 +164,18 @@ class Engraved:
     dot_pos: np.ndarray
     dot_path: np.ndarray
     index: ArcIndex
+    kinked: np.ndarray
 
     @classmethod
     def from_grooves(cls, grooves: Grooves, tool: Tool) -> Engraved:
         seg = grooves.segments()
         (centre, radius, start_angle, sweep, direction, mid_tangent, turn,
-         chord) = _kernel.prepare(seg.start, seg.end, seg.bulge, seg.path, _LINE_BULGE,
+         chord, kinked) = _kernel.prepare(seg.start, seg.end, seg.bulge, seg.path, _LINE_BULGE,
                                   ArcIndex.WIDE)
         dot_pos, dot_path = grooves.dots()
         index = ArcIndex.build(0.5 * (seg.start + seg.end), mid_tangent, turn, chord)
         return cls(grooves, tool, seg.start, seg.end, centre, radius, start_angle, sweep,
-                   direction, seg.path, dot_pos, dot_path, index)
+                   direction, seg.path, dot_pos, dot_path, index, kinked)
 
     def at(self, idx: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points (k, 3) and unit tangents (k, 2) at parameters u in [0, 1] of arcs idx."""
@@ -278,7 +280,7 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
         has = nxt < cand.size
         has[has] = cand[nxt[has]] == cand[has] + 1
         j = cand[has]
-        j = j[eng.path[j] == eng.path[j + 1]]
+        j = j[eng.kinked[j]]
         ok, pts = _kernel.corner_glints(j, *geometry)
         paths.append(eng.path[j[ok]])
         points.append(pts[ok])
