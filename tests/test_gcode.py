@@ -21,11 +21,15 @@ from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.gcode import (
+    MAX_ARC_OFFSET_MM,
     SCALE,
+    GcodeOptions,
     GcodeStats,
     format_number,
     is_straight,
     read_gcode,
+    split_wide_arcs,
+    wide_arcs,
     write_gcode,
 )
 from specholo.setup import Machining, Tool
@@ -54,9 +58,9 @@ def run_rs274(ngc: Path) -> list[tuple[str, str]]:
     return canon
 
 
-def near(a, b) -> bool:
+def near(a, b, tol: float = TOL) -> bool:
     """Equal within the interpreter's printed precision (np.allclose is slow per call)."""
-    return max(abs(x - y) for x, y in zip(a, b, strict=True)) < TOL
+    return max(abs(x - y) for x, y in zip(a, b, strict=True)) < tol
 
 
 def _floats(args: str, n: int) -> np.ndarray:
@@ -64,28 +68,33 @@ def _floats(args: str, n: int) -> np.ndarray:
 
 
 def check_canon(canon: list[tuple[str, str]], grooves: Grooves, tool: Tool,
-                machining: Machining) -> None:
-    """Assert that the interpreter's motions cut exactly ``grooves``."""
+                machining: Machining, options: GcodeOptions | None = None) -> None:
+    """Assert that the interpreter's motions cut exactly ``grooves`` (as ``options`` write them)."""
+    options = options or GcodeOptions()
     safe, depth = machining.safe_z, -tool.depth
     feed_rate = 0.0
+    factor = 1.0  # mm per canonical unit
     events: list[tuple] = []
     spindle_on = spindle_off = -1
     for name, args in canon:
-        if name == "SET_FEED_RATE":
-            feed_rate = float(args)
+        if name == "USE_LENGTH_UNITS":
+            factor = 25.4 if "INCHES" in args else 1.0
+        elif name == "SET_FEED_RATE":
+            feed_rate = float(args) * factor
         elif name == "COMMENT" and args.startswith('"stipple '):
             events.append(("stipple", int(args.strip('"').split()[1])))
         elif name == "STRAIGHT_TRAVERSE":
-            events.append(("rapid", _floats(args, 3)))
+            events.append(("rapid", _floats(args, 3) * factor))
         elif name == "STRAIGHT_FEED":
-            events.append(("line", _floats(args, 3), feed_rate))
+            events.append(("line", _floats(args, 3) * factor, feed_rate))
         elif name == "ARC_FEED":
-            a = _floats(args, 6)
-            events.append(("arc", a[[0, 1, 5]], feed_rate, a[2:4], int(a[4])))
+            a = _floats(args, 6) * factor
+            events.append(("arc", a[[0, 1, 5]], feed_rate, a[2:4], int(round(a[4] / factor))))
         elif name == "START_SPINDLE_CLOCKWISE":
             spindle_on = len(events)
         elif name == "STOP_SPINDLE_TURNING" and spindle_off < 0:
             spindle_off = len(events)
+    tol = TOL * factor  # rs274 prints 4 decimals of its units
 
     # every move on its own: rapids at the safe height (XY travel only there),
     # feeds at the cutting depth except the vertical plunges, at the plunge rate
@@ -95,16 +104,16 @@ def check_canon(canon: list[tuple[str, str]], grooves: Grooves, tool: Tool,
             continue
         end = ev[1]
         if ev[0] == "rapid":
-            assert abs(end[2] - safe) < TOL, f"rapid to z={end[2]}"
-            if pos is not None and np.hypot(*(end[:2] - pos[:2])) > TOL:
-                assert abs(pos[2] - safe) < TOL, "XY rapid below the safe height"
-        elif ev[0] == "line" and pos is not None and np.hypot(*(end[:2] - pos[:2])) < TOL \
-                and abs(pos[2] - end[2]) > TOL:
-            assert abs(end[2] - depth) < TOL and abs(pos[2] - safe) < TOL, "bad plunge"
-            assert abs(ev[2] - machining.plunge) < TOL
+            assert abs(end[2] - safe) < tol, f"rapid to z={end[2]}"
+            if pos is not None and np.hypot(*(end[:2] - pos[:2])) > tol:
+                assert abs(pos[2] - safe) < tol, "XY rapid below the safe height"
+        elif ev[0] == "line" and pos is not None and np.hypot(*(end[:2] - pos[:2])) < tol \
+                and abs(pos[2] - end[2]) > tol:
+            assert abs(end[2] - depth) < tol and abs(pos[2] - safe) < tol, "bad plunge"
+            assert abs(ev[2] - machining.plunge) < tol * max(1.0, machining.plunge / 1000)
         else:
-            assert pos is not None and abs(pos[2] - depth) < TOL and abs(end[2] - depth) < TOL
-            assert abs(ev[2] - machining.feed) < TOL
+            assert pos is not None and abs(pos[2] - depth) < tol and abs(end[2] - depth) < tol
+            assert abs(ev[2] - machining.feed) < tol * max(1.0, machining.feed / 1000)
         pos = end
 
     if machining.spindle > 0:
@@ -112,7 +121,7 @@ def check_canon(canon: list[tuple[str, str]], grooves: Grooves, tool: Tool,
                          len(events))
         assert 0 <= spindle_on <= first_cut
         assert spindle_off >= len(events) - 1
-        assert any(name == "DWELL" for name, _ in canon)
+        assert any(name == "DWELL" for name, _ in canon) == (options.dwell > 0)
     else:
         assert spindle_on < 0
 
@@ -123,30 +132,42 @@ def check_canon(canon: list[tuple[str, str]], grooves: Grooves, tool: Tool,
         k += 1
     segs = grooves.segments()
     straight = is_straight(segs)
+    wide = wide_arcs(segs, options.max_arc_offset)
     with np.errstate(all="ignore"):  # subnormal bulges of straight segments overflow
-        centre, _, _, _ = segs.geometry()
+        centre, radius, _, _ = segs.geometry()
     s = 0
     for j in range(grooves.n_paths):
         v = grooves.vertices[grooves.offsets[j]:grooves.offsets[j + 1]]
         assert events[k] == ("stipple", grooves.stipple[j]), f"groove {j}: no stipple comment"
         ev = events[k + 1]
-        assert ev[0] == "rapid" and near(ev[1], [*v[0], safe])
+        assert ev[0] == "rapid" and near(ev[1], [*v[0], safe], tol)
         ev = events[k + 2]
-        assert ev[0] == "line" and near(ev[1], [*v[0], depth])
+        assert ev[0] == "line" and near(ev[1], [*v[0], depth], tol)
         k += 3
         for i in range(1, len(v)):
+            if wide[s]:
+                # written as chords: lines whose ends all lie on the arc's circle
+                while True:
+                    ev = events[k]
+                    assert ev[0] == "line", f"groove {j} arc {i - 1}: not chords"
+                    assert abs(np.hypot(*(ev[1][:2] - centre[s])) - radius[s]) < tol
+                    k += 1
+                    if near(ev[1], [*v[i], depth], tol):
+                        break
+                s += 1
+                continue
             ev = events[k]
-            assert near(ev[1], [*v[i], depth]), f"groove {j} vertex {i}"
+            assert near(ev[1], [*v[i], depth], tol), f"groove {j} vertex {i}"
             if straight[s]:
                 assert ev[0] == "line"
             else:
                 assert ev[0] == "arc", f"groove {j} arc {i - 1} is not an arc"
-                assert near(ev[3], centre[s]), "arc centre"
+                assert near(ev[3], centre[s], tol), "arc centre"
                 assert ev[4] == (1 if segs.bulge[s] > 0 else -1), "arc direction"
             k += 1
             s += 1
         ev = events[k]
-        assert ev[0] == "rapid" and near(ev[1], [*v[-1], safe]), "retract"
+        assert ev[0] == "rapid" and near(ev[1], [*v[-1], safe], tol), "retract"
         k += 1
     assert k == len(events), "moves after the last groove"
 
@@ -164,10 +185,17 @@ def cut_lines(lines: list[str]) -> list[str]:
 # the file itself
 
 
-def test_golden(tmp_path, groove_example, golden):
-    out = tmp_path / "example.ngc"
-    write_gcode(out, groove_example, Tool(), Machining(), header={"model": "golden example"})
-    golden(out, "example.ngc")
+@pytest.mark.parametrize(("dialect", "units", "name"), [
+    ("linuxcnc", "mm", "example.ngc"),
+    ("grbl", "mm", "example_grbl.ngc"),
+    ("grbl", "inch", "example_grbl_inch.ngc"),
+    ("marlin", "mm", "example_marlin.ngc"),
+])
+def test_golden(tmp_path, groove_example, golden, dialect, units, name):
+    out = tmp_path / name
+    write_gcode(out, groove_example, Tool(), Machining(), header={"model": "golden example"},
+                options=GcodeOptions(dialect=dialect, units=units))
+    golden(out, name)
 
 
 def test_structure(tmp_path, groove_example):
@@ -225,9 +253,14 @@ def test_straight_and_degenerate_arcs(tmp_path):
         np.array([1e-7, 1.25e-4, 1.0, 0.0, 0.2, 4e-4, 0.0]),
         np.array([0, 7]), np.array([0]))
     out = tmp_path / "x.ngc"
-    write_gcode(out, g, Tool(), Machining())
+    write_gcode(out, g, Tool(), Machining(), options=GcodeOptions(dialect="linuxcnc"))
     cuts = [t.split()[0] for t in cut_lines(lines_of(out))]
     assert cuts == ["G1", "G3", "G1", "G1", "G3", "G3"]
+    # GRBL: the arc centred 2e4 mm away becomes chords within half the grid
+    # (sagitta 6.25e-4 mm: ceil(sqrt(6.25e-4 / 5e-6)) = 12 of them)
+    write_gcode(out, g, Tool(), Machining(), options=GcodeOptions(dialect="grbl"))
+    cuts = [t.split()[0] for t in cut_lines(lines_of(out))]
+    assert cuts == ["G1"] + ["G1"] * 12 + ["G1", "G1", "G3", "G3"]
     np.testing.assert_array_equal(is_straight(g.segments()),
                                   [True, False, True, True, False, False])
 
@@ -237,6 +270,183 @@ def test_rejects_bad_grooves(tmp_path):
     with pytest.raises(SpecholoError):
         write_gcode(tmp_path / "x.ngc", bad, Tool(), Machining())
     assert not (tmp_path / "x.ngc").exists()
+
+
+def wide_example() -> Grooves:
+    """Arcs with far-away centres: 0.5 mm of a 20 m radius (one chord), 20 mm of 2 m
+    and 1.5 m radii (many chords), and ordinary arcs around them."""
+    def bulge(chord: float, radius: float, sign: float) -> float:
+        return sign * math.tan(math.asin(chord / (2 * radius)) / 2)
+
+    vertices = np.array([[0.0, 0.0], [5.0, 1.0], [5.5, 1.0], [25.5, 1.0], [26.4, 2.0],
+                         [-3.0, -3.0], [-3.0, 17.0]])
+    bulges = np.array([0.2, bulge(0.5, 2e4, 1.0), bulge(20.0, 2e3, -1.0), -0.3, 0.0,
+                       bulge(20.0, 1500.0, 1.0), 0.0])
+    return Grooves(vertices, bulges, np.array([0, 5, 7]), np.array([3, 8]))
+
+
+GRBL_G = {"G0", "G1", "G2", "G3", "G4", "G17", "G20", "G21", "G40", "G90", "G94"}
+GRBL_M = {"M2", "M3", "M5"}
+
+
+def words(line: str) -> list[str]:
+    code = re.sub(r"\(.*?\)|;.*", "", line)
+    return re.findall(r"[A-Z][-+]?[0-9.]+", code)
+
+
+@pytest.mark.parametrize(("dialect", "units"), [
+    ("grbl", "mm"), ("grbl", "inch"), ("linuxcnc", "mm"), ("marlin", "mm"), ("marlin", "inch")])
+def test_headers_state_the_setup(tmp_path, groove_example, dialect, units):
+    out = tmp_path / "x.ngc"
+    write_gcode(out, groove_example, Tool(), Machining(),
+                options=GcodeOptions(dialect=dialect, units=units))
+    head = [t for t in lines_of(out) if t.startswith(("(", ";"))][:9]
+    text = " ".join(head).lower()
+    unit = "mm" if units == "mm" else "in"
+    for needle in ("specholo", "dialect", f"units: {'mm' if units == 'mm' else 'inch'}",
+                   "origin: plate centre", "tool:", "depth:", f"{unit}/min"):
+        assert needle in text, needle
+    if dialect == "marlin":
+        assert "arc_support" in text and "laser_feature" in text
+        assert ("inch_mode_support" in text) == (units == "inch")
+    else:
+        radius = format_number(0.25 / (25.4 if units == "inch" else 1), 6 if units == "inch" else 5)
+        assert f"radius {radius} {unit}" in text
+
+
+@pytest.mark.parametrize("units", ["mm", "inch"])
+def test_grbl_uses_only_grbl_words(tmp_path, units):
+    g = wide_example()
+    out = tmp_path / "x.ngc"
+    write_gcode(out, Grooves.concatenate([g, Grooves(np.array([[1.0, 2.0]]), np.zeros(1),
+                                                      np.array([0, 1]), np.array([5]))]),
+                Tool(), Machining(), options=GcodeOptions(dialect="grbl", units=units))
+    text = lines_of(out)
+    found = [w for t in text for w in words(t)]
+    letters = {w[0] for w in found}
+    assert letters <= set("GMXYZIJFSP")
+    assert {w for w in found if w[0] == "G"} <= GRBL_G
+    assert {w for w in found if w[0] == "M"} <= GRBL_M
+    assert text[-1] == "M2"
+    # GRBL's line buffer holds 79 characters, comments and spaces left out
+    assert max(len("".join(words(t))) for t in text) < 80
+    # single precision: no arc centre 1000 mm or more from its start
+    ij = [abs(float(w[1:])) * (25.4 if units == "inch" else 1.0)
+          for w in found if w[0] in "IJ"]
+    assert ij and max(ij) <= MAX_ARC_OFFSET_MM
+
+
+def test_marlin_laser_program(tmp_path, groove_example):
+    out = tmp_path / "x.gcode"
+    stats = write_gcode(out, groove_example, Tool(), Machining(),
+                        options=GcodeOptions(dialect="marlin", laser_on="M4", laser_power=180,
+                                             dot_time=0.25, rapid_feed=4000))
+    text = lines_of(out)
+    code = [t for t in text if not t.startswith(";")]
+    # Marlin reads one command per line; nothing moves Z; no M2/M30 (M30 deletes SD files)
+    assert all(sum(w[0] in "GM" for w in words(t)) == 1 for t in code)
+    assert not any(w[0] == "Z" for t in code for w in words(t))
+    assert not any(w in ("M2", "M30") for t in code for w in words(t))
+    assert code[:3] == ["G21", "G90", "M5"]
+    # each groove: comment, rapid with its feed, laser on, cuts, laser off
+    k = text.index("; stipple 9")
+    assert text[k:k + 6] == ["; stipple 9", "G0 X1.00000 Y1.00000 F4000.00000", "M4 S180",
+                             "G3 X2.00000 Y1.50000 I0.75000 J-0.25000 F300.00000",
+                             "G2 X4.00000 Y1.50000 I1.00000 J0.00000", "M5"]
+    k = text.index("G0 X-5.00000 Y-5.00000 F4000.00000")
+    assert text[k + 1:k + 4] == ["M4 S180", "G4 P250", "M5"]  # a dot: Marlin's P is in ms
+    assert text[-1] == "M5"
+    assert [t.split()[0] for t in code].count("M4") == 3 == [t for t in code].count("M5") - 1
+    assert stats.lines == len(text)
+    assert stats.rapid_length_mm == pytest.approx(math.hypot(25, 10) + math.hypot(6, 6))
+
+
+def test_inch_converts_every_number(tmp_path, groove_example):
+    mm, inch = tmp_path / "mm.ngc", tmp_path / "in.ngc"
+    machining = Machining(feed=254.0, plunge=127.0, safe_z=2.54)
+    write_gcode(mm, groove_example, Tool(), machining, options=GcodeOptions(units="mm"))
+    write_gcode(inch, groove_example, Tool(), machining, options=GcodeOptions(units="inch"))
+    a, b = lines_of(mm), lines_of(inch)
+    assert "G21 G90 G17 G94 G40" in a and "G20 G90 G17 G94 G40" in b
+    code_a = [words(t) for t in a if not t.startswith("(")]
+    code_b = [words(t) for t in b if not t.startswith("(")]
+    assert len(code_a) == len(code_b)
+    for wa, wb in zip(code_a, code_b, strict=True):
+        assert [w[0] for w in wa] == [w[0] for w in wb]
+        for x, y in zip(wa, wb, strict=True):
+            if x in ("G20", "G21"):
+                continue
+            if x[0] in "XYZIJF":
+                assert float(y[1:]) * 25.4 == pytest.approx(float(x[1:]), abs=2e-5)
+                assert len(y.split(".")[1]) == 6
+            else:
+                assert x == y
+    assert "G1 Z-0.003150 F5.000000" in b and "G0 Z0.100000" in b
+
+
+def test_inch_round_trip(tmp_path, groove_example):
+    out = tmp_path / "in.ngc"
+    write_gcode(out, groove_example, Tool(), Machining(), options=GcodeOptions(units="inch"))
+    back = read_gcode(out)
+    np.testing.assert_allclose(back.vertices, groove_example.vertices, atol=2e-5)
+    np.testing.assert_allclose(back.bulges, groove_example.bulges, rtol=1e-4, atol=1e-9)
+
+
+def test_dwell_and_header_lines(tmp_path, groove_example):
+    out = tmp_path / "x.ngc"
+    write_gcode(out, groove_example, Tool(), Machining(),
+                options=GcodeOptions(dwell=0.5, header_lines=("G54", "M8")))
+    text = lines_of(out)
+    k = text.index("G21 G90 G17 G94 G40")
+    assert text[k:k + 5] == ["G21 G90 G17 G94 G40", "G54", "M8", "M3 S12000", "G4 P0.5"]
+    write_gcode(out, groove_example, Tool(), Machining(), options=GcodeOptions(dwell=0.0))
+    assert not any(t.startswith("G4") for t in lines_of(out))
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"dialect": "mach3"}, "'mach3'"),
+    ({"units": "cm"}, "'cm'"),
+    ({"dwell": -1.0}, "dwell must be a finite number >= 0, got -1"),
+    ({"laser_power": 0.0}, "laser power must be a finite number > 0, got 0"),
+    ({"rapid_feed": math.nan}, "got nan"),
+    ({"laser_on": "M5"}, "'M5'"),
+    ({"header_lines": ("G54\nG0 Z-5",)}, "header line"),
+])
+def test_options_reject_bad_values(kwargs, message):
+    with pytest.raises(SpecholoError, match=re.escape(message)) as err:
+        GcodeOptions(**kwargs)
+    assert "\n" not in str(err.value).replace("\\n", "")
+
+
+def test_split_wide_arcs_keeps_the_arcs():
+    g = wide_example()
+    segs = g.segments()
+    assert list(wide_arcs(segs)) == [False, True, True, False, True]
+    assert not wide_arcs(segs, math.inf).any()
+    out = split_wide_arcs(g)
+    assert out.n_paths == g.n_paths
+    np.testing.assert_array_equal(out.stipple, g.stipple)
+    # the path ends and the ordinary arcs stay; the wide ones become chords
+    np.testing.assert_array_equal(out.vertices[out.offsets[:-1]], g.vertices[g.offsets[:-1]])
+    np.testing.assert_array_equal(out.vertices[out.offsets[1:] - 1], g.vertices[g.offsets[1:] - 1])
+    with np.errstate(all="ignore"):
+        centre, radius, _, _ = segs.geometry()
+    sizes = np.diff(out.offsets)
+    # 0.5 mm of a 20 m circle bulges 1.6e-6 mm: one chord; 20 mm of a 2 m circle
+    # bulges 0.025 mm: chords within half the grid need sqrt(0.025 / 5e-6) ~ 71;
+    # of a 1.5 m circle, 0.033 mm: 82
+    assert list(sizes) == [4 + 71, 1 + 82]
+    new = out.segments()
+    # arcs: v0-v1, one chord v1-v2, 71 chords v2-v3 (vertices 2..73), v3-v4
+    assert np.all(new.bulge[1:73] == 0.0) and new.bulge[0] == g.bulges[0]
+    assert new.bulge[73] == g.bulges[3]
+    on_arc = out.vertices[2:74]
+    assert np.allclose(np.hypot(*(on_arc - centre[2]).T), radius[2], atol=1e-9, rtol=1e-12)
+    chord = np.linalg.norm(np.diff(on_arc, axis=0), axis=1)
+    sagitta = radius[2] - np.sqrt(radius[2] ** 2 - chord ** 2 / 4)
+    assert sagitta.max() <= 0.5 / SCALE
+    assert np.allclose(chord, chord[0])  # equal chords
+    assert split_wide_arcs(out) is out
 
 
 @pytest.mark.parametrize("writer", ["gcode", "svg"])
@@ -271,10 +481,24 @@ def test_decimal_point_ignores_locale(tmp_path, groove_example, writer):
 
 
 @needs_rs274
-def test_rs274_cuts_the_example(tmp_path, groove_example):
+@pytest.mark.parametrize("units", ["mm", "inch"])
+@pytest.mark.parametrize("dialect", ["grbl", "linuxcnc"])
+def test_rs274_cuts_the_example(tmp_path, groove_example, dialect, units):
     out = tmp_path / "example.ngc"
-    write_gcode(out, groove_example, Tool(), Machining(), header={"model": "example"})
-    check_canon(run_rs274(out), groove_example, Tool(), Machining())
+    options = GcodeOptions(dialect=dialect, units=units)
+    write_gcode(out, groove_example, Tool(), Machining(), header={"model": "example"},
+                options=options)
+    check_canon(run_rs274(out), groove_example, Tool(), Machining(), options)
+
+
+@needs_rs274
+@pytest.mark.parametrize("dialect", ["grbl", "linuxcnc"])
+def test_rs274_cuts_wide_arcs(tmp_path, dialect):
+    g = wide_example()
+    out = tmp_path / "wide.ngc"
+    options = GcodeOptions(dialect=dialect)
+    write_gcode(out, g, Tool(), Machining(), options=options)
+    check_canon(run_rs274(out), g, Tool(), Machining(), options)
 
 
 @needs_rs274
@@ -297,13 +521,18 @@ def test_rs274_cuts_random_grooves(tmp_path, grooves_strategy, data):
         feed=data.draw(st.floats(1.0, 5000.0)), plunge=data.draw(st.floats(1.0, 1000.0)),
         safe_z=data.draw(st.floats(0.1, 20.0)), spindle=data.draw(st.sampled_from([0.0, 9000.0])),
     )
+    options = GcodeOptions(dialect=data.draw(st.sampled_from(["grbl", "linuxcnc"])),
+                           units=data.draw(st.sampled_from(["mm", "inch"])),
+                           dwell=data.draw(st.sampled_from([0.0, 0.5, 2.0])))
     out = tmp_path / "random.ngc"
-    write_gcode(out, g, tool, machining, header={"note": data.draw(st.text(max_size=30))})
-    check_canon(run_rs274(out), g, tool, machining)
+    write_gcode(out, g, tool, machining, header={"note": data.draw(st.text(max_size=30))},
+                options=options)
+    check_canon(run_rs274(out), g, tool, machining, options)
 
 
 @needs_rs274
-def test_rs274_large_program(tmp_path):
+@pytest.mark.parametrize("dialect", ["grbl", "linuxcnc"])
+def test_rs274_large_program(tmp_path, dialect):
     # more rows than one formatting chunk, so chunk boundaries fall inside grooves
     rng = np.random.default_rng(7)
     sizes = rng.integers(1, 40, 4000)
@@ -314,11 +543,13 @@ def test_rs274_large_program(tmp_path):
     bulges[offsets[1:] - 1] = 0.0
     g = Grooves(verts, bulges, offsets, np.arange(len(sizes)) // 3)
     out = tmp_path / "large.ngc"
-    write_gcode(out, g, Tool(), Machining())
-    check_canon(run_rs274(out), g, Tool(), Machining())
+    options = GcodeOptions(dialect=dialect)
+    write_gcode(out, g, Tool(), Machining(), options=options)
+    check_canon(run_rs274(out), g, Tool(), Machining(), options)
     back = read_gcode(out)
-    np.testing.assert_array_equal(back.offsets, g.offsets)
-    np.testing.assert_allclose(back.vertices, g.vertices, atol=1e-4)
+    want = split_wide_arcs(g, options.max_arc_offset)
+    np.testing.assert_array_equal(back.offsets, want.offsets)
+    np.testing.assert_allclose(back.vertices, want.vertices, atol=1e-4)
 
 
 # ---------------------------------------------------------------------------
@@ -354,11 +585,15 @@ def test_round_trip_example(tmp_path, groove_example):
 def test_round_trip(tmp_path, grooves_strategy, data):
     g = data.draw(grooves_strategy())
     out = tmp_path / "rt.ngc"
-    write_gcode(out, g, Tool(), Machining())
+    write_gcode(out, g, Tool(), Machining(), options=GcodeOptions(dialect="linuxcnc"))
     assert_round_trip(read_gcode(out), g)
+    # GRBL writes the same arcs, except far-centred ones as chords
+    write_gcode(out, g, Tool(), Machining(), options=GcodeOptions(dialect="grbl"))
+    assert_round_trip(read_gcode(out), split_wide_arcs(g))
 
 
-def test_short_arcs_keep_their_tangents(tmp_path):
+@pytest.mark.parametrize("dialect", ["linuxcnc", "grbl"])
+def test_short_arcs_keep_their_tangents(tmp_path, dialect):
     # glints follow the groove's tangent: the grooves of a design are chains of
     # arcs 0.04-0.3 mm long with radii up to metres, and the written file must
     # not turn them (rounding the ends of a 0.04 mm arc to 0.1 um would turn it
@@ -375,17 +610,33 @@ def test_short_arcs_keep_their_tangents(tmp_path):
                 np.stack([bulge, np.zeros(n)], axis=1).ravel(),
                 np.arange(0, 2 * n + 1, 2), np.arange(n))
     out = tmp_path / "short.ngc"
-    write_gcode(out, g, Tool(), Machining())
-    back = read_gcode(out).segments()
+    write_gcode(out, g, Tool(), Machining(), options=GcodeOptions(dialect=dialect))
+    back = read_gcode(out)
+    first = back.offsets[:-1]  # each path's first arc (or chord)
+    back_segs = Grooves(back.vertices, back.bulges, back.offsets, back.stipple).segments()
+    seg_of_path = np.searchsorted(back_segs.path, np.arange(back.n_paths))
 
     def start_tangent(segs) -> np.ndarray:
+        # an arc of sweep 4 atan(b) leaves its start turned by half its sweep
+        # to the right of its chord
         d = segs.end - segs.start
-        return np.arctan2(d[:, 1], d[:, 0]) + 2 * np.arctan(segs.bulge)
+        return np.arctan2(d[:, 1], d[:, 0]) - 2 * np.arctan(segs.bulge)
 
-    turn = np.angle(np.exp(1j * (start_tangent(back) - start_tangent(g.segments()))))
+    got = start_tangent(back_segs)[seg_of_path]
+    turn = np.angle(np.exp(1j * (got - start_tangent(g.segments()))))
     # each end moves by up to e across the chord
     e = np.sqrt(0.5) / SCALE
-    assert np.all(np.abs(turn) <= 2.2 * e / chord + 1e-6)
+    allowed = 2.2 * e / chord + 1e-6
+    if dialect == "grbl":
+        # the first of the chords replacing an arc centred over 1000 mm away
+        # turns from the tangent by asin(length / 2 radius), below 1e-4 rad
+        wide = wide_arcs(g.segments())
+        assert wide.any() and len(first) == n
+        piece = np.linalg.norm(back_segs.end - back_segs.start, axis=1)[seg_of_path]
+        geometric = np.arcsin(piece / (2 * radius))
+        assert geometric[wide].max() < 1e-4
+        allowed = np.where(wide, 2.2 * e / piece + geometric + 1e-6, allowed)
+    assert np.all(np.abs(turn) <= allowed)
 
 
 def test_read_general_program(tmp_path):

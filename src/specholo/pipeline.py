@@ -74,6 +74,9 @@ class DesignConfig:
     spot: float | None = None
     depth: float | None = None
     strict: bool = False
+    dialect: str = "grbl"
+    units: str = "mm"
+    order: bool = True
     plate_width: float | None = None
     plate_height: float | None = None
     stock_thickness: float = 3.0
@@ -88,6 +91,10 @@ class DesignConfig:
         _, spindle = TOOL_DEFAULTS.get(self.tool, (0.08, 0.0))
         if self.spindle is None:
             object.__setattr__(self, "spindle", spindle)
+        if self.dialect not in ("grbl", "linuxcnc", "marlin"):
+            raise SpecholoError(f"dialect must be grbl, linuxcnc or marlin, got {self.dialect!r}")
+        if self.units not in ("mm", "inch"):
+            raise SpecholoError(f"units must be mm or inch, got {self.units!r}")
         if self.method not in METHODS:
             raise SpecholoError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.stipples is not None and self.spacing is not None:
@@ -388,6 +395,30 @@ FORMATS = {"gcode": "hologram.gcode", "svg": "hologram.svg", "dxf": "hologram.dx
 DEFAULT_FORMATS = ("gcode", "svg")
 
 
+def check_written_gcode(path: str | os.PathLike[str], d: Design) -> Any:
+    """The independent safety check of a design's G-code: inside the plate (less half
+    a groove, as the tool centre is checked), no deeper than the groove, rapids only
+    at the safe height, feeds and spindle as set."""
+    from specholo.fabrication.check import Stock, check_gcode
+
+    setup = d.config.setup()
+    m = setup.machining
+    plate = d.plate if d.plate is not None else plate_rect(
+        d.grooves, d.config.cutter().section(d.config.depth_mm).width, d.config)
+    half = 0.5 * d.config.cutter().section(d.config.depth_mm).width
+    scale = 25.4 if d.config.units == "inch" else 1.0
+    laser = d.config.dialect == "marlin"
+    stock = Stock(plate[0, 0] + half, plate[0, 1] + half, plate[1, 0] - half,
+                  plate[1, 1] - half, d.config.stock_thickness)
+    if scale != 1.0:
+        stock = Stock(*(v / scale for v in (stock.x0, stock.y0, stock.x1, stock.y1,
+                                            stock.thickness)))
+    feeds = (min(m.feed, m.plunge) / scale, max(m.feed, m.plunge) / scale)
+    power = (0.0, 1e9) if laser else (m.spindle, m.spindle)
+    return check_gcode(path, stock, d.config.depth_mm / scale, m.safe_z / scale, feeds, power,
+                       laser=laser, spindle=m.spindle > 0)
+
+
 def check_formats(formats: tuple[str, ...], method: str) -> None:
     """Refuse unknown formats, and a compass pattern of grooves that are not arcs."""
     for f in formats:
@@ -411,33 +442,64 @@ def write_design(d: Design, out: str | os.PathLike[str],
         Seconds spent per output.
     """
     from specholo.fabrication.dxf import write_dxf
-    from specholo.fabrication.gcode import write_gcode
+    from specholo.fabrication.gcode import GcodeOptions, write_gcode
+    from specholo.fabrication.order import order_paths
     from specholo.fabrication.pattern import write_pattern
     from specholo.fabrication.svg import write_svg
+    from specholo.fabrication.timing import estimate_time
     from specholo.preview.preview import render_preview
 
     check_formats(formats, d.config.method)
     setup = d.config.setup()
-    info = hologram_json(d)
     timings: dict[str, float] = {}
+    grooves = d.grooves
+    if d.config.order:
+        t0 = time.perf_counter()
+        grooves, order_stats = order_paths(d.grooves)
+        d = dataclasses.replace(d, grooves=grooves)
+        timings["ordering"] = time.perf_counter() - t0
+    info = hologram_json(d)
+    estimate = estimate_time(grooves, d.config.depth_mm, setup.machining,
+                             laser=d.config.dialect == "marlin")
+    info["machining"] = {
+        "dialect": d.config.dialect, "units": d.config.units,
+        "estimated_hours": estimate.total_s / 3600.0,
+        "cutting_hours": estimate.cutting_s / 3600.0, "rapid_hours": estimate.rapid_s / 3600.0,
+        "plunge_hours": estimate.plunge_s / 3600.0,
+        "stipples_per_second": estimate.stipples_per_s,
+    }
+    if d.config.order:
+        info["machining"]["travel_unordered_mm"] = order_stats.travel_before_mm
+        info["machining"]["travel_mm"] = order_stats.travel_after_mm
     stale = ("verify.json", "verify.png", "model.ply", *FORMATS.values())
     with staged_output(out, stale=stale) as tmp:
         if "gcode" in formats:
             t0 = time.perf_counter()
-            write_gcode(tmp / "hologram.gcode", d.grooves, setup.tool, setup.machining,
-                        header={"design": d.config.method, "stipples": str(len(d.points))})
+            path = tmp / "hologram.gcode"
+            write_gcode(path, grooves, setup.tool, setup.machining,
+                        header={"design": d.config.method, "stipples": str(len(d.points)),
+                                "cutter": d.config.cutter().describe()},
+                        options=GcodeOptions(dialect=d.config.dialect,  # type: ignore[arg-type]
+                                             units=d.config.units))  # type: ignore[arg-type]
             timings["gcode"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            safety = check_written_gcode(path, d)
+            if not safety.ok:
+                raise SpecholoError("the G-code failed its safety check, nothing written: "
+                                    + safety.summary().splitlines()[1].strip())
+            info["machining"]["safety_check"] = {"moves": safety.moves, "violations": 0}
+            timings["gcode check"] = time.perf_counter() - t0
         if "svg" in formats:
             t0 = time.perf_counter()
-            write_svg(tmp / "hologram.svg", d.grooves, setup.tool)
+            write_svg(tmp / "hologram.svg", grooves, setup.tool)
             timings["svg"] = time.perf_counter() - t0
         if "dxf" in formats:
             t0 = time.perf_counter()
-            write_dxf(tmp / "hologram.dxf", d.grooves, setup.tool)
+            write_dxf(tmp / "hologram.dxf", grooves, setup.tool)
             timings["dxf"] = time.perf_counter() - t0
         if "pdf" in formats:
             t0 = time.perf_counter()
-            write_pattern(tmp / "pattern.pdf", d.grooves)
+            write_pattern(tmp / "pattern.pdf", grooves)
             timings["pdf"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         d.grooves.save(str(tmp / "grooves.npz"))

@@ -36,6 +36,9 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("tip-flat", float, "Width of a V-bit's tip flat, mm [0]."),
     ("spot", float, "Laser spot diameter (1/e^2), mm [0.1]."),
     ("depth", float, "Groove depth, mm [ball 0.08, vbit 0.05, laser 0.04, else 0.012]."),
+    ("dialect", click.Choice(["grbl", "linuxcnc", "marlin"]),
+     "G-code for GRBL, LinuxCNC, or Marlin driving a laser [grbl]."),
+    ("units", click.Choice(["mm", "inch"]), "G-code units [mm]."),
     ("plate-width", float, "Plate width, mm [the grooves' extent plus 5 mm each side]."),
     ("plate-height", float, "Plate height, mm [the grooves' extent plus 5 mm each side]."),
     ("stock-thickness", float, "Plate thickness, mm [3]."),
@@ -84,12 +87,14 @@ def _design_options(fn: Any) -> Any:
               help="TOML file with any of these options (same names).")
 @click.option("--strict", is_flag=True,
               help="Refuse a design whose tool cannot serve every view.")
+@click.option("--no-order", is_flag=True,
+              help="Keep the paths in design order (default: ordered to cut air travel).")
 @click.option("--formats", default="gcode,svg", show_default=True,
               help="Fabrication files, comma-separated: gcode, svg, dxf, pdf (the compass "
                    "pattern of an arc design).")
 @_design_options
 def design(model: Path, out: Path, method: str | None, config_path: Path | None,
-           strict: bool, formats: str, **options: Any) -> None:
+           strict: bool, no_order: bool, formats: str, **options: Any) -> None:
     """Design a hologram of MODEL (OBJ, STL, PLY, OFF, GLB; PLY/XYZ/CSV point clouds)."""
     from rich.console import Console
 
@@ -101,6 +106,8 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
         options["method"] = method
     if strict:
         options["strict"] = True
+    if no_order:
+        options["order"] = False
     values.update({k: v for k, v in options.items() if v is not None})
     config = DesignConfig.from_dict(values)
     wanted = tuple(f.strip().lower() for f in formats.split(",") if f.strip())
@@ -110,13 +117,18 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
         d = run_design(model, config)
     with console.status("writing..."):
         write_design(d, out, wanted)
+    mach = json.loads((out / "hologram.json").read_text())["machining"]
+    travel = (f", air travel {mach['travel_mm'] / 1000:.1f} m (unordered "
+              f"{mach['travel_unordered_mm'] / 1000:.1f} m)" if "travel_mm" in mach else "")
+    click.echo(f"machining: about {mach['estimated_hours']:.1f} h, "
+               f"{mach['stipples_per_second']:.2f} stipples/s{travel}")
     stats = (f"{len(d.points)} stipples, {d.grooves.n_paths} paths, "
              f"{d.grooves.total_length() / 1000:.2f} m of groove")
     click.echo(f"{config.method}: {stats} -> {out}")
     if d.views is not None:
         lo, hi = (math.degrees(v) for v in d.views.needed)
-        click.echo(f"tool: {d.config.cutter().describe()}, {d.config.depth_mm:g} mm deep; views need "
-                   f"walls tilted {lo:.1f}-{hi:.1f} deg, groove offers up to "
+        click.echo(f"tool: {d.config.cutter().describe()}, {d.config.depth_mm:g} mm deep; "
+                   f"views need walls tilted {lo:.1f}-{hi:.1f} deg, groove offers up to "
                    f"{math.degrees(d.views.offered.max_tilt):.1f} deg")
         if d.views.lost > 0:
             click.echo(f"warning: {100 * d.views.lost:.1f}% of views lost "
@@ -213,6 +225,44 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
                        "azimuths": cut_rows}, fh, indent=1)
     plot_verification(rows, Path(folder) / "verify.png",
                       f"{loaded.config.method}: stereo verification")
+
+
+@cli.command()
+@click.argument("gcode", type=click.Path(path_type=Path))
+@click.option("--plate-width", type=float, required=True, help="Plate width, mm.")
+@click.option("--plate-height", type=float, required=True, help="Plate height, mm.")
+@click.option("--stock-thickness", type=float, default=3.0, show_default=True,
+              help="Plate thickness, mm.")
+@click.option("--max-depth", type=float, required=True, help="Deepest cut allowed, mm.")
+@click.option("--safe-z", type=float, default=1.0, show_default=True,
+              help="Lowest height for X/Y rapids, mm.")
+@click.option("--feed", type=(float, float), default=(1.0, 5000.0), show_default=True,
+              help="Lowest and highest feed allowed, mm/min.")
+@click.option("--spindle", type=(float, float), default=(0.0, 30000.0), show_default=True,
+              help="Lowest and highest spindle speed (or laser power) allowed.")
+@click.option("--laser", is_flag=True, help="The program drives a laser (no Z moves).")
+@click.option("--no-spindle", is_flag=True,
+              help="The tool cuts without spinning (drag tip or scriber).")
+def check(gcode: Path, plate_width: float, plate_height: float, stock_thickness: float,
+          max_depth: float, safe_z: float, feed: tuple[float, float],
+          spindle: tuple[float, float], laser: bool, no_spindle: bool) -> None:
+    """Check any G-code file: cuts inside the plate (origin at its centre, Z = 0 on
+    its surface) and above the maximum depth, rapids only at the safe height, feeds
+    and spindle in range. Exits with status 1 if anything is wrong."""
+    from specholo.fabrication.check import Stock, check_gcode
+
+    for name, v in (("plate width", plate_width), ("plate height", plate_height),
+                    ("stock thickness", stock_thickness)):
+        if not (math.isfinite(v) and v > 0):
+            raise SpecholoError(f"{name} must be a positive number of mm, got {v}")
+    if not gcode.is_file():
+        raise SpecholoError(f"G-code file {gcode} not found")
+    report = check_gcode(gcode, Stock.centred(plate_width, plate_height, stock_thickness),
+                         max_depth, safe_z, feed, spindle, laser=laser,
+                         spindle=not no_spindle)
+    click.echo(report.summary())
+    if not report.ok:
+        sys.exit(1)
 
 
 def _check_folder(folder: Path) -> None:

@@ -1,19 +1,42 @@
-"""G-code for cutting grooves (RS274/NGC as LinuxCNC reads it), and reading it back.
+"""G-code for cutting grooves, and reading it back.
 
-The program works in mm, absolute coordinates, the XY plane and feed per minute,
-with its origin at the plate centre and Z = 0 on the plate surface. Each groove
-is cut as: a comment ``(stipple N)``, a rapid to its start at the safe height, a
-plunge to ``-depth``, its arcs as ``G2``/``G3`` (centre given by ``I J`` relative
-to the arc's start) or ``G1`` when they are straight, and a retract. A dot is a
-plunge and a retract.
+Three dialects share one writer (:class:`GcodeOptions`):
 
-Coordinates are written with 5 decimals (10 nm). Coarser rounding shows: a
-groove's glints follow its tangent, and moving the ends of a 0.04 mm arc by
-0.05 um (4 decimals) turns it by ~2e-3 rad, which doubles the image error of
-a design verified from its G-code. Every number is rounded to the grid *before*
-the arc centres are offset from the arc starts, so the interpreter sees exactly
-the rounded centre: the two radii of an arc then differ by less than 3e-5 mm,
-far inside LinuxCNC's tolerance.
+- ``grbl`` (the default): GRBL 1.1 on a mill or engraver. Only words GRBL 1.1
+  accepts: ``G0-G3 G4 G17 G20/G21 G40 G90 G94 M2 M3 M5 S F``, comments in
+  parentheses, dwell ``P`` in seconds, no tool change. GRBL computes in single
+  precision (24-bit mantissa, ~7 digits) and reads at most 8 significant digits
+  of a number, so a far-away arc centre (``I``/``J`` beyond
+  ``MAX_ARC_OFFSET_MM``) would lose the arc: such arcs are written as chords,
+  one ``G1`` if the arc's sagitta is below half the coordinate grid (it is then
+  straight as written), else the fewest equal chords each within that sagitta.
+  GRBL itself cuts every arc as chords (sagitta up to ``$12``, 2 um by default),
+  so the split is far finer than the firmware's own.
+- ``linuxcnc``: RS274/NGC as LinuxCNC reads it (double precision, arcs kept).
+- ``marlin``: a laser on Marlin. No Z moves (focus is set by hand): each groove
+  is a rapid to its start, the laser switched on (``M3`` or ``M4`` with ``S``
+  power), its arcs, and ``M5``; a dot fires the laser for ``dot_time`` with
+  ``G4``. One command per line (Marlin reads only the first G/M word of a
+  line), comments after ``;`` (parenthesised ones need PAREN_COMMENTS), no
+  ``M2``/``M30`` (``M30`` deletes a file from the SD card in Marlin). Needs
+  Marlin built with LASER_FEATURE and ARC_SUPPORT (and INCH_MODE_SUPPORT for
+  inches); wide arcs are split as for GRBL.
+
+A mill program works in absolute coordinates, the XY plane and feed per
+minute, with its origin at the plate centre and Z = 0 on the plate surface.
+Each groove is cut as: a comment ``(stipple N)``, a rapid to its start at the
+safe height, a plunge to ``-depth``, its arcs as ``G2``/``G3`` (centre given by
+``I J`` relative to the arc's start) or ``G1`` when they are straight, and a
+retract. A dot is a plunge and a retract.
+
+Coordinates are written with 5 decimals in mm (10 nm), 6 in inches (25 nm: 5
+would round to 0.25 um). Coarser rounding shows: a groove's glints follow its
+tangent, and moving the ends of a 0.04 mm arc by 0.05 um (4 decimals in mm)
+turns it by ~2e-3 rad, which doubles the image error of a design verified from
+its G-code. Every number is rounded to the grid *before* the arc centres are
+offset from the arc starts, so the interpreter sees exactly the rounded centre:
+the two radii of an arc then differ by less than 3e-5 mm, far inside the
+tolerance of LinuxCNC (and GRBL's 5 um).
 
 Writing is vectorised: each vertex becomes one row of a byte table (its
 ``(stipple N)``/rapid/plunge lines if it starts a path, its move line otherwise,
@@ -29,6 +52,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from operator import itemgetter
+from typing import Literal
 
 import numpy as np
 
@@ -37,10 +61,13 @@ from specholo.fabrication.atomic import atomic_open
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves, Segments
 
-#: Decimals of every written coordinate and feed.
+#: Decimals of every written coordinate and feed in mm.
 DECIMALS = 5
 #: Written coordinates are integers in units of 1 / SCALE mm.
 SCALE = 10**DECIMALS
+#: Decimals of coordinates and feeds written in inches (a grid as fine as in mm).
+INCH_DECIMALS = 6
+MM_PER_INCH = 25.4
 #: Arcs are written as straight lines when they bulge less than this from their
 #: chord (mm) *and* turn less than ``STRAIGHT_TURN_RAD``: glints follow the
 #: tangent, so a long flat arc of a design must stay an arc.
@@ -51,9 +78,97 @@ STRAIGHT_TURN_RAD = 1e-5
 #: radii under 1.27 um as zero, and the rounded centre of a tinier arc could
 #: turn it into a near-full circle.
 MIN_ARC_RADIUS_MM = 5e-3
+#: Largest I or J (mm) written for single-precision firmware (GRBL, Marlin): a
+#: float keeps ~6e-5 mm at 1000 mm, and GRBL reads 8 significant digits, so
+#: with 5 decimals every digit of a smaller offset is read.
+MAX_ARC_OFFSET_MM = 1000.0
+#: Largest sagitta of a chord that replaces (part of) a wide arc, mm: half the
+#: grid, so the chords and the arc round to the same written points.
+CHORD_SAGITTA_MM = 0.5 / SCALE
+
+Dialect = Literal["grbl", "linuxcnc", "marlin"]
+Units = Literal["mm", "inch"]
+DIALECTS: tuple[str, ...] = ("grbl", "linuxcnc", "marlin")
+#: Dialects that drive a spindle and plunge in Z.
+MILL_DIALECTS: tuple[str, ...] = ("grbl", "linuxcnc")
 
 _CHUNK_ROWS = 1 << 16
 _MAX_COORD_MM = 1e9
+_MAX_CHORDS = 10**8
+_DIALECT_NAMES = {"grbl": "GRBL 1.1", "linuxcnc": "LinuxCNC RS274/NGC",
+                  "marlin": "Marlin, laser"}
+
+
+@dataclass(frozen=True)
+class GcodeOptions:
+    """How a program is written for a machine (feeds, heights and spindle are in
+    :class:`~specholo.setup.Machining`).
+
+    Attributes:
+        dialect: ``"grbl"`` (GRBL 1.1), ``"linuxcnc"`` or ``"marlin"`` (laser).
+        units: ``"mm"`` or ``"inch"``; every coordinate and feed is converted.
+        dwell: seconds to wait after starting the spindle (mill dialects; 0 for none).
+        header_lines: G-code lines written as they are after the modal setup line
+            (e.g. a work offset ``G54`` or coolant ``M8``).
+        laser_power: ``S`` value while the laser cuts (marlin), in the firmware's
+            power unit (0-255 by default).
+        laser_on: ``"M3"`` (constant power) or ``"M4"`` (power scaled with speed in
+            Marlin's dynamic laser mode).
+        dot_time: seconds the laser fires for a dot (marlin).
+        rapid_feed: travel feed of Marlin's ``G0``, mm/min (without G0_FEEDRATE
+            Marlin moves ``G0`` at the last ``F``).
+    """
+
+    dialect: Dialect = "grbl"
+    units: Units = "mm"
+    dwell: float = 2.0
+    header_lines: tuple[str, ...] = ()
+    laser_power: float = 255.0
+    laser_on: Literal["M3", "M4"] = "M3"
+    dot_time: float = 0.1
+    rapid_feed: float = 3000.0
+
+    def __post_init__(self) -> None:
+        if self.dialect not in DIALECTS:
+            raise SpecholoError(f"G-code dialect must be one of {', '.join(DIALECTS)}, "
+                                f"got {self.dialect!r}")
+        if self.units not in ("mm", "inch"):
+            raise SpecholoError(f"G-code units must be mm or inch, got {self.units!r}")
+        if self.laser_on not in ("M3", "M4"):
+            raise SpecholoError(f"laser on must be M3 or M4, got {self.laser_on!r}")
+        for name in ("dwell", "dot_time", "laser_power", "rapid_feed"):
+            v = float(getattr(self, name))
+            zero_ok = name in ("dwell", "dot_time")
+            if not math.isfinite(v) or v < 0 or (v == 0 and not zero_ok):
+                need = ">= 0" if zero_ok else "> 0"
+                raise SpecholoError(f"{name.replace('_', ' ')} must be a finite number {need}, "
+                                    f"got {v:g}")
+        object.__setattr__(self, "header_lines", tuple(self.header_lines))
+        for line in self.header_lines:
+            if not isinstance(line, str) or not line.strip() or \
+                    any(not 32 <= ord(c) < 127 for c in line) or len(line) > 200:
+                raise SpecholoError(f"header line must be one line of printable ASCII, "
+                                    f"got {line!r}")
+
+    @property
+    def mill(self) -> bool:
+        """True for the dialects that plunge a spinning cutter."""
+        return self.dialect in MILL_DIALECTS
+
+    @property
+    def decimals(self) -> int:
+        """Decimals of written coordinates and feeds."""
+        return DECIMALS if self.units == "mm" else INCH_DECIMALS
+
+    @property
+    def per_mm(self) -> float:
+        """Written units per mm."""
+        return 1.0 if self.units == "mm" else 1.0 / MM_PER_INCH
+
+    @property
+    def max_arc_offset(self) -> float:
+        """Largest I/J written, mm (infinite for LinuxCNC, which computes in doubles)."""
+        return math.inf if self.dialect == "linuxcnc" else MAX_ARC_OFFSET_MM
 
 
 @dataclass(frozen=True)
@@ -175,12 +290,19 @@ def fixed_point_bytes(q: np.ndarray, decimals: int) -> np.ndarray:
     return np.concatenate([sign, chars[:, :-decimals], point, chars[:, -decimals:]], axis=1)
 
 
-def _comment(text: str) -> str:
+def _comment(text: str, semicolon: bool = False) -> str:
     # G-code comments cannot nest parentheses or span lines, and LinuxCNC reads
     # lines of at most 255 characters.
-    clean = "".join(c if 32 <= ord(c) < 127 else "?" for c in text)
-    clean = clean.replace("(", "[").replace(")", "]")
-    return f"({clean[:200]})"
+    clean = "".join(c if 32 <= ord(c) < 127 else "?" for c in text)[:200]
+    if semicolon:
+        return f"; {clean}"
+    return "(" + clean.replace("(", "[").replace(")", "]") + ")"
+
+
+def _short_number(value: float) -> str:
+    """A setting (dwell, power) with up to 3 decimals and no trailing zeros."""
+    text = format_number(value, 3).rstrip("0").rstrip(".")
+    return text or "0"
 
 
 def check_grooves(grooves: Grooves) -> None:
@@ -193,36 +315,131 @@ def check_grooves(grooves: Grooves) -> None:
         raise SpecholoError(f"groove vertices exceed {_MAX_COORD_MM:g} mm")
 
 
+def wide_arcs(segments: Segments, max_offset: float = MAX_ARC_OFFSET_MM) -> np.ndarray:
+    """Which arcs have their centre further than ``max_offset`` from their start in X or Y.
+
+    Args:
+        segments: k arcs.
+        max_offset: largest ``I``/``J`` allowed, mm.
+
+    Returns:
+        (k,) bool, True for arcs (not written straight) whose ``I`` or ``J``
+        would exceed ``max_offset``.
+    """
+    wide = np.zeros(len(segments), dtype=bool)
+    if not math.isfinite(max_offset):
+        return wide
+    curved = np.flatnonzero(~is_straight(segments))
+    centre, _, _, _ = Segments(segments.start[curved], segments.end[curved],
+                               segments.bulge[curved], segments.path[curved]).geometry()
+    wide[curved] = np.abs(centre - segments.start[curved]).max(axis=1, initial=0.0) > max_offset
+    return wide
+
+
+def split_wide_arcs(grooves: Grooves, max_offset: float = MAX_ARC_OFFSET_MM,
+                    sagitta: float = CHORD_SAGITTA_MM) -> Grooves:
+    """Replace the arcs whose centre lies far away by chords.
+
+    Args:
+        grooves: m vertices in n paths.
+        max_offset: arcs whose ``I`` or ``J`` would exceed this (mm) are replaced.
+        sagitta: largest distance between a chord and its arc, mm; an arc within
+            it becomes one straight segment.
+
+    Returns:
+        The grooves with each wide arc cut into the fewest equal chords (bulge 0)
+        whose sagitta is at most ``sagitta``; unchanged if there is none.
+    """
+    segs = grooves.segments()
+    wide = wide_arcs(segs, max_offset)
+    if not wide.any():
+        return grooves
+    w = np.flatnonzero(wide)
+    start, end, b = segs.start[w], segs.end[w], segs.bulge[w]
+    sweep = 4.0 * np.arctan(b)
+    chord = np.linalg.norm(end - start, axis=1)
+    radius = chord / (2.0 * np.abs(np.sin(0.5 * sweep)))
+    # a chord of sweep phi bulges r (1 - cos(phi / 2)) = 2 r sin^2(phi / 4)
+    pieces = np.ceil(np.abs(sweep) / (4.0 * np.arcsin(np.sqrt(sagitta / (2.0 * radius)))))
+    pieces = np.maximum(pieces, 1)
+    if pieces.sum() > _MAX_CHORDS:
+        raise SpecholoError(f"wide arcs would need {pieces.sum():.3g} chords "
+                            f"(more than {_MAX_CHORDS:.0e})")
+    pieces = pieces.astype(np.int64)
+
+    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
+    m = len(verts)
+    last = np.zeros(m, dtype=bool)
+    last[grooves.offsets[1:] - 1] = True
+    seg_vertex = np.flatnonzero(~last)[w]  # the vertex each wide arc starts at
+    repeat = np.ones(m, dtype=np.int64)
+    repeat[seg_vertex] = pieces
+    old = np.repeat(np.arange(m), repeat)
+    row_start = np.concatenate([[0], np.cumsum(repeat)])
+    step = np.arange(len(old)) - row_start[old]  # chord number within its arc
+    new_verts = verts[old]
+    new_bulges = np.where(step == 0, grooves.bulges[old], 0.0)
+    new_bulges[row_start[seg_vertex]] = 0.0
+    inner = np.flatnonzero(step > 0)
+    if len(inner):
+        k = np.searchsorted(seg_vertex, old[inner])  # which wide arc
+        t = step[inner] / pieces[k]
+        theta = sweep[k]
+        u = (end[k] - start[k]) / chord[k, None]
+        # from the start, the chord to the point at fraction t of the sweep has
+        # length chord sin(t theta / 2) / sin(theta / 2) and turns from the
+        # tangent (the chord turned by -theta / 2) by t theta / 2
+        length = chord[k] * np.sin(0.5 * t * theta) / np.sin(0.5 * theta)
+        turn = 0.5 * theta * (t - 1.0)
+        c, s = np.cos(turn), np.sin(turn)
+        direction = np.stack([u[:, 0] * c - u[:, 1] * s, u[:, 0] * s + u[:, 1] * c], axis=1)
+        new_verts[inner] = start[k] + length[:, None] * direction
+    return Grooves(new_verts, new_bulges, row_start[grooves.offsets].astype(np.int64),
+                   np.asarray(grooves.stipple, dtype=np.int64))
+
+
 def write_gcode(
     path: str | os.PathLike[str],
     grooves: Grooves,
     tool: Tool,
     machining: Machining,
     header: dict[str, str] | None = None,
+    options: GcodeOptions | None = None,
 ) -> GcodeStats:
     """Write the program that cuts the grooves, atomically.
 
     Args:
-        path: destination ``.ngc`` file.
+        path: destination file.
         grooves: m vertices in n paths; path j is preceded by ``(stipple N)``
-            with N = ``grooves.stipple[j]``.
+            (``; stipple N`` for Marlin) with N = ``grooves.stipple[j]``.
         tool: cutter (depth of the grooves, width for the header).
         machining: feeds (mm/min), safe height (mm) and spindle speed (rpm; 0
-            leaves the spindle alone).
+            leaves the spindle alone); the laser ignores the heights and spindle.
         header: extra ``key: value`` lines for the header comments.
+        options: dialect, units and the rest (default: GRBL in mm).
 
     Returns:
-        Line count, path count and move lengths of the program.
+        Line count, path count and move lengths (mm) of the program.
 
     Raises:
         SpecholoError: if the grooves hold an empty path or non-finite numbers.
     """
+    opt = options or GcodeOptions()
     check_grooves(grooves)
+    n_paths = grooves.n_paths
+    n_dots = int(np.sum(grooves.path_sizes == 1))
+    grooves = split_wide_arcs(grooves, opt.max_arc_offset)
+    mill = opt.mill
     depth = tool.depth
     safe = machining.safe_z
+    dec = opt.decimals
+    scale = 10**dec * opt.per_mm  # written integers per mm
+
+    def num(mm: float) -> str:
+        return format_number(mm * opt.per_mm, dec)
+
     verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
     m = len(verts)
-    n_paths = grooves.n_paths
     offsets = np.asarray(grooves.offsets, dtype=np.int64)
     sizes = np.diff(offsets)
 
@@ -232,12 +449,15 @@ def write_gcode(
     last[offsets[1:] - 1] = True
     second = np.zeros(m, dtype=bool)
     second[offsets[:-1][sizes > 1] + 1] = True
+    dot = first & last
 
-    qv = np.rint(verts * SCALE).astype(np.int64)
+    qv = np.rint(verts * scale).astype(np.int64)
     segs = grooves.segments()
     straight = is_straight(segs)
     arc_start = np.flatnonzero(~last)  # vertex where each segment starts
     rows = arc_start + 1  # the segment's move is written on its end vertex's row
+    # an arc whose ends round to one point would be read as a full circle
+    straight |= np.all(qv[arc_start] == qv[rows], axis=1)
     code = np.zeros(m, dtype=np.int64)  # 0 first vertex, 1 G1, 2 G2, 3 G3
     code[rows] = np.where(straight, 1, np.where(segs.bulge < 0, 2, 3))
     arc = code >= 2
@@ -246,7 +466,7 @@ def write_gcode(
     ).geometry()
     qij = np.zeros((m, 2), dtype=np.int64)
     # the interpreter adds I J to the rounded start: offset the rounded centre from it
-    qij[rows[~straight]] = np.rint(centre * SCALE).astype(np.int64) - qv[arc_start[~straight]]
+    qij[rows[~straight]] = np.rint(centre * scale).astype(np.int64) - qv[arc_start[~straight]]
     stipple = np.repeat(np.asarray(grooves.stipple, dtype=np.int64), sizes)
 
     lengths = np.where(straight, np.linalg.norm(segs.end - segs.start, axis=1), segs.lengths())
@@ -254,56 +474,100 @@ def write_gcode(
     ends = verts[offsets[1:] - 1]
     # from above the origin to the first groove, then from each groove's end to the next
     travel = np.linalg.norm(starts - np.vstack([np.zeros((1, 2)), ends[:-1]]), axis=1)
-    vertical = n_paths * (safe + depth)
+    vertical = n_paths * (safe + depth) if mill else 0.0
 
-    head = [
-        _comment("specholo specular hologram"),
-        _comment("units: mm, absolute coordinates, feed in mm/min"),
-        _comment("origin: plate centre; X right, Y up, Z = 0 on the plate surface"),
-        _comment(
-            f"tool: ball end, radius {format_number(tool.radius)} mm, "
-            f"groove width {format_number(tool.width)} mm"
-        ),
-        _comment(f"depth: {format_number(depth)} mm"),
-        _comment(f"grooves: {n_paths}, dots: {int(np.sum(sizes == 1))}"),
-    ]
-    head += [_comment(f"{k}: {v}") for k, v in (header or {}).items()]
-    head.append("G21 G90 G17 G94 G40")
-    if machining.spindle > 0:
-        head += [f"M3 S{round(machining.spindle)}", "G4 P2"]
-    head.append(f"G0 Z{format_number(safe)}")
-    tail = (["M5"] if machining.spindle > 0 else []) + ["M2"]
+    unit = "mm" if opt.units == "mm" else "in"
+    comment = _comment if mill else (lambda text: _comment(text, semicolon=True))
+    head = [comment("specholo specular hologram"),
+            comment(f"dialect: {_DIALECT_NAMES[opt.dialect]}")]
+    if not mill:
+        needs = "LASER_FEATURE (M3/M4/M5) and ARC_SUPPORT (G2/G3)"
+        needs += ", INCH_MODE_SUPPORT (G20)" if opt.units == "inch" else ""
+        head.append(comment(f"needs Marlin built with {needs}"))
+    head.append(comment(f"units: {'mm' if opt.units == 'mm' else 'inch'}, absolute coordinates, "
+                        f"feed in {unit}/min"))
+    if mill:
+        head += [
+            comment("origin: plate centre; X right, Y up, Z = 0 on the plate surface"),
+            comment(f"tool: {(header or {}).get('cutter', 'ball end')}, round tip radius "
+                    f"{num(tool.radius)} {unit}, groove width {num(tool.width)} {unit}"),
+            comment(f"depth: {num(depth)} {unit}"),
+        ]
+    else:
+        head += [
+            comment("origin: plate centre; X right, Y up; no Z moves: focus on the plate first"),
+            comment(f"tool: laser, {opt.laser_on} S{_short_number(opt.laser_power)} while "
+                    f"cutting, dots fire {_short_number(opt.dot_time)} s"),
+            comment(f"depth: set by power and feed (design: {num(depth)} {unit}, "
+                    f"groove width {num(tool.width)} {unit})"),
+        ]
+    head.append(comment(f"grooves: {n_paths}, dots: {n_dots}"))
+    head += [comment(f"{k}: {v}") for k, v in (header or {}).items() if k != "cutter"]
+    setup_codes = ["G21" if opt.units == "mm" else "G20", "G90"]
+    if mill:
+        head.append(" ".join([*setup_codes, "G17", "G94", "G40"]))
+    else:
+        head += setup_codes  # one command per line
+    head += list(opt.header_lines)
+    if mill:
+        spindle = machining.spindle > 0
+        if spindle:
+            head.append(f"M3 S{round(machining.spindle)}")
+            if opt.dwell > 0:
+                head.append(f"G4 P{_short_number(opt.dwell)}")
+        head.append(f"G0 Z{num(safe)}")
+        tail = (["M5"] if spindle else []) + ["M2"]
+        stipple_open, stipple_close = "(stipple ", ")\n"
+        start_text = f"G1 Z{num(-depth)} F{num(machining.plunge)}\n"
+        end_text = f"G0 Z{num(safe)}\n"
+        dot_text = ""
+        rapid_text = ""
+    else:
+        head.append("M5")  # the laser stays off until the first groove
+        tail = []  # each groove ends with M5; Marlin has no program end
+        stipple_open, stipple_close = "; stipple ", "\n"
+        start_text = f"{opt.laser_on} S{_short_number(opt.laser_power)}\n"
+        end_text = "M5\n"
+        # Marlin's G4 takes P in milliseconds
+        dot_text = f"G4 P{round(opt.dot_time * 1000)}\n" if opt.dot_time > 0 else ""
+        rapid_text = f" F{num(opt.rapid_feed)}"
+    feed = f" F{num(machining.feed)}"
 
-    plunge = f"G1 Z{format_number(-depth)} F{format_number(machining.plunge)}\n"
-    retract = f"G0 Z{format_number(safe)}\n"
-    feed = f" F{format_number(machining.feed)}"
+    n_lines = len(head) + len(tail)
     with atomic_open(path, "wb") as fh:
         fh.write(("\n".join(head) + "\n").encode("ascii"))
         for lo in range(0, m, _CHUNK_ROWS):
             s = slice(lo, min(lo + _CHUNK_ROWS, m))
             t = TextRows(s.stop - s.start)
             f = first[s]
-            t.text("(stipple ", f)
+            t.text(stipple_open, f)
             t.number(stipple[s], 0, f)
-            t.choice([")\nG0", "G1", "G2", "G3"], code[s])
+            t.choice([stipple_close + "G0", "G1", "G2", "G3"], code[s])
             t.text(" X")
-            t.number(qv[s, 0], DECIMALS)
+            t.number(qv[s, 0], dec)
             t.text(" Y")
-            t.number(qv[s, 1], DECIMALS)
+            t.number(qv[s, 1], dec)
             a = arc[s]
             t.text(" I", a)
-            t.number(qij[s, 0], DECIMALS, a)
+            t.number(qij[s, 0], dec, a)
             t.text(" J", a)
-            t.number(qij[s, 1], DECIMALS, a)
+            t.number(qij[s, 1], dec, a)
             t.text(feed, second[s])
+            if rapid_text:
+                t.text(rapid_text, f)
             t.text("\n")
-            t.text(plunge, f)
-            t.text(retract, last[s])
-            fh.write(t.tobytes())
-        fh.write(("\n".join(tail) + "\n").encode("ascii"))
+            t.text(start_text, f)
+            if dot_text:
+                t.text(dot_text, dot[s])
+            t.text(end_text, last[s])
+            text = t.tobytes()
+            n_lines += text.count(b"\n")
+            fh.write(text)
+        if tail:
+            fh.write(("\n".join(tail) + "\n").encode("ascii"))
 
     return GcodeStats(
-        lines=len(head) + len(tail) + m + 3 * n_paths,
+        lines=n_lines,
         paths=n_paths,
         cutting_length_mm=float(lengths.sum() + vertical),
         rapid_length_mm=float(travel.sum() + vertical),

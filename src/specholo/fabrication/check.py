@@ -1,0 +1,578 @@
+"""An independent safety check of a G-code program before it runs on a machine.
+
+This is a small modal interpreter of its own, sharing no code with the writer
+or reader in :mod:`specholo.fabrication.gcode`, so a mistake there is not
+repeated here. It reads ``G0 G1 G2 G3`` (arcs by ``I J`` or ``R``), ``G4 G17
+G20 G21 G90 G91 G94``, the harmless ``G40 G49 G54 G61 G64 G80 G91.1``,
+``M2 M3 M4 M5 M30`` (and coolant ``M7 M8 M9``, pauses ``M0 M1``), ``F S P N``
+words and comments in parentheses or after ``;``. Anything else is reported,
+since its effect is not modelled.
+
+It reports, line by line:
+
+- a cut (a feed move that reaches below the surface Z = 0 on a mill, or any
+  move with the laser on) leaving the stock rectangle, arcs over their whole
+  extent, not only their end points (tool centre positions: shrink the stock
+  by the tool radius to keep the groove walls inside);
+- a cut deeper than ``max_depth`` (or the stock thickness);
+- a rapid (``G0``) moving in X or Y below the safe height, or plunging below
+  it (on a laser: a rapid with the laser on);
+- a feed outside ``feed_range``, a feed move at zero feed, a spindle (laser
+  power) switched on outside ``spindle_range``, a cut with the spindle off;
+- moves from an unknown position, arcs whose end is off their circle, words
+  it does not know, and moves after the program end.
+
+Positions, units (G20 converts to mm, feeds too) and modes are followed line by
+line in Python; the moves are recorded in a table and checked together with
+numpy. Numbers are compared with a small allowance for the written rounding
+(``tolerance`` on positions, 10 ppm on rates).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from array import array
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from specholo.errors import SpecholoError
+
+_INCH = 25.4
+# G codes times 10: plane XY, cutter compensation and tool length offsets off,
+# work offset 1, path modes, canned cycles off, incremental arc centres, feed per minute
+_HARMLESS_G = frozenset({170, 400, 490, 540, 610, 640, 800, 911, 940})
+_HARMLESS_M = frozenset({0, 1, 7, 8, 9})
+_KNOWN_LETTERS = frozenset("GMXYZIJRFSPN")
+_UNSIGNED = r"(?:\d+\.?\d*|\.\d+)"
+_NUM = rf"[-+]?{_UNSIGNED}"
+# the common shape of a motion line, read without the general tokenizer: one
+# motion code, then axis, centre and (non-negative) feed words in this order
+_PLAIN_MOVE = re.compile(rf"\s*G0*([0-3])(?:\s*X({_NUM}))?(?:\s*Y({_NUM}))?(?:\s*Z({_NUM}))?"
+                         rf"(?:\s*I({_NUM}))?(?:\s*J({_NUM}))?(?:\s*F(\+?{_UNSIGNED}))?\s*")
+_WORD = re.compile(rf"([A-Z])({_NUM})")
+_WORDS = re.compile(rf"(?:[A-Z]{_NUM})*")
+#: Relative allowance on feeds and speeds: rates written in inches come back
+#: in mm/min a few ppm off.
+_RATE = 1e-5
+
+
+@dataclass(frozen=True)
+class Stock:
+    """The plate blank, mm: origin at the plate centre, top surface at Z = 0.
+
+    Attributes:
+        x0, y0: lower-left corner.
+        x1, y1: upper-right corner.
+        thickness: depth of the blank below its surface (no cut may reach it).
+    """
+
+    x0: float
+    y0: float
+    x1: float
+    y1: float
+    thickness: float
+
+    def __post_init__(self) -> None:
+        values = (self.x0, self.y0, self.x1, self.y1, self.thickness)
+        if not all(math.isfinite(float(v)) for v in values):
+            raise SpecholoError(f"stock bounds must be finite, got {values}")
+        if not (self.x0 < self.x1 and self.y0 < self.y1):
+            raise SpecholoError(f"stock must have x0 < x1 and y0 < y1, got {values[:4]}")
+        if self.thickness <= 0:
+            raise SpecholoError(f"stock thickness must be positive, got {self.thickness:g}")
+
+    @classmethod
+    def centred(cls, width: float, height: float, thickness: float) -> Stock:
+        """A width x height plate centred on the origin (mm)."""
+        return cls(-0.5 * width, -0.5 * height, 0.5 * width, 0.5 * height, thickness)
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One thing wrong with a program line.
+
+    Attributes:
+        line: 1-based line number.
+        text: the line as written (stripped).
+        what: what is wrong, one line.
+    """
+
+    line: int
+    text: str
+    what: str
+
+
+@dataclass
+class CheckReport:
+    """What :func:`check_gcode` found.
+
+    Attributes:
+        path: the program checked.
+        lines: lines read.
+        violations: the first ``max_listed`` violations, in line order.
+        total_violations: all violations, listed or not.
+        moves: moves checked by kind: ``G0``, ``G1``, ``G2``, ``G3``, ``dwell``,
+            and ``cutting`` (those that cut).
+    """
+
+    path: str
+    lines: int = 0
+    violations: list[Violation] = field(default_factory=list)
+    total_violations: int = 0
+    moves: dict[str, int] = field(default_factory=lambda: dict.fromkeys(
+        ("G0", "G1", "G2", "G3", "dwell", "cutting"), 0))
+
+    @property
+    def ok(self) -> bool:
+        """True if nothing is wrong."""
+        return self.total_violations == 0
+
+    def summary(self) -> str:
+        """A few lines for a person: counts, then the violations listed."""
+        counts = ", ".join(f"{k} {v}" for k, v in self.moves.items())
+        head = (f"{self.path}: {self.lines} lines, moves checked: {counts}; "
+                f"{self.total_violations} violation(s)")
+        rows = [f"  line {v.line}: {v.what}  [{v.text}]" for v in self.violations]
+        if self.total_violations > len(self.violations):
+            rows.append(f"  ... and {self.total_violations - len(self.violations)} more")
+        return "\n".join([head, *rows])
+
+
+def _within(value: float, lo: float, hi: float) -> bool:
+    return lo * (1.0 - _RATE) <= value <= hi * (1.0 + _RATE)
+
+
+def _strip_comments(raw: str) -> tuple[str, str | None]:
+    """The line without comments, and an error message if a comment is malformed."""
+    if "(" not in raw and ")" not in raw and ";" not in raw:
+        return raw, None
+    out = []
+    depth = 0
+    for c in raw:
+        if depth:
+            if c == ")":
+                depth = 0
+            elif c == "(":
+                return "", "nested comment"
+        elif c == "(":
+            depth = 1
+        elif c == ")":
+            return "", "')' outside a comment"
+        elif c == ";":
+            break
+        else:
+            out.append(c)
+    if depth:
+        return "", "unclosed comment"
+    return "".join(out), None
+
+
+# Columns of the move table filled by the reader and checked at the end.
+_LINE, _KIND, _X0, _Y0, _Z0, _X1, _Y1, _Z1, _CX, _CY, _FEED, _ON = range(12)
+
+
+class _Reader:
+    """Modal state, one line at a time: records every move for the vectorised
+    checks and flags what only the line itself can tell."""
+
+    def __init__(self, flag: Callable[[int, str], None], laser: bool,
+                 spindle_range: tuple[float, float], stock: Stock, tolerance: float) -> None:
+        self.flag_at = flag
+        self.laser = laser
+        self.spindle_range = spindle_range
+        self.stock = stock
+        self.tol = tolerance
+        self.factor = 1.0  # mm per programmed unit
+        self.absolute = True
+        self.motion: int | None = None
+        self.feed = math.nan  # mm/min, NaN until given
+        self.speed = 0.0
+        self.spindle_on = False
+        self.pos = [math.nan, math.nan, math.nan]  # mm, NaN while unknown
+        self.ended = False
+        self.number = 0
+        self.moves = array("d")  # rows of 12 columns, see _LINE.._ON
+        self.dwells = 0
+        self.burns = 0
+
+    def flag(self, what: str) -> None:
+        self.flag_at(self.number, what)
+
+    @property
+    def tool_on(self) -> bool:
+        return self.spindle_on and self.speed > 0
+
+    def line(self, number: int, raw: str) -> None:
+        self.number = number
+        plain = _PLAIN_MOVE.fullmatch(raw)
+        if plain is not None:
+            words = {k: float(v) for k, v in zip("XYZIJF", plain.groups()[1:], strict=True)
+                     if v is not None}
+            if "F" in words:
+                self.feed = words["F"] * self.factor
+            self.move(int(plain[1]), words)
+            return
+        body, error = _strip_comments(raw)
+        if error:
+            self.flag(f"cannot parse: {error}")
+            return
+        body = "".join(body.split()).upper()
+        if body.startswith("/"):  # block delete: the line may run, so check it
+            body = body[1:]
+        if not body or body == "%":
+            return
+        if _WORDS.fullmatch(body) is None:
+            self.flag("cannot parse")
+            return
+        g_codes: list[int] = []
+        m_codes: list[int] = []
+        values: dict[str, float] = {}
+        for letter, number_text in _WORD.findall(body):
+            value = float(number_text)
+            if letter == "G":
+                g_codes.append(round(value * 10))
+            elif letter == "M":
+                m_codes.append(round(value))
+            elif letter not in _KNOWN_LETTERS:
+                self.flag(f"unsupported word {letter}")
+                return
+            elif letter in values:
+                self.flag(f"{letter} given twice")
+                return
+            else:
+                values[letter] = value
+        self.execute(g_codes, m_codes, values)
+
+    def execute(self, g_codes: list[int], m_codes: list[int], values: dict[str, float]) -> None:
+        """Run one line's words in the RS274/NGC order of execution."""
+        motion: int | None = None
+        dwell = False
+        units = self.factor
+        for g in g_codes:
+            if g in (0, 10, 20, 30):
+                if motion is not None:
+                    self.flag("two motion codes on one line")
+                    return
+                motion = g // 10
+            elif g == 40:
+                dwell = True
+            elif g in (200, 210):
+                units = _INCH if g == 200 else 1.0
+            elif g in (900, 910):
+                self.absolute = g == 900
+            elif g == 800:
+                self.motion = None
+            elif g not in _HARMLESS_G:
+                self.flag(f"unsupported G{g / 10:g}")
+                return
+        for m in m_codes:
+            if m not in (2, 3, 4, 5, 30) and m not in _HARMLESS_M:
+                self.flag(f"unsupported M{m}")
+                return
+        # F is read in the units the line sets (as GRBL does), and kept in mm/min
+        self.factor = units
+        if "F" in values:
+            if values["F"] < 0:
+                self.flag(f"negative feed F{values['F']:g}")
+            self.feed = values["F"] * units
+        if "S" in values:
+            if values["S"] < 0:
+                self.flag(f"negative spindle speed S{values['S']:g}")
+            self.speed = values["S"]
+            if self.spindle_on and not any(m in (3, 4, 5) for m in m_codes):
+                self.check_speed()
+        for m in m_codes:
+            if m in (3, 4):
+                self.spindle_on = True
+                self.check_speed()
+            elif m == 5:
+                self.spindle_on = False
+        if dwell:
+            self.dwell(values)
+        self.move(motion, values)
+        if any(m in (2, 30) for m in m_codes):
+            self.ended = True
+            self.spindle_on = False
+
+    def check_speed(self) -> None:
+        lo, hi = self.spindle_range
+        name = "laser power" if self.laser else "spindle speed"
+        if self.speed > 0 and not _within(self.speed, lo, hi):
+            self.flag(f"{name} S{self.speed:g} outside [{lo:g}, {hi:g}]")
+
+    def dwell(self, values: dict[str, float]) -> None:
+        self.dwells += 1
+        if "P" not in values or values["P"] < 0:
+            self.flag("dwell without a time P >= 0")
+        if self.laser and self.tool_on:  # a dwell with the laser on burns a spot
+            x, y = self.pos[0], self.pos[1]
+            if math.isnan(x) or math.isnan(y):
+                self.flag("laser fires at an unknown position")
+                return
+            self.burns += 1
+            s, t = self.stock, self.tol
+            if not (s.x0 - t <= x <= s.x1 + t and s.y0 - t <= y <= s.y1 + t):
+                self.flag(_outside(s, x, y, x, y))
+
+    def move(self, motion: int | None, values: dict[str, float]) -> None:
+        has_axes = "X" in values or "Y" in values or "Z" in values
+        has_arc = "I" in values or "J" in values or "R" in values
+        if motion is not None:
+            self.motion = motion
+        if not has_axes and not has_arc:
+            return
+        kind = self.motion
+        if kind is None:
+            self.flag("axis words without a motion mode")
+            return
+        if self.ended:
+            self.flag("move after the program end")
+        if has_arc and kind < 2:
+            self.flag(f"I/J/R words in a G{kind} move")
+            return
+        start = self.pos
+        end = list(start)
+        for k, axis in enumerate("XYZ"):
+            if axis in values:
+                v = values[axis] * self.factor
+                if not self.absolute and math.isnan(start[k]):
+                    self.flag(f"incremental {axis} from an unknown position")
+                    return
+                end[k] = v if self.absolute else start[k] + v
+        cx = cy = math.nan
+        if kind >= 2:
+            centre = self.arc_centre(start, end, values, kind == 3)
+            if centre is None:
+                return
+            cx, cy = centre
+        self.moves.extend((self.number, kind, *start, *end, cx, cy, self.feed,
+                           1.0 if self.tool_on else 0.0))
+        self.pos = end
+
+    def arc_centre(self, start: list[float], end: list[float], words: dict[str, float],
+                   ccw: bool) -> tuple[float, float] | None:
+        """Centre of this move's arc (NaN from an unknown start; None, flagged, if none)."""
+        sx, sy, ex, ey = start[0], start[1], end[0], end[1]
+        if "R" not in words:
+            return sx + words.get("I", 0.0) * self.factor, sy + words.get("J", 0.0) * self.factor
+        if "I" in words or "J" in words:
+            self.flag("arc with both R and I/J")
+            return None
+        r = words["R"] * self.factor
+        dx, dy = ex - sx, ey - sy
+        chord = math.hypot(dx, dy)
+        if math.isnan(chord):
+            return math.nan, math.nan
+        if chord == 0.0:
+            self.flag("R arc with its end at its start")
+            return None
+        if chord > 2.0 * abs(r) + self.tol:
+            self.flag(f"R {abs(r):g} too small for a chord of {chord:.5f}")
+            return None
+        h = math.sqrt(max(r * r - 0.25 * chord * chord, 0.0))
+        # the centre of an arc up to 180 degrees lies left of the chord for G3
+        # and right for G2; a negative R asks for the longer arc
+        side = (1.0 if ccw else -1.0) * (1.0 if r > 0 else -1.0)
+        return 0.5 * (sx + ex) - side * h * dy / chord, 0.5 * (sy + ey) + side * h * dx / chord
+
+
+def _outside(s: Stock, x0: float, y0: float, x1: float, y1: float) -> str:
+    return (f"cut leaves the stock: X {x0:.5f}..{x1:.5f}, Y {y0:.5f}..{y1:.5f} "
+            f"outside X {s.x0:g}..{s.x1:g}, Y {s.y0:g}..{s.y1:g}")
+
+
+def _arc_bounds(m: np.ndarray) -> tuple[np.ndarray, ...]:
+    """XY bounds x0, y0, x1, y1 (k,) of the arcs in move rows m (k, 12), their start
+    radius (k,) and how far their end is off it (k,).
+
+    The bounds take the ends and every axis extreme (0, 90, 180, 270 degrees
+    about the centre) the arc sweeps over; the radius is the larger of start and end.
+    """
+    sx, sy, ex, ey = m[:, _X0], m[:, _Y0], m[:, _X1], m[:, _Y1]
+    cx, cy = m[:, _CX], m[:, _CY]
+    r0 = np.hypot(sx - cx, sy - cy)
+    r1 = np.hypot(ex - cx, ey - cy)
+    r = np.maximum(r0, r1)
+    a0 = np.arctan2(sy - cy, sx - cx)
+    turn = np.arctan2(ey - cy, ex - cx) - a0
+    ccw = m[:, _KIND] == 3
+    full = (sx == ex) & (sy == ey)
+    two_pi = 2.0 * np.pi
+    sweep = np.where(ccw, np.mod(turn, two_pi), -np.mod(-turn, two_pi))
+    sweep = np.where(full, np.where(ccw, two_pi, -two_pi), sweep)
+    lo = np.minimum(a0, a0 + sweep)
+    hi = np.maximum(a0, a0 + sweep)
+    x0, x1 = np.minimum(sx, ex), np.maximum(sx, ex)
+    y0, y1 = np.minimum(sy, ey), np.maximum(sy, ey)
+    for k in range(4):
+        angle = 0.5 * np.pi * k
+        # the first copy of this angle at or after the sweep's start
+        swept = angle + two_pi * np.ceil((lo - angle) / two_pi) <= hi
+        px, py = cx + r * math.cos(angle), cy + r * math.sin(angle)
+        x0 = np.where(swept, np.minimum(x0, px), x0)
+        x1 = np.where(swept, np.maximum(x1, px), x1)
+        y0 = np.where(swept, np.minimum(y0, py), y0)
+        y1 = np.where(swept, np.maximum(y1, py), y1)
+    return x0, y0, x1, y1, r0, np.abs(r0 - r1)
+
+
+def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], stock: Stock,
+                 floor: float, safe_z: float, feed_range: tuple[float, float],
+                 laser: bool, tol: float, spindle: bool = True) -> int:
+    """Flag the moves (rows of the move table) that break a limit; returns the cuts."""
+    kind = m[:, _KIND]
+    line = m[:, _LINE].astype(np.int64)
+    x0, y0, z0, x1, y1, z1 = (m[:, c] for c in (_X0, _Y0, _Z0, _X1, _Y1, _Z1))
+    on = m[:, _ON] > 0
+    feed = m[:, _FEED]
+
+    def each(mask: np.ndarray, message: Callable[[int], str]) -> None:
+        for i in np.flatnonzero(mask):
+            flag(int(line[i]), message(int(i)))
+
+    def same(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return (a == b) | (np.isnan(a) & np.isnan(b))  # an axis never given stays put
+
+    moves_xy = ~(same(x0, x1) & same(y0, y1))
+    z_known = ~(np.isnan(z0) | np.isnan(z1))
+    low = np.where(z_known, np.fmin(z0, z1), np.nan)
+    xy_known = ~(np.isnan(x0) | np.isnan(y0) | np.isnan(x1) | np.isnan(y1))
+    with np.errstate(invalid="ignore"):
+        rapid = kind == 0
+        if laser:
+            each(rapid & moves_xy & on, lambda i: "rapid with the laser on")
+        else:
+            xy = rapid & moves_xy
+            each(xy & ~z_known, lambda i: "rapid in X/Y at an unknown height")
+            each(xy & (low < safe_z - tol),
+                 lambda i: f"rapid in X/Y below the safe height (Z {low[i]:.5f} < {safe_z:g})")
+            down = rapid & ~moves_xy & (z1 < safe_z - tol) & ~(z1 >= z0)
+            each(down, lambda i: f"rapid down to Z {z1[i]:.5f}, below the safe height {safe_z:g}")
+
+        fed = kind > 0
+        lo, hi = feed_range
+        each(fed & np.isnan(feed), lambda i: "feed move without F")
+        each(fed & (feed == 0), lambda i: "feed move with zero feed")
+        rate_ok = (feed >= lo * (1.0 - _RATE)) & (feed <= hi * (1.0 + _RATE))
+        each(fed & (feed > 0) & ~rate_ok,
+             lambda i: f"feed {feed[i]:g} mm/min outside [{lo:g}, {hi:g}]")
+
+        # a mill cuts below the surface (a feed from an unknown height may);
+        # a laser wherever it is on
+        cut = fed & on if laser else fed & ~(low >= 0.0)
+        known = xy_known if laser else xy_known & z_known
+        each(cut & ~known, lambda i: "feed move from an unknown position")
+        cut &= known
+        if not laser and spindle:
+            each(cut & ~on, lambda i: "cut with the spindle off")
+            each(cut & (low < floor - tol),
+                 lambda i: f"cut to Z {low[i]:.5f}, deeper than {-floor:g}")
+
+        # XY extent of each cut: a mill's lines only where below the surface
+        sx, sy, ex, ey = x0.copy(), y0.copy(), x1.copy(), y1.copy()
+        if not laser:
+            enters = cut & (kind == 1) & (z0 >= 0.0)
+            leaves = cut & (kind == 1) & (z1 >= 0.0) & ~enters
+            t = np.where(enters | leaves, z0 / np.where(enters | leaves, z0 - z1, 1.0), 0.0)
+            px, py = x0 + t * (x1 - x0), y0 + t * (y1 - y0)
+            sx, sy = np.where(enters, px, sx), np.where(enters, py, sy)
+            ex, ey = np.where(leaves, px, ex), np.where(leaves, py, ey)
+        bx0, by0 = np.minimum(sx, ex), np.minimum(sy, ey)
+        bx1, by1 = np.maximum(sx, ex), np.maximum(sy, ey)
+        # arcs whole, and every arc's ends on its circle
+        k = np.flatnonzero((kind >= 2) & known)
+        off_circle = np.zeros(len(m), dtype=bool)
+        if len(k):
+            ax0, ay0, ax1, ay1, r, gap = _arc_bounds(m[k])
+            # GRBL's rule, the strictest of the common controllers
+            off_circle[k] = (gap > 0.005) & ((gap > 0.5) | (gap > 0.001 * r))
+            bx0[k], by0[k], bx1[k], by1[k] = ax0, ay0, ax1, ay1
+        each(off_circle, lambda i: "arc end is off its circle")
+        cut &= ~off_circle
+        s = stock
+        out = cut & ((bx0 < s.x0 - tol) | (by0 < s.y0 - tol) | (bx1 > s.x1 + tol)
+                     | (by1 > s.y1 + tol))
+        each(out, lambda i: _outside(s, bx0[i], by0[i], bx1[i], by1[i]))
+    return int(cut.sum())
+
+
+def check_gcode(path: str | os.PathLike[str], stock: Stock, max_depth: float, safe_z: float,
+                feed_range: tuple[float, float], spindle_range: tuple[float, float], *,
+                laser: bool = False, tolerance: float = 1e-4,
+                max_listed: int = 1000, spindle: bool = True) -> CheckReport:
+    """Check that a G-code program stays inside the stock and runs safely.
+
+    Lines are read one by one for the modal state; the moves are then checked
+    together (vectorised).
+
+    Args:
+        path: the program.
+        stock: the blank, mm, origin at the plate centre, surface at Z = 0.
+        max_depth: deepest cut allowed, mm below the surface.
+        safe_z: lowest height for X/Y rapids, mm.
+        feed_range: (lowest, highest) feed allowed for feed moves, mm/min.
+        spindle_range: (lowest, highest) spindle speed (laser power) allowed
+            when switched on.
+        laser: the program drives a laser (no Z): a cut is a move with the laser
+            on, and rapids must have it off.
+        spindle: the tool must spin to cut (False for a drag tip or scriber,
+            which cut with the spindle off).
+        tolerance: rounding allowance on positions, mm.
+        max_listed: most violations kept in the report (all are counted).
+
+    Returns:
+        The violations found, in line order, and the moves checked.
+
+    Raises:
+        SpecholoError: if the file cannot be read or the limits are not numbers
+            in order.
+    """
+    pairs = {"feed range": feed_range, "spindle range": spindle_range}
+    for name, pair in pairs.items():
+        lo, hi = (float(v) for v in pair)
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= hi):
+            raise SpecholoError(f"{name} must be two finite numbers 0 <= low <= high, "
+                                f"got {tuple(pair)}")
+    for name, value in (("max depth", max_depth), ("safe z", safe_z), ("tolerance", tolerance)):
+        if not math.isfinite(value) or value < 0:
+            raise SpecholoError(f"{name} must be a finite number >= 0, got {value:g}")
+    found: list[tuple[int, int, str]] = []
+
+    def flag(number: int, what: str) -> None:
+        found.append((number, len(found), what))
+
+    feeds = (float(feed_range[0]), float(feed_range[1]))
+    reader = _Reader(flag, laser, (float(spindle_range[0]), float(spindle_range[1])), stock,
+                     tolerance)
+    report = CheckReport(os.fspath(path))
+    try:
+        with open(path, encoding="ascii", errors="replace") as fh:
+            for number, raw in enumerate(fh, 1):
+                reader.line(number, raw)
+                report.lines = number
+    except OSError as exc:
+        raise SpecholoError(f"cannot read G-code file {os.fspath(path)!r}: {exc.strerror}") from exc
+
+    moves = np.frombuffer(reader.moves, dtype=float).reshape(-1, 12)
+    cuts = _check_moves(moves, flag, stock, -min(max_depth, stock.thickness), safe_z, feeds,
+                        laser, tolerance, spindle)
+    kinds = np.bincount(moves[:, _KIND].astype(np.int64), minlength=4)
+    report.moves = {"G0": int(kinds[0]), "G1": int(kinds[1]), "G2": int(kinds[2]),
+                    "G3": int(kinds[3]), "dwell": reader.dwells, "cutting": cuts + reader.burns}
+    found.sort()
+    report.total_violations = len(found)
+    listed = found[:max_listed]
+    wanted = {number for number, _, _ in listed}
+    texts: dict[int, str] = {}
+    if wanted:  # a second pass for the text of the lines listed
+        with open(path, encoding="ascii", errors="replace") as fh:
+            for number, raw in enumerate(fh, 1):
+                if number in wanted:
+                    texts[number] = raw.strip()
+    report.violations = [Violation(number, texts.get(number, ""), what)
+                         for number, _, what in listed]
+    return report

@@ -1,0 +1,204 @@
+"""How long a machine takes to cut the grooves (an estimate for planning).
+
+The model follows the programs :func:`~specholo.fabrication.gcode.write_gcode`
+writes: the tool starts above the origin at the safe height; for each path it
+rapids to the start, plunges at the plunge rate, cuts along the arcs at the
+feed and retracts at the rapid rate (a laser has no plunge or retract, and
+fires for ``dot_time`` on a dot).
+
+Every move accelerates and brakes at ``accel`` (trapezoidal velocity). Rapids,
+plunges and retracts start and end at rest. Within a groove the machine does
+not stop between arcs; as in GRBL's planner, its speed is limited
+
+- at each junction by the junction deviation ``delta``: turning by phi allows
+  v^2 = accel * delta * cos(phi / 2) / (1 - cos(phi / 2)) (no limit when the
+  tangent is continuous, as on the designed grooves);
+- on an arc of radius r by the centripetal acceleration: v^2 <= accel * r;
+- by the need to stop at the groove's end (a backward pass) and the speed it
+  can reach from the previous junction (a forward pass).
+
+Real controllers differ per axis and in their arc handling, so expect a few
+per cent either way on a well-tuned machine.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from specholo.errors import SpecholoError
+from specholo.setup import Machining
+from specholo.toolpaths.grooves import Grooves
+
+
+@dataclass(frozen=True)
+class TimeEstimate:
+    """Machining time of a program, seconds.
+
+    Attributes:
+        total_s: everything below added up.
+        cutting_s: feed moves along the grooves.
+        rapid_s: rapids between grooves and retracts.
+        plunge_s: plunges to the groove depth.
+        dwell_s: the wait after starting the spindle, and laser dots.
+        stipples: distinct stipple ids cut.
+        stipples_per_s: stipples per second of machining (0 if nothing is cut).
+    """
+
+    total_s: float
+    cutting_s: float
+    rapid_s: float
+    plunge_s: float
+    dwell_s: float
+    stipples: int
+    stipples_per_s: float
+
+
+def trapezoid_time(length: np.ndarray, cap: np.ndarray | float, accel: float,
+                   entry: np.ndarray | float = 0.0, leave: np.ndarray | float = 0.0) -> np.ndarray:
+    """Time of moves under a trapezoidal velocity profile.
+
+    Args:
+        length: (k,) move lengths, mm.
+        cap: top speed, mm/s (scalar or (k,)).
+        accel: acceleration and braking, mm/s^2.
+        entry: speed at the start, mm/s (scalar or (k,)); must be reachable,
+            i.e. entry^2 <= leave^2 + 2 accel length and the other way round.
+        leave: speed at the end, mm/s (scalar or (k,)).
+
+    Returns:
+        (k,) seconds: accelerate from ``entry``, cruise at the top speed if the
+        move is long enough, brake to ``leave``.
+    """
+    length = np.asarray(length, dtype=float)
+    u2 = np.square(entry)
+    w2 = np.square(leave)
+    # the highest speed reachable with room to brake, limited by the cap
+    peak = np.minimum(cap, np.sqrt(np.maximum(accel * length + 0.5 * (u2 + w2), 0.0)))
+    peak = np.maximum(peak, np.maximum(entry, leave))
+    ramp = (2.0 * np.square(peak) - u2 - w2) / (2.0 * accel)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cruise = np.where(peak > 0, np.maximum(length - ramp, 0.0) / peak, 0.0)
+    return (2.0 * peak - entry - leave) / accel + cruise
+
+
+@nb.njit(cache=True)
+def _plan(length: np.ndarray, cap: np.ndarray, junction: np.ndarray, seg_offsets: np.ndarray,
+          accel: float) -> tuple[np.ndarray, np.ndarray]:
+    """Entry and exit speeds (k,) of the segments of each path, starting and ending at rest.
+
+    Args:
+        length: (k,) segment lengths, mm.
+        cap: (k,) top speed on each segment, mm/s.
+        junction: (k,) speed limit at the junction *before* each segment, mm/s
+            (ignored for a path's first segment).
+        seg_offsets: (n + 1,) first segment of each path.
+        accel: mm/s^2.
+    """
+    k = len(length)
+    entry = np.zeros(k)
+    leave = np.zeros(k)
+    for p in range(len(seg_offsets) - 1):
+        a, b = seg_offsets[p], seg_offsets[p + 1]
+        if a == b:
+            continue
+        # backward: the fastest entry from which the machine can still stop in time
+        nxt = 0.0
+        for i in range(b - 1, a - 1, -1):
+            leave[i] = nxt
+            limit = math.sqrt(nxt * nxt + 2.0 * accel * length[i])
+            v = min(limit, cap[i])
+            if i > a:
+                v = min(v, junction[i], cap[i - 1])
+            else:
+                v = 0.0
+            entry[i] = v
+            nxt = v
+        # forward: what it can reach from the previous junction
+        cur = 0.0
+        for i in range(a, b):
+            entry[i] = cur
+            cur = min(leave[i], math.sqrt(cur * cur + 2.0 * accel * length[i]))
+            leave[i] = cur
+    return entry, leave
+
+
+def estimate_time(grooves: Grooves, depth: float, machining: Machining,
+                  accel: float = 250.0, rapid: float = 3000.0, junction_deviation: float = 0.01,
+                  dwell: float = 0.0, laser: bool = False, dot_time: float = 0.1) -> TimeEstimate:
+    """Estimate how long cutting the grooves takes, in the order given.
+
+    Args:
+        grooves: n paths, cut in order, each from its first vertex.
+        depth: groove depth, mm.
+        machining: feed and plunge rates (mm/min) and safe height (mm).
+        accel: acceleration of every axis, mm/s^2.
+        rapid: rapid (G0) rate, mm/min.
+        junction_deviation: GRBL's ``$11``, mm: sets the speed through corners.
+        dwell: seconds waited once after starting the spindle.
+        laser: a laser: no plunges or retracts; dots fire for ``dot_time``.
+        dot_time: seconds the laser fires on a dot.
+
+    Returns:
+        Total seconds, split by kind of move, and stipples per second.
+
+    Raises:
+        SpecholoError: if a rate, the acceleration or a time is not positive
+            (times may be 0), or the grooves hold an empty path.
+    """
+    for name, value, zero_ok in (("acceleration", accel, False), ("rapid rate", rapid, False),
+                                 ("junction deviation", junction_deviation, True),
+                                 ("dwell", dwell, True), ("dot time", dot_time, True),
+                                 ("depth", depth, True)):
+        v = float(value)
+        if not math.isfinite(v) or v < 0 or (v == 0 and not zero_ok):
+            raise SpecholoError(f"{name} must be a finite number "
+                                f"{'>= 0' if zero_ok else '> 0'}, got {v:g}")
+    if np.any(grooves.path_sizes < 1):
+        raise SpecholoError("grooves contain an empty path")
+    n = grooves.n_paths
+    stipples = len(np.unique(grooves.stipple))
+    feed = machining.feed / 60.0
+    plunge_rate = machining.plunge / 60.0
+    rapid_rate = rapid / 60.0
+    offsets = np.asarray(grooves.offsets, dtype=np.int64)
+    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
+
+    starts = verts[offsets[:-1]]
+    ends = verts[offsets[1:] - 1]
+    travel = np.linalg.norm(starts - np.vstack([np.zeros((1, 2)), ends[:-1]]), axis=1)
+    rapid_s = float(trapezoid_time(travel, rapid_rate, accel).sum())
+    plunge_s = 0.0
+    dwell_s = dwell if n else 0.0
+    if laser:
+        dwell_s += dot_time * int(np.sum(grooves.is_dot))
+    else:
+        z = machining.safe_z + depth
+        plunge_s = n * float(trapezoid_time(np.array([z]), plunge_rate, accel)[0])
+        rapid_s += n * float(trapezoid_time(np.array([z]), rapid_rate, accel)[0])
+
+    segs = grooves.segments()
+    length = segs.lengths()
+    _, radius, _, sweep = segs.geometry()
+    cap = np.minimum(feed, np.sqrt(accel * radius))
+    d = segs.end - segs.start
+    chord_angle = np.arctan2(d[:, 1], d[:, 0])
+    # junction before segment i: from the end tangent of i - 1 to the start tangent of i
+    turn = np.zeros(len(segs))
+    if len(segs) > 1:
+        out_dir = chord_angle[:-1] + 0.5 * sweep[:-1]
+        in_dir = chord_angle[1:] - 0.5 * sweep[1:]
+        turn[1:] = np.angle(np.exp(1j * (in_dir - out_dir)))
+    c = np.cos(0.5 * turn)
+    with np.errstate(divide="ignore"):
+        junction = np.where(c < 1.0, np.sqrt(accel * junction_deviation * c / (1.0 - c)), np.inf)
+    seg_offsets = np.concatenate([[0], np.cumsum(grooves.path_sizes - 1)]).astype(np.int64)
+    entry, leave = _plan(length, np.ascontiguousarray(cap), junction, seg_offsets, accel)
+    cutting_s = float(trapezoid_time(length, cap, accel, entry, leave).sum())
+
+    total = cutting_s + rapid_s + plunge_s + dwell_s
+    return TimeEstimate(total, cutting_s, rapid_s, plunge_s, dwell_s, stipples,
+                        stipples / total if total > 0 else 0.0)

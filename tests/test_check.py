@@ -1,0 +1,293 @@
+"""The independent G-code safety check: written programs pass, bad ones are caught."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from test_gcode import check_canon, needs_rs274, run_rs274
+
+from specholo.errors import SpecholoError
+from specholo.fabrication.check import CheckReport, Stock, check_gcode
+from specholo.fabrication.gcode import DIALECTS, GcodeOptions, write_gcode
+from specholo.setup import Machining, Tool
+from specholo.toolpaths.grooves import Grooves
+
+PLATE = Stock(-40.0, -30.0, 40.0, 30.0, thickness=3.0)
+MACHINING = Machining(feed=300.0, plunge=100.0, safe_z=1.0, spindle=12000.0)
+TOOL = Tool()
+
+
+def check_written(path: Path, options: GcodeOptions, stock: Stock = PLATE,
+                  tool: Tool = TOOL, machining: Machining = MACHINING) -> CheckReport:
+    """Check a program with the limits it was written for."""
+    laser = not options.mill
+    rates = (min(machining.feed, machining.plunge), max(machining.feed, machining.plunge))
+    power = options.laser_power if laser else machining.spindle
+    return check_gcode(path, stock, tool.depth, machining.safe_z, rates, (power, power),
+                       laser=laser)
+
+
+def run(tmp_path: Path, program: str, stock: Stock = PLATE, laser: bool = False,
+        **limits) -> CheckReport:
+    path = tmp_path / "p.ngc"
+    path.write_text(program)
+    args = {"max_depth": 0.1, "safe_z": 1.0, "feed_range": (10.0, 1000.0),
+            "spindle_range": (1000.0, 24000.0), **limits}
+    return check_gcode(path, stock, laser=laser, **args)
+
+
+def caught(report: CheckReport) -> list[tuple[int, str]]:
+    return [(v.line, v.what) for v in report.violations]
+
+
+START = "G21 G90 G17 G94\nM3 S12000\nG0 Z1\nG0 X0 Y0\nG1 Z-0.08 F100\n"  # 5 lines
+
+
+# ---------------------------------------------------------------------------
+# programs the writer makes
+
+
+@pytest.mark.parametrize("units", ["mm", "inch"])
+@pytest.mark.parametrize("dialect", DIALECTS)
+def test_written_programs_pass(tmp_path, groove_example, dialect, units):
+    out = tmp_path / "x.ngc"
+    options = GcodeOptions(dialect=dialect, units=units)
+    write_gcode(out, groove_example, Tool(), MACHINING, options=options)
+    report = check_written(out, options)
+    assert report.ok, report.summary()
+    cuts = {"G1": 1, "G2": 2, "G3": 2}  # the example's cuts by kind
+    if options.mill:
+        # three plunges, three retracts and XY rapids, the first move to safe Z
+        assert report.moves == {"G0": 7, "G1": 1 + 3, "G2": 2, "G3": 2, "dwell": 1,
+                                "cutting": 5 + 3}
+    else:
+        assert report.moves == {"G0": 3, **cuts, "dwell": 1, "cutting": 5 + 1}
+    # the first arc dips to y = -2.5 between ends at y = 0; the dot sits at y = -5
+    tight = Stock(-6.0, -2.4, 21.0, 11.0, 3.0)
+    bad = check_written(out, options, stock=tight)
+    lines = out.read_text().splitlines()
+    flagged = [lines[v.line - 1].split()[0] for v in bad.violations]
+    assert flagged == ["G3", "G1" if options.mill else "G4"], bad.summary()
+
+
+def test_report_summary(tmp_path):
+    report = run(tmp_path, START + "G1 X99 F200\nG0 Z1\nG0 X0 Y0\nG1 Z-5 F100\n")
+    text = report.summary()
+    assert "2 violation(s)" in text and "line 6:" in text and "line 9:" in text
+    assert "[G1 X99 F200]" in text
+    limited = run(tmp_path, START + "G1 X99 F200\n" * 5, max_listed=2)
+    assert limited.total_violations == 5 and len(limited.violations) == 2
+    assert "and 3 more" in limited.summary()
+
+
+# ---------------------------------------------------------------------------
+# hand-made bad programs, each caught on its line
+
+
+@pytest.mark.parametrize(("body", "line", "what"), [
+    # a rapid through the stock: X/Y travel at cutting depth
+    ("G0 X5 Y5\n", 6, "rapid in X/Y below the safe height"),
+    # rapids that come down below the safe height, straight or sideways
+    ("G0 Z1\nG0 Z0.5\n", 7, "rapid down to Z 0.50000, below the safe height 1"),
+    ("G0 Z1\nG0 X3 Z-0.08\n", 7, "rapid in X/Y below the safe height"),
+    # cuts leaving the stock
+    ("G1 X45 Y0 F200\n", 6, "cut leaves the stock"),
+    ("G1 Y-31 F200\n", 6, "cut leaves the stock"),
+    # a cut too deep
+    ("G1 Z-0.2\n", 6, "cut to Z -0.20000, deeper than 0.1"),
+    # F0, or no F at all
+    ("G1 X1 F0\n", 6, "feed move with zero feed"),
+    ("G1 X1 F5000\n", 6, "feed 5000 mm/min outside [10, 1000]"),
+    # the spindle stopped, or switched on too fast
+    ("M5\nG1 X1 F200\n", 7, "cut with the spindle off"),
+    ("S0\nG1 X1 F200\n", 7, "cut with the spindle off"),
+    ("M3 S30000\n", 6, "spindle speed S30000 outside [1000, 24000]"),
+    # things it cannot vouch for
+    ("T2 M6\n", 6, "unsupported word T"),
+    ("G18\n", 6, "unsupported G18"),
+    ("G93\n", 6, "unsupported G93"),
+    ("M98\n", 6, "unsupported M98"),
+    ("G1 X1 (open comment\n", 6, "cannot parse: unclosed comment"),
+    ("G1 X1,5\n", 6, "cannot parse"),
+    ("G1 X1 X2\n", 6, "X given twice"),
+    ("G0 G1 X1\n", 6, "two motion codes on one line"),
+    ("G1 X2 I1 J0\n", 6, "I/J/R words in a G1 move"),
+    ("G2 X2 Y0 I1.5 J0 F200\n", 6, "arc end is off its circle"),
+    ("G2 X1 Y0 R0.2 F200\n", 6, "R 0.2 too small"),
+    ("G0 Z1\nM2\nG0 X1\n", 8, "move after the program end"),
+    ("G80\nX1\n", 7, "axis words without a motion mode"),
+])
+def test_catches(tmp_path, body, line, what):
+    report = run(tmp_path, START + body)
+    assert report.total_violations >= 1
+    first = report.violations[0]
+    assert (first.line, first.what[:len(what)]) == (line, what), report.summary()
+    assert first.text == (START + body).splitlines()[line - 1].strip()
+
+
+def test_catches_an_arc_bulging_out_of_the_stock(tmp_path):
+    # both ends inside (|x| = 8, y = 9), the arcs around a centre at (0, 3) of
+    # radius 10: clockwise over the top reaches y = 13, anticlockwise round the
+    # bottom stays within x = +-10 and y >= -7
+    stock = Stock(-11.0, -11.0, 11.0, 11.0, 3.0)
+    go = "G21 G90\nM3 S12000\nG0 Z1\nG0 X-8 Y9\nG1 Z-0.05 F100\n"
+    assert run(tmp_path, go + "G3 X8 Y9 I8 J-6\n", stock).ok
+    report = run(tmp_path, go + "G2 X8 Y9 I8 J-6\n", stock)
+    assert caught(report) == [(6, "cut leaves the stock: X -8.00000..8.00000, "
+                                  "Y 9.00000..13.00000 outside X -11..11, Y -11..11")]
+    # the same by radius: R > 0 the shorter arc (over the top for G2), R < 0 the longer
+    assert caught(run(tmp_path, go + "G2 X8 Y9 R10\n", stock))[0][0] == 6
+    assert run(tmp_path, go + "G3 X8 Y9 R10\n", stock).ok
+    report = run(tmp_path, go + "G3 X8 Y9 R-10\n", stock)  # round the far side, to y = -7...
+    assert report.ok
+    report = run(tmp_path, go + "G2 X8 Y9 R-10\n", stock)  # ...or round (0, 15) up to y = 25
+    assert caught(report)[0] == (6, "cut leaves the stock: X -10.00000..10.00000, "
+                                    "Y 9.00000..25.00000 outside X -11..11, Y -11..11")
+    # a full circle (I J with the end at the start) is checked whole
+    report = run(tmp_path, go + "G2 X-8 Y9 I8 J-6\n", stock)
+    assert "Y -7.00000..13.00000" in caught(report)[0][1]
+
+
+def test_incremental_and_inch_programs(tmp_path):
+    program = ("G20 G91\nM3 S12000\nG90 G0 Z0.04\nG0 X1 Y1\nG91 G1 Z-0.042 F4\n"
+               "G1 X0.1\nG3 X0.1 Y0 I0.05 J0\nG0 Z0.042\nM5\nM30\n")
+    # 1 inch = 25.4 mm: the cut runs from x = 25.4 to 30.48 mm at y = 25.4 mm
+    stock = Stock(-26.0, -26.0, 31.0, 27.0, 3.0)
+    report = run(tmp_path, program, stock, max_depth=0.1, safe_z=1.0,
+                 feed_range=(50.0, 120.0))
+    assert report.ok, report.summary()
+    assert report.moves["cutting"] == 3
+    narrow = Stock(-26.0, -26.0, 30.0, 27.0, 3.0)
+    assert caught(run(tmp_path, program, narrow, feed_range=(50.0, 120.0)))[0][0] == 7
+    # the feed is in inch/min: 4 in/min = 101.6 mm/min
+    report = run(tmp_path, program, stock, feed_range=(10.0, 100.0))
+    assert caught(report)[0] == (5, "feed 101.6 mm/min outside [10, 100]")
+
+
+def test_unknown_start_positions(tmp_path):
+    assert caught(run(tmp_path, "M3 S12000\nG0 X1 Y1\n")) == [
+        (2, "rapid in X/Y at an unknown height")]
+    assert caught(run(tmp_path, "M3 S12000\nG0 Z1\nG1 Z-0.05 F100\n")) == [
+        (3, "feed move from an unknown position")]
+    assert caught(run(tmp_path, "G91\nG0 Z1\n")) == [(2, "incremental Z from an unknown position")]
+    # a rapid straight up from anywhere is fine
+    assert run(tmp_path, "G0 Z5\nG0 X1 Y1\n").ok
+
+
+def test_laser_checks(tmp_path):
+    go = "G21\nG90\nM5\nG0 X0 Y0 F3000\nM3 S200\n"  # 5 lines
+    limits = {"spindle_range": (100.0, 255.0)}
+    assert run(tmp_path, go + "G1 X5 F300\nG4 P100\nM5\nG0 X39 Y29\n", laser=True, **limits).ok
+    assert caught(run(tmp_path, go + "G0 X5\n", laser=True, **limits)) == [
+        (6, "rapid with the laser on")]
+    assert caught(run(tmp_path, go + "G1 X41 F300\n", laser=True, **limits))[0][0] == 6
+    assert caught(run(tmp_path, "G0 X50 Y0\nM3 S200\nG4 P100\n", laser=True, **limits))[0] == (
+        3, "cut leaves the stock: X 50.00000..50.00000, Y 0.00000..0.00000 outside "
+           "X -40..40, Y -30..30")
+    assert caught(run(tmp_path, go + "S300\n", laser=True, **limits)) == [
+        (6, "laser power S300 outside [100, 255]")]
+    # with the laser off, feed moves are travel and may leave the stock
+    assert run(tmp_path, go + "M5\nG1 X60 F300\n", laser=True, **limits).ok
+
+
+def test_rejects_bad_limits(tmp_path):
+    path = tmp_path / "p.ngc"
+    path.write_text("G0 Z1\n")
+    with pytest.raises(SpecholoError, match=re.escape("feed range must be two finite numbers")):
+        check_gcode(path, PLATE, 0.1, 1.0, (500.0, 100.0), (0.0, 1.0))
+    with pytest.raises(SpecholoError, match="safe z must be a finite number >= 0, got nan"):
+        check_gcode(path, PLATE, 0.1, math.nan, (1.0, 2.0), (0.0, 1.0))
+    with pytest.raises(SpecholoError, match="cannot read"):
+        check_gcode(tmp_path / "nope.ngc", PLATE, 0.1, 1.0, (1.0, 2.0), (0.0, 1.0))
+    with pytest.raises(SpecholoError, match=re.escape("x0 < x1")):
+        Stock(1.0, 0.0, -1.0, 1.0, 1.0)
+    with pytest.raises(SpecholoError, match="thickness must be positive, got 0"):
+        Stock.centred(10.0, 10.0, 0.0)
+
+
+# ---------------------------------------------------------------------------
+# random designs: every dialect passes, the mill dialects cut exactly the arcs
+
+
+def arc_box(g: Grooves) -> np.ndarray:
+    """Bounds of the cuts (2, 2), by dense sampling of every arc (not the checker's method)."""
+    pts = [g.vertices]
+    segs = g.segments()
+    if len(segs):
+        t = np.linspace(0.0, 1.0, 2001)
+        sweep = 4.0 * np.arctan(segs.bulge)
+        d = segs.end - segs.start
+        chord = np.linalg.norm(d, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(np.abs(sweep[:, None]) > 1e-9,
+                             np.sin(0.5 * t[None] * sweep[:, None]) / np.sin(0.5 * sweep[:, None]),
+                             t[None])
+        turn = 0.5 * sweep[:, None] * (t[None] - 1.0)
+        u = d / np.maximum(chord, 1e-300)[:, None]
+        dx = u[:, :1] * np.cos(turn) - u[:, 1:] * np.sin(turn)
+        dy = u[:, :1] * np.sin(turn) + u[:, 1:] * np.cos(turn)
+        length = chord[:, None] * ratio
+        pts.append(np.stack([segs.start[:, :1] + length * dx,
+                             segs.start[:, 1:] + length * dy], axis=-1).reshape(-1, 2))
+    allp = np.concatenate(pts)
+    return np.stack([allp.min(axis=0), allp.max(axis=0)])
+
+
+@st.composite
+def plate_designs(draw: st.DrawFn) -> Grooves:
+    """Grooves on an 80 x 60 mm plate: short chains of arcs (some wide), and dots."""
+    verts: list[np.ndarray] = []
+    bulges: list[float] = []
+    sizes: list[int] = []
+    for _ in range(draw(st.integers(1, 6))):
+        p = np.array([draw(st.floats(-30.0, 30.0)), draw(st.floats(-20.0, 20.0))])
+        k = draw(st.integers(0, 4))
+        verts.append(p)
+        for _ in range(k):
+            angle = draw(st.floats(-math.pi, math.pi))
+            p = p + draw(st.floats(0.01, 2.0)) * np.array([math.cos(angle), math.sin(angle)])
+            verts.append(p)
+            bulges.append(draw(st.one_of(st.just(0.0), st.floats(-2.0, 2.0),
+                                         st.floats(-3e-4, 3e-4))))
+        bulges.append(0.0)
+        sizes.append(k + 1)
+    return Grooves(np.array(verts), np.array(bulges),
+                   np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                   np.arange(len(sizes), dtype=np.int64))
+
+
+@needs_rs274
+@settings(max_examples=30, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(g=plate_designs(), units=st.sampled_from(["mm", "inch"]),
+       spindle=st.sampled_from([0.0, 10000.0]))
+def test_random_designs(tmp_path, g, units, spindle):
+    machining = Machining(feed=250.0, plunge=80.0, safe_z=2.0, spindle=spindle)
+    tool = Tool(radius=0.2, depth=0.05)
+    lo, hi = arc_box(g)
+    stock = Stock(lo[0], lo[1], hi[0], hi[1], 1.0) if np.all(hi > lo) else \
+        Stock(lo[0] - 1, lo[1] - 1, hi[0] + 1, hi[1] + 1, 1.0)
+    for dialect in DIALECTS:
+        options = GcodeOptions(dialect=dialect, units=units)
+        out = tmp_path / f"{dialect}.ngc"
+        write_gcode(out, g, tool, machining, options=options)
+        report = check_written(out, options, stock, tool, machining)
+        if options.mill and spindle == 0:
+            # cutting with the spindle left alone is flagged, and nothing else
+            assert report.violations and {v.what for v in report.violations} == {
+                "cut with the spindle off"}
+        else:
+            assert report.ok, report.summary()
+        if np.all(hi - lo > 0.05):  # a stock 0.01 mm smaller all round is too small
+            smaller = Stock(lo[0] + 0.01, lo[1] + 0.01, hi[0] - 0.01, hi[1] - 0.01, 1.0)
+            leaves = [v for v in check_written(out, options, smaller, tool, machining).violations
+                      if v.what.startswith("cut leaves the stock")]
+            assert leaves
+        if options.mill:
+            check_canon(run_rs274(out), g, tool, machining, options)
