@@ -37,8 +37,8 @@ def main() -> None:
     args = ap.parse_args()
 
     cfg = DesignConfig(size=args.size, stipples=args.stipples)
-    setup = cfg.setup()
     d = design(MODEL, cfg)
+    setup = d.config.setup()
     half = 0.5 * args.plate
     bounds = np.array([[-half, -half], [half, half]])
     # Compile (or load the cached kernels) on a tiny field first.

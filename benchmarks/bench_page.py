@@ -1,17 +1,21 @@
 """Frame rate of the interactive page (``specholo view``) in headless Chromium.
 
-Usage: python benchmarks/bench_page.py [--sizes 10000 100000] [--seconds 5]
+Usage: python benchmarks/bench_page.py [--sizes 2000 10000 100000] [--seconds 5]
 
 For each size the bunny is designed with the library (no G-code or SVG), the
 page is built, and Chromium (software WebGL2: SwiftShader) keeps changing the
-view every frame while requestAnimationFrame intervals are recorded. Prints
-the arc count, the HTML size, the load time and frames per second; pages too
-large for the browser to read are reported as such, not measured.
+view every frame (the same sequence of views on every run) while
+requestAnimationFrame intervals are recorded. Prints the arc count, the HTML
+size, the load time, frames per second, the arcs the page drew per frame (the
+narrow arcs its culling kept, plus the wide ones) and the time per frame
+spent culling and drawing (synchronised with the GPU); pages too large for
+the browser to read are reported as such, not measured.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import tempfile
 import time
@@ -49,12 +53,16 @@ def measure(html: Path, seconds: float, size: tuple[int, int]) -> dict[str, floa
             page.wait_for_timeout(int(seconds * 1000))
             frames = page.evaluate("window.specholo.frameTimes()")
             draws = page.evaluate("window.specholo.drawTimes()")
+            culls = page.evaluate("window.specholo.cullTimes()")
+            drawn = page.evaluate("window.specholo.drawnArcs()")
             page.evaluate("window.specholo.spin(false)")
             if sync:
                 out["draw_ms"] = statistics.median(draws) if draws else float("nan")
+                out["cull_ms"] = statistics.median(culls) if culls else float("nan")
             else:
                 out["frames"] = len(frames)
                 out["fps"] = 1000.0 * len(frames) / sum(frames) if frames else 0.0
+                out["drawn"] = statistics.mean(drawn) if drawn else float("nan")
         browser.close()
     return out
 
@@ -69,29 +77,35 @@ def main() -> None:
     ap.add_argument("--width", type=int, default=800)
     ap.add_argument("--height", type=int, default=600)
     args = ap.parse_args()
-    print(f"{'stipples':>9} {'arcs':>10} {'HTML MB':>8} {'load s':>7} {'fps':>6} "
-          f"{'draw ms':>8}  note")
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"load average {load:.1f} on {os.cpu_count()} CPUs")
+    print(f"{'stipples':>9} {'arcs':>10} {'drawn':>8} {'HTML MB':>8} {'build s':>8} "
+          f"{'load s':>7} {'fps':>6} {'draw ms':>8} {'cull ms':>8}  note")
     for n in args.sizes:
         d = design(MODEL, DesignConfig(stipples=n))
         setup = d.config.setup()
         arcs = len(d.grooves.segments())
         with tempfile.TemporaryDirectory() as tmp:
             html = Path(tmp) / "view.html"
+            t0 = time.perf_counter()
             html.write_text(build_page(d.grooves, setup), encoding="utf-8")
+            build = time.perf_counter() - t0
             mb = html.stat().st_size / 1e6
             if html.stat().st_size > MAX_LOADABLE_BYTES:
-                print(f"{n:>9} {arcs:>10} {mb:>8.1f} {'-':>7} {'-':>6} {'-':>8}  "
-                      "too large for the browser to load (V8 string limit)", flush=True)
+                print(f"{n:>9} {arcs:>10} {'-':>8} {mb:>8.1f} {build:>8.1f} {'-':>7} {'-':>6} "
+                      f"{'-':>8} {'-':>8}  too large for the browser to load (V8 string limit)",
+                      flush=True)
                 continue
             try:
                 r = measure(html, args.seconds, (args.width, args.height))
             except Exception as exc:  # noqa: BLE001 - a benchmark reports, never hides, failures
-                print(f"{n:>9} {arcs:>10} {mb:>8.1f} {'-':>7} {'-':>6} {'-':>8}  "
-                      f"failed: {type(exc).__name__}: {str(exc).splitlines()[0]}", flush=True)
+                print(f"{n:>9} {arcs:>10} {'-':>8} {mb:>8.1f} {build:>8.1f} {'-':>7} {'-':>6} "
+                      f"{'-':>8} {'-':>8}  failed: {type(exc).__name__}: "
+                      f"{str(exc).splitlines()[0]}", flush=True)
                 continue
-        print(f"{n:>9} {arcs:>10} {mb:>8.1f} {r['load_s']:>7.1f} {r['fps']:>6.1f} "
-              f"{r['draw_ms']:>8.1f}  {int(r['frames'])} frames, "
-              f"{arcs * r['fps'] / 1e6:.1f} M arcs/s", flush=True)
+        print(f"{n:>9} {arcs:>10} {r['drawn']:>8.0f} {mb:>8.1f} {build:>8.1f} "
+              f"{r['load_s']:>7.1f} {r['fps']:>6.1f} {r['draw_ms']:>8.1f} {r['cull_ms']:>8.1f}"
+              f"  {int(r['frames'])} frames", flush=True)
 
 
 if __name__ == "__main__":

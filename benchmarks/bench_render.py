@@ -30,7 +30,7 @@ def main() -> None:
     for n in sorted(set(args.sizes) | set(args.turntable_sizes)):
         cfg = DesignConfig(stipples=n)
         d = design(MODEL, cfg)
-        setup = cfg.setup()
+        setup = d.config.setup()
         eng = Engraved.from_grooves(d.grooves, setup.tool)
         camera = design_camera(setup, d.grooves, width=1024, height=1024)
         still = float("nan")
@@ -40,7 +40,7 @@ def main() -> None:
             still = time.perf_counter() - t0
         spin = float("nan")
         if n in args.turntable_sizes:
-            loaded = Loaded(cfg, d.points, d.normals, d.grooves, d.model.mesh)
+            loaded = Loaded(d.config, d.points, d.normals, d.grooves, d.model.mesh)
             t0 = time.perf_counter()
             turntable(loaded, 90, size=(512, 512))
             spin = time.perf_counter() - t0

@@ -25,7 +25,7 @@ def main() -> None:
         cfg = DesignConfig(size=60, center_z=-40, light_elevation=45, view_distance=600,
                            view_range=45, stipples=args.stipples, method=method)
         d = design(MODEL, cfg)
-        results[method] = verify_design(Loaded(cfg, d.points, d.normals, d.grooves,
+        results[method] = verify_design(Loaded(d.config, d.points, d.normals, d.grooves,
                                                 d.model.mesh))
     print("| azimuth | striped p95 (depth) | visib. | hyperbola p95 (depth) | visib. "
           "| arc p95 (depth) | visib. |")
