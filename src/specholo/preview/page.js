@@ -1,6 +1,6 @@
 // Interactive glints of a specular hologram, recomputed on the GPU every frame.
 // Physics and camera mirror specholo.simulation.glints.find_glints and
-// specholo.preview.render.Camera; see specholo/preview/page.py.
+// specholo.preview.render.Camera; the data format is specholo.preview.page.PageArcs.
 "use strict";
 (function () {
   const meta = JSON.parse(document.getElementById("meta").textContent);
@@ -9,10 +9,17 @@
   const messageEl = document.getElementById("message");
   const params = new URLSearchParams(window.location.search);
   const DEG = Math.PI / 180;
+  const STEPS = meta.grid.angleSteps, STEP = Math.PI / STEPS;
+  // Added to the culling's bounds on angles (radians) and on h . t for the shader's
+  // float32 rounding (~1e-6).
+  const SLACK = 1e-5;
+  // ?cull=0 draws every narrow arc (to check that culling loses no glint).
+  const culling = params.get("cull") !== "0";
 
   const state = {
     azimuth: 0, elevation: 0, light: meta.light.elevation,
-    dirty: true, spin: false, frames: [], drawMs: [], last: null,
+    dirty: true, spin: false, frames: [], drawMs: [], drawn: [], cullMs: [], lastDrawn: 0,
+    lastCullMs: 0, last: null, spinFrame: 0,
   };
   const hook = {
     ready: false, error: null,
@@ -24,15 +31,22 @@
         lightDistance: meta.light.distance, distance: meta.camera.distance,
         eyeHeight: meta.camera.eyeHeight, fov: meta.camera.fov,
         width: canvas.width, height: canvas.height, arcs: meta.counts.arcs,
+        narrow: meta.counts.narrow, wide: meta.counts.wide,
         corners: meta.counts.corners, dots: meta.counts.dots,
+        drawn: state.lastDrawn, culling,
       };
     },
-    // Intervals between drawn frames (ms), and CPU+GPU time of each draw when syncing.
+    // Intervals between drawn frames (ms), CPU+GPU time of each draw when syncing,
+    // the arcs drawn (narrow ones kept by culling, plus the wide ones) and the time
+    // culling took (ms) per frame.
     frameTimes() { return state.frames.slice(); },
     drawTimes() { return state.drawMs.slice(); },
+    drawnArcs() { return state.drawn.slice(); },
+    cullTimes() { return state.cullMs.slice(); },
     spin(on, sync) {
       state.spin = !!on; state.sync = !!sync; state.frames = []; state.drawMs = [];
-      state.last = null; state.dirty = true;
+      state.drawn = []; state.cullMs = []; state.last = null; state.dirty = true;
+      state.spinFrame = 0;
     },
   };
   window.specholo = hook;
@@ -45,6 +59,9 @@
   }
 
   const clamp = (v, lo, hi) => Math.min(hi, Math.max(lo, v));
+  const dpr = () => window.devicePixelRatio || 1;
+  // Glint spots: Gaussian of this many CSS pixels, in this colour.
+  const SIGMA = 1.1, GLINT_COLOR = [1.0, 0.96, 0.88];
   function setView(az, el) {
     state.azimuth = clamp(+az, -meta.limits.azimuth, meta.limits.azimuth);
     state.elevation = clamp(+el, -meta.limits.elevation, meta.limits.elevation);
@@ -62,24 +79,28 @@
     const hud = document.getElementById("hud").offsetHeight;
     const cssW = fixedW || window.innerWidth;
     const cssH = fixedH || Math.max(1, window.innerHeight - hud);
-    const dpr = window.devicePixelRatio || 1;
     canvas.style.width = cssW + "px";
     canvas.style.height = cssH + "px";
-    canvas.width = Math.round(cssW * dpr);
-    canvas.height = Math.round(cssH * dpr);
+    canvas.width = Math.round(cssW * dpr());
+    canvas.height = Math.round(cssH * dpr());
     state.dirty = true;
   }
 
+  // The canvas is only redrawn when the view changes; the compositor keeps the last
+  // frame, so the drawing buffer need not be kept (which costs a copy per frame).
   const gl = canvas.getContext("webgl2", { antialias: false, alpha: false,
-                                            preserveDrawingBuffer: true });
+                                            preserveDrawingBuffer: false });
   if (!gl) {
     fail("This page needs WebGL2, which this browser does not offer (or has disabled). "
          + "Try a current Chrome, Firefox or Safari with hardware acceleration on.");
     return;
   }
 
-  function decode(id) {
-    const text = document.getElementById(id).textContent.trim();
+  // The page's arrays: one base64 text of gzipped blocks (see page.py pack_blocks).
+  async function loadBlocks() {
+    const el = document.getElementById("data");
+    const text = el.textContent.trim();
+    el.remove();  // the text is over a byte per arc: let it go once decoded
     let bytes;
     if (typeof Uint8Array.fromBase64 === "function") {
       bytes = Uint8Array.fromBase64(text);
@@ -88,52 +109,76 @@
       bytes = new Uint8Array(bin.length);
       for (let i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
     }
-    return new Float32Array(bytes.buffer, bytes.byteOffset, bytes.byteLength / 4);
+    const out = {};
+    await Promise.all(meta.blocks.map(async (b) => {
+      const gz = new Blob([bytes.subarray(b.offset, b.offset + b.length)]);
+      const stream = gz.stream().pipeThrough(new DecompressionStream("gzip"));
+      out[b.name] = new Uint8Array(await new Response(stream).arrayBuffer());
+    }));
+    return out;
+  }
+  const floats = (u8) => new Float32Array(u8.buffer, u8.byteOffset, u8.byteLength / 4);
+
+  // Narrow rows x0, y0, x1, y1, q0, q1 (uint16) from their columns: low bytes
+  // then high bytes, x1 - x0, y1 - y0, q1 - q0 and q0's steps stored mod 2^16.
+  function narrowRows(blocks, n) {
+    const rows = new Uint16Array(6 * n);
+    const X = blocks.x0, Y = blocks.y0, DX = blocks.dx, DY = blocks.dy;
+    const Q = blocks.q0, DQ = blocks.dq;
+    let q = 0;
+    for (let i = 0, j = 0; i < n; i++, j += 6) {
+      const x = X[i] | (X[n + i] << 8), y = Y[i] | (Y[n + i] << 8);
+      q = (q + (Q[i] | (Q[n + i] << 8))) & 0xffff;
+      rows[j] = x;
+      rows[j + 1] = y;
+      rows[j + 2] = x + (DX[i] | (DX[n + i] << 8));  // Uint16Array stores wrap mod 2^16
+      rows[j + 3] = y + (DY[i] | (DY[n + i] << 8));
+      rows[j + 4] = q;
+      rows[j + 5] = q + (DQ[i] | (DQ[n + i] << 8));
+    }
+    return rows;
   }
 
-  const GLINT_VS = `#version 300 es
+  const glintVS = (narrow, iterations) => `#version 300 es
 precision highp float;
-layout(location = 0) in vec2 a_p;    // arc start or dimple centre, mm (plate frame)
-layout(location = 1) in vec4 a_arc;  // start tangent angle, length, signed sweep, turn
-uniform int u_mode;                  // 0 arcs, 1 corners, 2 dimples
+precision highp int;
+#define NARROW ${narrow ? 1 : 0}
+#define POINT_LIGHT ${meta.light.distance ? 1 : 0}
+#define ITERATIONS ${iterations}
+#if NARROW
+layout(location = 2) in uvec4 a_ends;  // x0, y0, x1, y1 in grid units
+layout(location = 3) in uvec2 a_tan;   // tangent angles mod pi at the ends, q0 and q1 steps
+#else
+layout(location = 0) in vec2 a_p;      // arc start or dimple centre, mm (plate frame)
+layout(location = 1) in vec4 a_arc;    // start tangent angle, length, signed sweep, turn
+#endif
+uniform int u_mode;                    // float rows: 0 arcs, 1 corners, 2 dimples
 uniform vec3 u_eye;
-uniform vec3 u_light;                // sun direction, or point light position
-uniform bool u_pointLight;
-uniform float u_R;                   // ball radius
-uniform float u_cz;                  // ball centre height R - d
-uniform float u_cosTilt;             // cos(max wall tilt)
-uniform vec3 u_right, u_up, u_fwd;   // camera basis
-uniform vec2 u_proj;                 // focal / half-size, x and y
+uniform vec3 u_light;                  // sun direction, or point light position
+uniform float u_R;                     // ball radius
+uniform float u_cz;                    // ball centre height R - d
+uniform float u_cosTilt;               // cos(max wall tilt)
+uniform vec3 u_right, u_up, u_fwd;     // camera basis
+uniform vec2 u_proj;                   // focal / half-size, x and y
 uniform float u_size;
 uniform float u_noCorner;
-out float v_on;
+uniform vec3 u_grid;                   // narrow rows: origin (mm) and mm per grid unit
+
+const float STEP = 3.14159265358979 / ${STEPS}.0;  // radians per angle step
 
 vec3 hAt(vec3 g) {
-  vec3 l = u_pointLight ? normalize(u_light - g) : u_light;
-  return l + normalize(u_eye - g);
+#if POINT_LIGHT
+  return normalize(u_light - g) + normalize(u_eye - g);
+#else
+  return u_light + normalize(u_eye - g);
+#endif
 }
-// The wall point whose normal (toward the ball centre) is h: fixed point as in wall_glint.
-vec3 wallPoint(vec2 p) {
-  vec3 c = vec3(p, u_cz);
-  vec3 g = vec3(p, 0.0);
-  for (int i = 0; i < 3; ++i) g = c - u_R * normalize(hAt(g));
-  return g;
-}
-// Point at parameter u in [0, 1], from the start and the chord (stable for any sweep).
-vec2 arcAt(float u) {
-  float half_ = 0.5 * u * a_arc.z;
-  float sinc = abs(half_) > 1e-4 ? sin(half_) / half_ : 1.0 - half_ * half_ / 6.0;
-  float ang = a_arc.x + half_;
-  return a_p + (u * a_arc.y * sinc) * vec2(cos(ang), sin(ang));
-}
-vec2 tangentAt(float u) {
-  float a = a_arc.x + u * a_arc.z;
-  return vec2(cos(a), sin(a));
-}
-float wallCond(float u) {
-  vec3 g = wallPoint(arcAt(u));
-  return dot(hAt(g).xy, tangentAt(u));
-}
+// The wall point whose normal (toward the ball centre) is h, from h at the toolpath
+// point p: one step of wall_glint's fixed point. h changes by ~R / distance between
+// steps, so this is within ~1e-4 mm of the fixed point.
+vec3 wallFrom(vec2 p, vec3 h) { return vec3(p, u_cz) - u_R * normalize(h); }
+vec3 wallPoint(vec2 p) { return wallFrom(p, hAt(vec3(p, 0.0))); }
+vec2 dir(float a) { return vec2(cos(a), sin(a)); }
 bool tiltOk(vec3 h) { return h.z >= u_cosTilt * length(h); }
 
 void emit(vec3 g) {
@@ -142,46 +187,46 @@ void emit(vec3 g) {
   if (z <= 1e-6) return;
   gl_Position = vec4(dot(u_right, q) * u_proj.x, dot(u_up, q) * u_proj.y, 0.0, z);
   gl_PointSize = u_size;
-  v_on = 1.0;
 }
 
-void main() {
-  gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // off-screen unless a glint is emitted
-  gl_PointSize = 1.0;
-  v_on = 0.0;
-  if (u_mode == 2) {
-    vec3 g = wallPoint(a_p);
-    if (tiltOk(hAt(g))) emit(g);
-    return;
-  }
-  if (u_mode == 1) {
-    // Corner after this arc: the ball sweeps every direction between the two tangents.
-    if (a_arc.w >= u_noCorner) return;
-    vec2 p = arcAt(1.0);
-    vec2 te = tangentAt(1.0);
-    float an = a_arc.x + a_arc.z + a_arc.w;
-    vec2 tn = vec2(cos(an), sin(an));
-    vec3 h0 = hAt(vec3(p, 0.0));
-    float e0 = dot(h0.xy, te);
-    if (e0 * dot(h0.xy, tn) > 0.0 && abs(e0) >= 0.01 * length(h0)) return;  // cheap screen
-    vec3 g = wallPoint(p);
-    vec3 h = hAt(g);
-    if (dot(h.xy, te) * dot(h.xy, tn) < 0.0 && tiltOk(h)) emit(g);
-    return;
-  }
+// The arc being solved: end points and unit tangents there.
+vec2 P0, P1, T0, T1;
+#if NARROW
+// A narrow arc turns by at most 0.02 rad: its point at chord parameter u is
+// P0 + u C + u (1 - u) BOW to ~L sweep^3 (1e-8 mm), and the direction mix(T0, T1, u)
+// turns evenly to ~sweep^3; h . t only needs a direction, not a unit vector.
+vec2 BOW;
+vec2 pointAt(float u) { return P0 + u * (P1 - P0) + (u - u * u) * BOW; }
+vec2 tangentAt(float u) { return mix(T0, T1, u); }
+#else
+float A0, SW, LEN;
+float sinc(float x) { return abs(x) > 1e-4 ? sin(x) / x : 1.0 - x * x / 6.0; }
+// Point at parameter u in [0, 1], from the start (stable for any sweep).
+vec2 pointAt(float u) {
+  float half_ = 0.5 * u * SW;
+  return P0 + (u * LEN * sinc(half_)) * dir(A0 + half_);
+}
+vec2 tangentAt(float u) { return dir(A0 + u * SW); }
+#endif
+
+void solveArc() {
   // Screen on the toolpath first (the wall moves h by only ~R / distance).
-  vec3 hs = hAt(vec3(a_p, 0.0));
-  float s0 = dot(hs.xy, tangentAt(0.0));
-  float s1 = dot(hAt(vec3(arcAt(1.0), 0.0)).xy, tangentAt(1.0));
-  if (s0 * s1 > 0.0 && min(abs(s0), abs(s1)) >= 0.01 * length(hs)) return;
-  float f0 = wallCond(0.0);
-  float f1 = wallCond(1.0);
-  // A root exactly on a shared vertex belongs to the arc that starts there.
+  vec3 h0 = hAt(vec3(P0, 0.0)), h1 = hAt(vec3(P1, 0.0));
+  float s0 = dot(h0.xy, T0), s1 = dot(h1.xy, T1);
+  if (s0 * s1 > 0.0 && min(abs(s0), abs(s1)) >= 0.01 * length(h0)) return;
+  // The ends are evaluated from the end points alone, exactly as a joined arc
+  // evaluates them: a root is bracketed by exactly one of the two arcs.
+  vec3 g0 = wallFrom(P0, h0), g1 = wallFrom(P1, h1);
+  float f0 = dot(hAt(g0).xy, T0), f1 = dot(hAt(g1).xy, T1);
+  // A root exactly on an arc's start counts, as in find_glints.
   if (!(f0 == 0.0 || f0 * f1 < 0.0)) return;
+  // The wall offset R h/|h| turns by ~(arc length) / distance along the arc:
+  // interpolate it between the ends instead of solving for it at every step.
+  vec3 w0 = g0 - vec3(P0, 0.0), w1 = g1 - vec3(P1, 0.0);
   float a = 0.0, b = 1.0, fa = f0, fb = f1, side = 0.0, u = 0.0;
-  for (int i = 0; i < ${meta.iterations}; ++i) {
+  for (int i = 0; i < ITERATIONS; ++i) {
     u = fa == fb ? a : (a * fb - b * fa) / (fb - fa);
-    float fu = wallCond(u);
+    float fu = dot(hAt(vec3(pointAt(u), 0.0) + mix(w0, w1, u)).xy, tangentAt(u));
     if (fa * fu > 0.0) {
       a = u; fa = fu;
       if (side > 0.0) fb *= 0.5;  // Illinois: keep the stale end moving
@@ -193,23 +238,64 @@ void main() {
     }
   }
   u = clamp(u, 0.0, 1.0);
-  vec3 g = wallPoint(arcAt(u));
+  vec3 g = vec3(pointAt(u), 0.0) + mix(w0, w1, u);
   if (tiltOk(hAt(g))) emit(g);
+}
+
+void main() {
+  gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // off-screen unless a glint is emitted
+  gl_PointSize = 1.0;
+#if NARROW
+  P0 = u_grid.xy + vec2(a_ends.xy) * u_grid.z;
+  P1 = u_grid.xy + vec2(a_ends.zw) * u_grid.z;
+  int q0 = int(a_tan.x), q1 = int(a_tan.y);
+  int dq = ((q1 - q0 + 32768) & 65535) - 32768;
+  // The end directions as the joined arcs compute them (from q0 and q1 alone);
+  // q0 + dq is q1 or q1 +- pi, and the stored angles are mod pi: the chord
+  // says which way the arc runs.
+  T0 = dir(float(q0) * STEP);
+  T1 = (q0 + dq == q1 ? 1.0 : -1.0) * dir(float(q1) * STEP);
+  vec2 c = P1 - P0;
+  float sgn = dot(c, T0 + T1) >= 0.0 ? 1.0 : -1.0;
+  T0 *= sgn;
+  T1 *= sgn;
+  BOW = (-0.5 * float(dq) * STEP) * vec2(-c.y, c.x);
+  solveArc();
+#else
+  if (u_mode == 2) {
+    vec3 g = wallPoint(a_p);
+    if (tiltOk(hAt(g))) emit(g);
+    return;
+  }
+  P0 = a_p;
+  A0 = a_arc.x; LEN = a_arc.y; SW = a_arc.z;
+  P1 = pointAt(1.0);
+  T0 = dir(A0);
+  T1 = dir(A0 + SW);
+  if (u_mode == 0) { solveArc(); return; }
+  // Corner after this arc: the ball sweeps every direction between the two tangents.
+  if (a_arc.w >= u_noCorner) return;
+  vec2 tn = dir(A0 + SW + a_arc.w);
+  vec3 h0 = hAt(vec3(P1, 0.0));
+  float e0 = dot(h0.xy, T1);
+  if (e0 * dot(h0.xy, tn) > 0.0 && abs(e0) >= 0.01 * length(h0)) return;  // cheap screen
+  vec3 g = wallFrom(P1, h0);
+  vec3 h = hAt(g);
+  if (dot(h.xy, T1) * dot(h.xy, tn) < 0.0 && tiltOk(h)) emit(g);
+#endif
 }`;
 
-  const GLINT_FS = `#version 300 es
+  // Only emitted glints reach the rasterizer (the others are clipped away): a
+  // Gaussian spot each.
+  const SPRITE_FS = `#version 300 es
 precision highp float;
-in float v_on;
 uniform float u_size;
-uniform float u_sigma;
+uniform float u_gauss;                 // -1 / (2 sigma^2 ln 2), per pixel^2
 out vec4 color;
 void main() {
-  if (v_on < 0.5) discard;
   vec2 d = (gl_PointCoord - 0.5) * u_size;
-  float w = exp(-dot(d, d) / (2.0 * u_sigma * u_sigma));
-  color = vec4(w * vec3(1.0, 0.96, 0.88), 1.0);
+  color = vec4(exp2(dot(d, d) * u_gauss) * vec3(${GLINT_COLOR.join(", ")}), 1.0);
 }`;
-
   const PLATE_VS = `#version 300 es
 precision highp float;
 layout(location = 0) in vec2 a_p;
@@ -248,15 +334,51 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
     return { prog, loc };
   }
 
-  let glint, plate, arcVao, cornerVao, dotVao, plateVao;
-  const arcCount = meta.counts.arcs, dotCount = meta.counts.dots;
-  const cornerCount = meta.counts.corners;
+  const counts = meta.counts;
+  let floatProg, narrowProg, plate, narrowVao, wideVao, cornerVao, dotVao, plateVao;
+  let indexBuffer, indexCapacity = 0, indices = new Uint32Array(1 << 16);
+  let rows, cellStart, cells, buckets;
+  const BUCKET_SHIFT = 10, BUCKETS = STEPS >> BUCKET_SHIFT;
+  // Unit vectors of the angle steps (tangent directions mod pi).
+  const COS = new Float64Array(STEPS), SIN = new Float64Array(STEPS);
+  for (let q = 0; q < STEPS; q++) { COS[q] = Math.cos(q * STEP); SIN[q] = Math.sin(q * STEP); }
   try {
-    glint = program(GLINT_VS, GLINT_FS);
+    floatProg = program(glintVS(false, meta.wideIterations), SPRITE_FS);
+    narrowProg = program(glintVS(true, meta.iterations), SPRITE_FS);
     plate = program(PLATE_VS, PLATE_FS);
-    const arcs = decode("arcs");
-    const dots = decode("dots");
-    const arcVaoOf = (data) => {
+  } catch (err) {
+    fail("Could not set up WebGL2: " + err.message);
+    console.error(err);
+    return;
+  }
+
+  function upload(blocks) {
+    rows = narrowRows(blocks, counts.narrow);
+    cellStart = new Uint32Array(blocks.cellStart.buffer, 0, blocks.cellStart.byteLength / 4);
+    // buckets[c * (BUCKETS + 1) + b]: first row of cell c with q0 >= b << BUCKET_SHIFT.
+    const nc = cellStart.length - 1;
+    buckets = new Uint32Array(nc * (BUCKETS + 1));
+    for (let c = 0; c < nc; c++) {
+      let i = cellStart[c];
+      const i1 = cellStart[c + 1];
+      for (let b = 0; b <= BUCKETS; b++) {
+        const v = b << BUCKET_SHIFT;
+        while (i < i1 && rows[6 * i + 4] < v) i++;
+        buckets[c * (BUCKETS + 1) + b] = i;
+      }
+    }
+    cells = floats(blocks.cells);
+    narrowVao = gl.createVertexArray();
+    gl.bindVertexArray(narrowVao);
+    gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
+    gl.bufferData(gl.ARRAY_BUFFER, rows, gl.STATIC_DRAW);
+    gl.enableVertexAttribArray(2);
+    gl.vertexAttribIPointer(2, 4, gl.UNSIGNED_SHORT, 12, 0);
+    gl.enableVertexAttribArray(3);
+    gl.vertexAttribIPointer(3, 2, gl.UNSIGNED_SHORT, 12, 8);
+    indexBuffer = gl.createBuffer();
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
+    const floatVao = (data) => {
       const vao = gl.createVertexArray();
       gl.bindVertexArray(vao);
       gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
@@ -267,12 +389,12 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
       gl.vertexAttribPointer(1, 4, gl.FLOAT, false, 24, 8);
       return vao;
     };
-    arcVao = arcVaoOf(arcs);
-    cornerVao = arcVaoOf(decode("corners"));
+    wideVao = floatVao(floats(blocks.wide));
+    cornerVao = floatVao(floats(blocks.corners));
     dotVao = gl.createVertexArray();
     gl.bindVertexArray(dotVao);
     gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
-    gl.bufferData(gl.ARRAY_BUFFER, dots, gl.STATIC_DRAW);
+    gl.bufferData(gl.ARRAY_BUFFER, floats(blocks.dots), gl.STATIC_DRAW);
     gl.enableVertexAttribArray(0);
     gl.vertexAttribPointer(0, 2, gl.FLOAT, false, 8, 0);
     gl.vertexAttrib4f(1, 0, 0, 0, meta.noCorner);
@@ -285,10 +407,6 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
     gl.enableVertexAttribArray(0);
     gl.vertexAttribPointer(0, 2, gl.FLOAT, false, 8, 0);
     gl.bindVertexArray(null);
-  } catch (err) {
-    fail("Could not set up WebGL2: " + err.message);
-    console.error(err);
-    return;
   }
 
   // The camera of preview.render.Camera: on a sphere about (0, eyeHeight, 0),
@@ -310,6 +428,153 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
     return { eye, right, up, fwd, proj };
   }
 
+  // The narrow arcs that may glint. A glint of an arc sits on the groove wall within
+  // WALL of its toolpath point (|(0, 0, R - d) - R h/|h|| for any h above the plate),
+  // so within rho = (the cell's reach) + WALL of its cell's centre c. Both unit vectors
+  // of h = l + e move by at most rho / (distance - rho) between c and there: h at the
+  // glint is within `margin` of h at c, and h_xy turns by at most asin(margin / |h_xy|).
+  // Window: rows are sorted by start angle q0 within each cell and an arc's tangents
+  // span [q0, q0 + its sweep], so the arcs with a tangent that close to perpendicular
+  // to h_xy at c have q0 in a window reaching back by the cell's largest sweep.
+  // Screens, in turn (the shader finds a glint only where h . t on the wall changes
+  // sign between the arc's ends, or is 0 at its start):
+  // - h at c: |h . t| is least at an end of the arc's tangents unless it changes sign
+  //   between them; one sign and more than `margin` at both ends, and no h near
+  //   enough is perpendicular to any of them.
+  // - h . t at the ends, as the shader has it, to first order about c: the shader's
+  //   wall point moved by the wall offset at c instead, and h linear in the point
+  //   (each unit vector u = (p - x) / |p - x| by its gradient -(I - u u^T) / |p - x|).
+  //   Second order: |D^2 u| <= 6 / r^2 bounds the rest by 3 rho^2 / (r - rho)^2; the
+  //   wall point moves by at most R * 2 margin / (2 |h| - margin), which moves h by
+  //   that over (r - rho). One sign and more than those at both ends: no glint.
+  // A cell whose h at c tilts from the plate normal by more than the wall allows plus
+  // asin(margin / |h|) has no glint at all.
+  const R = meta.tool.radius, CZ = meta.tool.radius - meta.tool.depth;
+  const WALL = Math.hypot(R, CZ), TILT = meta.tool.maxTilt;
+  const pointLight = !!meta.light.distance;
+
+  // The cell's constants for screen(): its centre c (cx, cy), h there (hx, hy, hz),
+  // the unit vectors toward the eye (ex, ey, ez) and the light (lx, ly, lz) and one
+  // over their distances (ie, il; il = 0 for a sun), the wall offset at c (wx, wy, wz),
+  // and the bounds on h . t's moves (margin, lin).
+  const cellK = {
+    cx: 0, cy: 0, hx: 0, hy: 0, hz: 0, ex: 0, ey: 0, ez: 0, ie: 0, lx: 0, ly: 0, lz: 0,
+    il: 0, wx: 0, wy: 0, wz: 0, margin: 0, lin: 0,
+  };
+
+  // Screen rows [i0, i1), appending the kept ones to indices from n; returns the new n.
+  function screen(i0, i1, n, k) {
+    const { scale: sc, origin: [ox, oy] } = meta.grid;
+    const { hx, hy, ex, ey, ez, ie, lx, ly, lz, il, margin, lin } = k;
+    // The wall points as offsets d from c: the table's coordinates plus these.
+    const bx = ox - k.cx + k.wx, by = oy - k.cy + k.wy, dz = k.wz;
+    for (let i = i0, j = 6 * i0; i < i1; i++, j += 6) {
+      const q0 = rows[j + 4], q1 = rows[j + 5];
+      // q0 + sweep past pi: the end tangent is -dir(q1). A sign common to both
+      // ends changes no test below.
+      const flip = q0 + (((q1 - q0 + 32768) & 65535) - 32768) === q1 ? 1 : -1;
+      const t0x = COS[q0], t0y = SIN[q0], t1x = flip * COS[q1], t1y = flip * SIN[q1];
+      const c0 = hx * t0x + hy * t0y, c1 = hx * t1x + hy * t1y;
+      if (c0 * c1 > 0 && Math.min(Math.abs(c0), Math.abs(c1)) > margin) continue;
+      const d0x = bx + rows[j] * sc, d0y = by + rows[j + 1] * sc;
+      const d1x = bx + rows[j + 2] * sc, d1y = by + rows[j + 3] * sc;
+      // h . t - ((d . t) - (u . d)(u . t)) / r for each unit vector u.
+      let f0 = c0 - (d0x * t0x + d0y * t0y - (ex * d0x + ey * d0y + ez * dz)
+                     * (ex * t0x + ey * t0y)) * ie;
+      let f1 = c1 - (d1x * t1x + d1y * t1y - (ex * d1x + ey * d1y + ez * dz)
+                     * (ex * t1x + ey * t1y)) * ie;
+      if (il) {
+        f0 -= (d0x * t0x + d0y * t0y - (lx * d0x + ly * d0y + lz * dz) * (lx * t0x + ly * t0y)) * il;
+        f1 -= (d1x * t1x + d1y * t1y - (lx * d1x + ly * d1y + lz * dz) * (lx * t1x + ly * t1y)) * il;
+      }
+      if (f0 * f1 > 0 && Math.min(Math.abs(f0), Math.abs(f1)) > lin) continue;
+      indices[n++] = i;
+    }
+    return n;
+  }
+
+  // First row of cell c with q0 >= v (v in [0, STEPS]): the bucket table narrows the
+  // search to the rows of one bucket of angles.
+  function lowerBound(c, v) {
+    if (v >= STEPS) return cellStart[c + 1];
+    const k = c * (BUCKETS + 1) + (v >> BUCKET_SHIFT);
+    let lo = buckets[k], hi = buckets[k + 1];
+    while (lo < hi) {
+      const m = (lo + hi) >>> 1;
+      if (rows[6 * m + 4] < v) lo = m + 1; else hi = m;
+    }
+    return lo;
+  }
+
+  function cull(eye, light) {
+    const { nx, ny, cell: size } = meta.grid;
+    const [ox, oy] = meta.grid.origin;
+    const k = cellK;
+    let n = 0;
+    const take = (i0, i1) => {
+      if (n + i1 - i0 > indices.length) {
+        const grown = new Uint32Array(Math.max(2 * indices.length, n + i1 - i0));
+        grown.set(indices.subarray(0, n));
+        indices = grown;
+      }
+      n = screen(i0, i1, n, k);
+    };
+    const takeKeys = (c, a, b) => take(lowerBound(c, a), lowerBound(c, b + 1));
+    for (let iy = 0; iy < ny; iy++) {
+      const y = oy + (iy + 0.5) * size;
+      for (let ix = 0; ix < nx; ix++) {
+        const c = iy * nx + ix;
+        const i0 = cellStart[c], i1 = cellStart[c + 1];
+        if (i0 === i1) continue;
+        const x = ox + (ix + 0.5) * size;
+        k.cx = x; k.cy = y;
+        const rho = cells[2 * c] + WALL, sweep = cells[2 * c + 1];
+        let ax = eye[0] - x, ay = eye[1] - y, az = eye[2];
+        const de = Math.sqrt(ax * ax + ay * ay + az * az);
+        k.ex = ax / de; k.ey = ay / de; k.ez = az / de; k.ie = 1 / de;
+        let margin = rho / (de - rho), lin = 3 * rho * rho / ((de - rho) * (de - rho));
+        let lip = 1 / (de - rho);  // how much h moves per mm the wall point moves
+        let near = de <= rho;
+        if (pointLight) {
+          ax = light[0] - x; ay = light[1] - y; az = light[2];
+          const dl = Math.sqrt(ax * ax + ay * ay + az * az);
+          k.lx = ax / dl; k.ly = ay / dl; k.lz = az / dl; k.il = 1 / dl;
+          margin += rho / (dl - rho);
+          lin += 3 * rho * rho / ((dl - rho) * (dl - rho));
+          lip += 1 / (dl - rho);
+          near = near || dl <= rho;
+        } else {
+          k.lx = light[0]; k.ly = light[1]; k.lz = light[2]; k.il = 0;
+        }
+        k.hx = k.ex + k.lx; k.hy = k.ey + k.ly; k.hz = k.ez + k.lz;
+        const h = Math.sqrt(k.hx * k.hx + k.hy * k.hy + k.hz * k.hz);
+        k.wx = -R * k.hx / h; k.wy = -R * k.hy / h; k.wz = CZ - R * k.hz / h;
+        lin += R * 2 * margin / (2 * h - margin) * lip + SLACK;
+        k.margin = margin + SLACK;
+        k.lin = near || !(margin < h) ? Infinity : lin;
+        if (near) { k.margin = Infinity; take(i0, i1); continue; }
+        // The shader keeps glints whose h tilts by at most maxTilt from the normal.
+        if (margin < h && Math.acos(k.hz / h) > TILT + Math.asin(margin / h) + SLACK) continue;
+        const hxy = Math.sqrt(k.hx * k.hx + k.hy * k.hy);
+        if (!(margin < hxy)) { take(i0, i1); continue; }
+        const delta = Math.asin(margin / hxy) + SLACK;
+        const want = Math.atan2(k.hy, k.hx) + 0.5 * Math.PI;  // t perpendicular to h_xy
+        const lo = want - delta - sweep, hi = want + delta;
+        if (hi - lo >= Math.PI) { take(i0, i1); continue; }
+        let qlo = Math.floor(lo / STEP), qhi = Math.ceil(hi / STEP);
+        const wrap = Math.floor(qlo / STEPS) * STEPS;  // angles are mod pi
+        qlo -= wrap; qhi -= wrap;
+        if (qhi < STEPS) {
+          takeKeys(c, qlo, qhi);
+        } else {
+          takeKeys(c, qlo, STEPS - 1);
+          takeKeys(c, 0, qhi - STEPS);
+        }
+      }
+    }
+    return n;
+  }
+
   function setCamera(loc, cam) {
     gl.uniform3fv(loc.u_eye, cam.eye);
     gl.uniform3fv(loc.u_right, cam.right);
@@ -318,45 +583,84 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
     gl.uniform2fv(loc.u_proj, cam.proj);
   }
 
-  function draw() {
-    const cam = camera();
-    gl.viewport(0, 0, canvas.width, canvas.height);
+  function setGlint(p, cam, light) {
+    const L = p.loc;
+    gl.useProgram(p.prog);
+    setCamera(L, cam);
+    gl.uniform3fv(L.u_light, light);
+    gl.uniform1f(L.u_R, meta.tool.radius);
+    gl.uniform1f(L.u_cz, meta.tool.radius - meta.tool.depth);
+    gl.uniform1f(L.u_cosTilt, Math.cos(meta.tool.maxTilt));
+    // A Gaussian spot of SIGMA CSS px, cut where it falls below ~4% of its peak.
+    const sigma = SIGMA * dpr();
+    gl.uniform1f(L.u_size, 2 * Math.ceil(2 * dpr()) + 1);
+    gl.uniform1f(L.u_gauss, -1 / (2 * sigma * sigma * Math.LN2));
+    if (L.u_noCorner) gl.uniform1f(L.u_noCorner, meta.noCorner);
+    if (L.u_grid) {
+      gl.uniform3f(L.u_grid, meta.grid.origin[0], meta.grid.origin[1], meta.grid.scale);
+    }
+  }
+
+  function drawPlate(cam) {
     gl.clearColor(0.02, 0.022, 0.027, 1);
     gl.clear(gl.COLOR_BUFFER_BIT);
-    gl.disable(gl.DEPTH_TEST);
-    gl.disable(gl.BLEND);
     gl.useProgram(plate.prog);
     setCamera(plate.loc, cam);
     gl.bindVertexArray(plateVao);
     gl.drawArrays(gl.TRIANGLE_FAN, 0, 4);
+    gl.bindVertexArray(null);
+  }
 
-    const L = glint.loc;
-    gl.useProgram(glint.prog);
-    setCamera(L, cam);
-    const a = state.light * DEG;
-    const dir = [0, Math.cos(a), Math.sin(a)];
-    const dist = meta.light.distance;
-    gl.uniform3fv(L.u_light, dist ? dir.map((v) => v * dist) : dir);
-    gl.uniform1i(L.u_pointLight, dist ? 1 : 0);
-    gl.uniform1f(L.u_R, meta.tool.radius);
-    gl.uniform1f(L.u_cz, meta.tool.radius - meta.tool.depth);
-    gl.uniform1f(L.u_cosTilt, Math.cos(meta.tool.maxTilt));
-    gl.uniform1f(L.u_noCorner, meta.noCorner);
-    const dpr = window.devicePixelRatio || 1;
-    gl.uniform1f(L.u_size, 2 * Math.ceil(2.5 * dpr) + 1);
-    gl.uniform1f(L.u_sigma, 1.1 * dpr);
-    gl.enable(gl.BLEND);
-    gl.blendFunc(gl.ONE, gl.ONE);  // overlapping glints add up, like light
-    gl.bindVertexArray(arcVao);
+  function drawGlints(cam, light) {
+    let drawn = counts.wide;
+    setGlint(narrowProg, cam, light);
+    gl.bindVertexArray(narrowVao);
+    if (!culling) {
+      if (counts.narrow) gl.drawArrays(gl.POINTS, 0, counts.narrow);
+      drawn += counts.narrow;
+    } else {
+      const t0 = performance.now();
+      const n = cull(cam.eye, light);
+      state.lastCullMs = performance.now() - t0;
+      if (n > indexCapacity) {
+        indexCapacity = indices.length;
+        gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, indexCapacity * 4, gl.DYNAMIC_DRAW);
+      }
+      if (n) {
+        gl.bufferSubData(gl.ELEMENT_ARRAY_BUFFER, 0, indices, 0, n);
+        gl.drawElements(gl.POINTS, n, gl.UNSIGNED_INT, 0);
+      }
+      drawn += n;
+    }
+    state.lastDrawn = drawn;
+
+    const L = floatProg.loc;
+    setGlint(floatProg, cam, light);
+    gl.bindVertexArray(wideVao);
     gl.uniform1i(L.u_mode, 0);
-    if (arcCount) gl.drawArrays(gl.POINTS, 0, arcCount);
+    if (counts.wide) gl.drawArrays(gl.POINTS, 0, counts.wide);
     gl.bindVertexArray(cornerVao);
     gl.uniform1i(L.u_mode, 1);
-    if (cornerCount) gl.drawArrays(gl.POINTS, 0, cornerCount);
+    if (counts.corners) gl.drawArrays(gl.POINTS, 0, counts.corners);
     gl.bindVertexArray(dotVao);
     gl.uniform1i(L.u_mode, 2);
-    if (dotCount) gl.drawArrays(gl.POINTS, 0, dotCount);
+    if (counts.dots) gl.drawArrays(gl.POINTS, 0, counts.dots);
     gl.bindVertexArray(null);
+  }
+
+  function draw() {
+    const cam = camera();
+    const a = state.light * DEG;
+    const dist = meta.light.distance;
+    const dir = [0, Math.cos(a), Math.sin(a)];
+    const light = dist ? dir.map((v) => v * dist) : dir;
+    gl.viewport(0, 0, canvas.width, canvas.height);
+    gl.disable(gl.DEPTH_TEST);
+    gl.disable(gl.BLEND);
+    drawPlate(cam);
+    gl.enable(gl.BLEND);
+    gl.blendFunc(gl.ONE, gl.ONE);  // overlapping glints add up, like light
+    drawGlints(cam, light);
 
     const sign = (v) => (v >= 0 ? "+" : "\u2212") + Math.abs(v).toFixed(1) + "\u00b0";
     anglesEl.textContent = `azimuth ${sign(state.azimuth)}   elevation ${sign(state.elevation)}`
@@ -365,8 +669,9 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
 
   function frame(now) {
     if (state.spin) {
-      // Keep the view changing so every frame recomputes every glint.
-      const t = now / 1000;
+      // Keep the view changing so every frame recomputes every glint; the views
+      // follow the frame count (as if at 30 frames/s) so every run sees the same ones.
+      const t = state.spinFrame++ / 30;
       setView(meta.viewRange * Math.sin(0.7 * t), 5 * Math.sin(0.31 * t));
     }
     if (state.dirty) {
@@ -376,6 +681,8 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
       if (state.sync) gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));
       if (state.spin) {
         state.drawMs.push(performance.now() - t0);
+        state.drawn.push(state.lastDrawn);
+        state.cullMs.push(state.lastCullMs);
         if (state.last !== null) state.frames.push(now - state.last);
         state.last = now;
       }
@@ -415,8 +722,14 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
   resize();
   setView(+params.get("az") || 0, +params.get("el") || 0);
   if (params.has("light")) setLight(+params.get("light"));
-  draw();
-  state.dirty = false;
-  hook.ready = true;
-  window.requestAnimationFrame(frame);
+  loadBlocks().then((blocks) => {
+    upload(blocks);
+    draw();
+    state.dirty = false;
+    hook.ready = true;
+    window.requestAnimationFrame(frame);
+  }).catch((err) => {
+    fail("Could not load the page's data: " + err.message);
+    console.error(err);
+  });
 })();

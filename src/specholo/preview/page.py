@@ -7,19 +7,27 @@ own parameter and emits a point sprite where the glint projects, exactly as
 :class:`~specholo.preview.render.Camera` would project it. Dragging moves the
 viewpoint (shift+drag moves the light's elevation).
 
-Arcs are shipped in the plate frame, whose origin is the plate centre, so the
-coordinates are small and float32 keeps them to about 10 nm. Each arc is stored
-by its start point, start tangent angle, length and signed sweep, which covers
-straight segments (sweep 0) without a huge radius or a far-away centre.
+Most arcs turn by a few milliradians. These *narrow* arcs are shipped
+quantized, 12 bytes each (see :class:`PageArcs`), sorted by plate cell and
+tangent angle. Every frame the page's script keeps, per cell, the arcs whose
+tangents come near the one a glint there needs (a margin bounds how far that
+direction moves within the cell), screens them on h . t at their ends, and
+draws the rest - about one arc per glint - with one indexed draw. The few wide
+arcs, the arcs at corners, the corners and the dimples are shipped in float32
+in the plate frame and always drawn. The arrays are gzipped and base64 encoded
+into the page, which inflates them before its first frame.
 """
 
 from __future__ import annotations
 
 import base64
+import gzip
 import html
 import json
 import math
 import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,28 +36,165 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.setup import Setup
-from specholo.toolpaths.grooves import Grooves
+from specholo.toolpaths.grooves import Grooves, Segments
 
-#: Turn value marking the last arc of a path (no corner after it); any |turn| <= pi is real.
+#: Turn value marking an arc with no corner after it; any |turn| <= pi is real.
 NO_CORNER = 100.0
 #: Drag sensitivity, degrees per CSS pixel.
 DEGREES_PER_PIXEL = 0.2
 #: Largest |azimuth| and |elevation| the page lets the eye reach, degrees.
 AZIMUTH_LIMIT = 80.0
 ELEVATION_LIMIT = 60.0
-#: Corners turning less than this (radians) are tangent-continuous joins: float32
-#: cannot tell h . t apart on their two sides, so they are not shipped as corners.
-MIN_TURN = 1e-7
-#: Regula falsi steps per bracketed arc (as in find_glints).
-ITERATIONS = 12
+#: Junctions turning less than this (radians) are smooth: both arcs get the same
+#: quantized tangent there. Above it they are corners, shipped with their arcs in float32.
+JOIN_TURN = 1e-5
+#: Half-turn (radians) above which an arc is always drawn, as ArcIndex.WIDE.
+WIDE = 0.01
+#: Tangent angles mod pi are stored in steps of pi / ANGLE_STEPS (uint16).
+ANGLE_STEPS = 65536
+ANGLE_STEP = math.pi / ANGLE_STEPS
+#: Side of the square plate cells the page culls narrow arcs by, mm.
+CELL = 1.0
+#: Regula falsi steps per bracketed narrow arc: h . t is nearly linear along a
+#: narrow arc, so one secant step lands within ~0.01 um and two within 1 nm.
+ITERATIONS = 2
+#: Regula falsi steps for the wide arcs and the arcs at corners (as in find_glints).
+WIDE_ITERATIONS = 12
 #: Width and height the default field of view is fitted for (any canvas keeps that fov).
 FRAME_SIZE = (800, 600)
+#: Extra reach (mm) per cell, for float32 rounding in the page.
+REACH_SLACK = 1e-3
+#: gzip level of the embedded arrays (higher levels gain ~3% for twice the time).
+GZIP_LEVEL = 4
 
 _JS_PATH = Path(__file__).with_name("page.js")
 
 
+def _wrap_half(a: np.ndarray) -> np.ndarray:
+    """Angles folded to [-pi/2, pi/2)."""
+    return (a + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+
+
+def _wrap_turn(a: np.ndarray) -> np.ndarray:
+    """Angles folded to [-pi, pi)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def quantize_angle(a: np.ndarray) -> np.ndarray:
+    """Directions mod pi as whole angle steps.
+
+    Args:
+        a: (k,) angles in radians, any branch.
+
+    Returns:
+        (k,) int32 nearest multiples of :data:`ANGLE_STEP` to a mod pi, in
+        [0, ANGLE_STEPS).
+    """
+    q = np.mod(a, math.pi)
+    q *= 1.0 / ANGLE_STEP
+    np.rint(q, out=q)
+    out = q.astype(np.int32)
+    out[out >= ANGLE_STEPS] -= ANGLE_STEPS
+    return out
+
+
+#: Arcs processed at once while building the page (bounds the temporaries).
+_CHUNK = 1 << 20
+
+
+@dataclass(frozen=True)
+class _Columns:
+    """Geometry of consecutive arcs as (k,) float64 columns, tangents snapped
+    at smooth junctions.
+
+    Attributes:
+        xs, ys, xe, ye: start and end points, mm.
+        theta: start tangent angle (of the arc's own direction), radians.
+        arc_len: arc length, mm.
+        sweep: signed turn from the start to the end tangent (snapped), radians.
+        raw_sweep: the arc's own signed sweep, radians.
+        turn: turn to the next arc's start at a corner, else NO_CORNER.
+        q_start, q_end: int32 quantized tangent angles mod pi at the ends
+            (:func:`quantize_angle`), equal on both sides of a smooth junction.
+        at_corner: True where a corner precedes or follows the arc.
+    """
+
+    xs: np.ndarray
+    ys: np.ndarray
+    xe: np.ndarray
+    ye: np.ndarray
+    theta: np.ndarray
+    arc_len: np.ndarray
+    sweep: np.ndarray
+    raw_sweep: np.ndarray
+    turn: np.ndarray
+    q_start: np.ndarray
+    q_end: np.ndarray
+    at_corner: np.ndarray
+
+    @classmethod
+    def of(cls, xs: np.ndarray, ys: np.ndarray, xe: np.ndarray, ye: np.ndarray,
+           bulge: np.ndarray, same: np.ndarray) -> _Columns:
+        """Columns of k consecutive arcs.
+
+        Args:
+            xs, ys, xe, ye: (k,) start and end points, mm.
+            bulge: (k,) bulges.
+            same: (k - 1,) True where arc i + 1 continues arc i's path.
+        """
+        k = len(xs)
+        cx, cy = xe - xs, ye - ys
+        sweep = 4.0 * np.arctan(bulge)
+        half = 0.5 * sweep
+        # Arc length from the chord: sin(x)/x by its series where small (exact
+        # to 1e-15 there), else directly.
+        h2 = half * half
+        sinc = 1.0 - h2 / 6.0 * (1.0 - h2 / 20.0)
+        big = np.flatnonzero(np.abs(half) > 0.01)
+        sinc[big] = np.sin(half[big]) / half[big]
+        arc_len = np.sqrt(cx * cx + cy * cy) / sinc
+        theta0 = np.arctan2(cy, cx) - half
+        theta1 = theta0 + sweep
+        smooth = np.zeros(k, dtype=bool)
+        corner = np.zeros(k, dtype=bool)
+        turn = np.full(k, NO_CORNER)
+        if k > 1:
+            d = _wrap_turn(theta0[1:] - theta1[:-1])
+            smooth[:-1] = same & (np.abs(d) <= JOIN_TURN)
+            corner[:-1] = same & ~smooth[:-1]
+            turn[:-1][corner[:-1]] = d[corner[:-1]]
+        q_start = quantize_angle(theta0)
+        q_end = quantize_angle(theta1)
+        q_end[:-1][smooth[:-1]] = q_start[1:][smooth[:-1]]
+        # The float rows take the shared quantized tangent at smooth junctions
+        # too, so they meet their narrow neighbours' tangents (to float32 rounding).
+        i = np.flatnonzero(smooth)
+        theta1[i] += _wrap_half(q_end[i] * ANGLE_STEP - theta1[i])
+        theta0[i + 1] += _wrap_half(q_start[i + 1] * ANGLE_STEP - theta0[i + 1])
+        at_corner = corner.copy()
+        at_corner[1:] |= corner[:-1]
+        return cls(xs, ys, xe, ye, theta0, arc_len, theta1 - theta0, sweep, turn,
+                   q_start, q_end, at_corner)
+
+    @classmethod
+    def of_segments(cls, seg: Segments) -> _Columns:
+        """Columns of all arcs of :meth:`Grooves.segments`."""
+        f = np.ascontiguousarray
+        return cls.of(f(seg.start[:, 0], dtype=float), f(seg.start[:, 1], dtype=float),
+                      f(seg.end[:, 0], dtype=float), f(seg.end[:, 1], dtype=float),
+                      f(seg.bulge, dtype=float), seg.path[1:] == seg.path[:-1])
+
+    def rows(self, idx: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """float32 rows (m, 6) as :func:`arc_table` of arcs idx."""
+        cols = (self.xs, self.ys, self.theta, self.arc_len, self.sweep, self.turn)
+        out = np.empty((len(self.xs[idx]), 6), dtype=np.float32)
+        for j, c in enumerate(cols):
+            out[:, j] = c[idx]
+        return out
+
+
 def arc_table(grooves: Grooves) -> tuple[np.ndarray, np.ndarray]:
-    """The grooves as the page's vertex data.
+    """The grooves as the page's float32 vertex data (used for the always-drawn arcs).
 
     Args:
         grooves: the grooves.
@@ -57,27 +202,229 @@ def arc_table(grooves: Grooves) -> tuple[np.ndarray, np.ndarray]:
     Returns:
         arcs (k, 6) float32 rows (start x, start y, start tangent angle, length,
         signed sweep, turn to the next arc's start tangent or :data:`NO_CORNER`),
-        and dimples (q, 2) float32 positions, all in mm and radians.
+        and dimples (q, 2) float32 positions, all in mm and radians. At smooth
+        junctions (turn <= :data:`JOIN_TURN`) both arcs take the quantized
+        tangent of :class:`PageArcs`.
     """
-    seg = grooves.segments()
-    chord = seg.end - seg.start
-    length = np.linalg.norm(chord, axis=1)
-    sweep = 4.0 * np.arctan(seg.bulge)
-    half = 0.5 * sweep
-    # Arc length from the chord; sin(x)/x -> 1 for straight segments.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sinc = np.where(np.abs(half) > 1e-8, np.sin(half) / half, 1.0)
-    arc_len = length / sinc
-    theta0 = np.arctan2(chord[:, 1], chord[:, 0]) - half
-    turn = np.full(len(seg), NO_CORNER)
-    if len(seg) > 1:
-        same = seg.path[1:] == seg.path[:-1]
-        d = theta0[1:] - (theta0[:-1] + sweep[:-1])
-        d = (d + math.pi) % (2.0 * math.pi) - math.pi
-        turn[:-1] = np.where(same, d, NO_CORNER)
-    arcs = np.stack([seg.start[:, 0], seg.start[:, 1], theta0, arc_len, sweep, turn], axis=1)
     dots, _ = grooves.dots()
-    return arcs.astype(np.float32), np.asarray(dots, dtype=np.float32).reshape(-1, 2)
+    return (_Columns.of_segments(grooves.segments()).rows(),
+            np.asarray(dots, dtype=np.float32).reshape(-1, 2))
+
+
+@dataclass(frozen=True)
+class PageArcs:
+    """The grooves as the page draws them.
+
+    Narrow arcs (half-turn <= :data:`WIDE`, not at a corner) are quantized rows
+    ``x0, y0, x1, y1, q0, q1`` (uint16): the end points in units of ``scale``
+    from ``origin``, and the tangent angles mod pi there in steps of
+    :data:`ANGLE_STEP`. Each is oriented so its tangent turns counter-clockwise,
+    by ``(q1 - q0) mod 2**16`` steps; the chord tells which of the two directions
+    a tangent angle mod pi is. Arcs that share a junction store the same point
+    and the same tangent step there, so the page evaluates the same glint
+    condition on both sides of it. The rows are sorted by plate cell (squares of
+    side :data:`CELL`, by chord midpoint), then by q0.
+
+    Attributes:
+        table: (k, 6) uint16 narrow arcs.
+        arc: (k,) index of each row in ``grooves.segments()``.
+        origin: (2,) plate point of table coordinates (0, 0), mm.
+        scale: mm per coordinate unit.
+        shape: (nx, ny) cells; cell ``iy * nx + ix`` has its lower-left corner
+            at ``origin + CELL * (ix, iy)``.
+        cell_start: (nx * ny + 1,) first row of each cell.
+        cell_reach: (nx * ny,) how far (mm) from its cell's centre the points
+            of the cell's arcs lie.
+        cell_sweep: (nx * ny,) largest tangent turn of the cell's arcs, radians.
+        wide: (w, 6) float32 rows (as :func:`arc_table`) of the arcs always drawn.
+        wide_arc: (w,) their indices in ``grooves.segments()``.
+        corners: (c, 6) float32 rows of the arcs a corner follows.
+        dots: (q, 2) float32 dimples, mm.
+    """
+
+    table: np.ndarray
+    arc: np.ndarray
+    origin: np.ndarray
+    scale: float
+    shape: tuple[int, int]
+    cell_start: np.ndarray
+    cell_reach: np.ndarray
+    cell_sweep: np.ndarray
+    wide: np.ndarray
+    wide_arc: np.ndarray
+    corners: np.ndarray
+    dots: np.ndarray
+
+    @classmethod
+    def build(cls, grooves: Grooves) -> PageArcs:
+        """Split, quantize and sort the arcs of grooves.
+
+        Args:
+            grooves: the grooves; arcs are numbered as in ``grooves.segments()``.
+
+        Returns:
+            The page's arcs.
+        """
+        v = np.asarray(grooves.vertices, dtype=float)
+        vx, vy = np.ascontiguousarray(v[:, 0]), np.ascontiguousarray(v[:, 1])
+        bulges = np.asarray(grooves.bulges, dtype=float)
+        # Arc i runs from vertex first[i] to the next one, as in Grooves.segments.
+        last = np.zeros(len(v), dtype=bool)
+        last[grooves.offsets[1:] - 1] = True
+        first = np.flatnonzero(~last)
+        k = len(first)
+        if k:
+            used = np.zeros(len(v), dtype=bool)
+            used[first] = True
+            used[first + 1] = True
+            origin = np.array([vx[used].min(), vy[used].min()])
+            extent = max(vx[used].max() - origin[0], vy[used].max() - origin[1])
+        else:
+            origin, extent = np.zeros(2), 0.0
+        scale = max(float(extent), 1e-6) / 65535.0
+        parts = []
+        for i in range(0, k, _CHUNK):
+            j = min(i + _CHUNK, k)
+            # One arc more on each side, for the junctions at the chunk's ends.
+            a, b = max(i - 1, 0), min(j + 1, k)
+            f = first[a:b]
+            c = _Columns.of(vx[f], vy[f], vx[f + 1], vy[f + 1], bulges[f], np.diff(f) == 1)
+            parts.append(_quantize(c, slice(i - a, j - a), origin, scale, i))
+        if not parts:
+            e = np.zeros(0)
+            parts.append(_quantize(_Columns.of(e, e, e, e, e, np.zeros(0, dtype=bool)),
+                                   slice(0, 0), origin, scale, 0))
+        col = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
+        del parts
+
+        ix, iy = col.pop("ix"), col.pop("iy")
+        nx = int(ix.max()) + 1 if len(ix) else 1
+        ny = int(iy.max()) + 1 if len(iy) else 1
+        cell = iy.astype(np.int64) * nx + ix
+        del ix, iy
+        order = _sort_by_cell(cell, col["q0"], nx * ny)
+        cell = cell[order]
+        counts = np.bincount(cell, minlength=nx * ny)
+        cell_start = np.concatenate([[0], np.cumsum(counts)])
+        full = np.flatnonzero(counts)
+        cell_reach = np.zeros(nx * ny)
+        cell_sweep = np.zeros(nx * ny)
+        if len(full):
+            cell_reach[full] = np.maximum.reduceat(col["reach"][order], cell_start[full])
+            cell_reach[full] += REACH_SLACK
+            cell_sweep[full] = np.maximum.reduceat(col["dq"][order], cell_start[full])
+            cell_sweep[full] *= ANGLE_STEP
+        table = np.empty((len(order), 6), dtype=np.uint16)
+        for j, name in enumerate(("x0", "y0", "x1", "y1", "q0", "q1")):
+            table[:, j] = col[name][order]
+        wide = col["wide"].reshape(-1, 6)
+        dots, _ = grooves.dots()
+        return cls(table, col["arc"][order], origin, scale, (nx, ny),
+                   cell_start.astype(np.uint32), cell_reach, cell_sweep, wide,
+                   col["wide_arc"], wide[np.abs(wide[:, 5]) < NO_CORNER],
+                   np.asarray(dots, dtype=np.float32).reshape(-1, 2))
+
+    def blocks(self) -> dict[str, bytes]:
+        """The arrays as the page embeds them, before gzip.
+
+        The narrow table goes column by column, as differences where those are
+        small (x1 - x0, y1 - y0, q1 - q0, and q0 minus the previous row's q0,
+        all mod 2**16), each column's low bytes before its high bytes: that
+        gzips to about half the size of the plain rows.
+
+        Returns:
+            Name -> little-endian bytes: x0, y0, dx, dy, q0, dq (2 k bytes
+            each), cellStart (uint32), cells (float32 reach and sweep per
+            cell), wide, corners (float32 rows of 6) and dots (float32 pairs).
+        """
+        t = self.table
+        prev = np.concatenate([np.zeros(1, dtype=np.uint16), t[:-1, 4]])
+        # uint16 differences wrap mod 2**16.
+        columns = {"x0": t[:, 0], "y0": t[:, 1], "dx": t[:, 2] - t[:, 0],
+                   "dy": t[:, 3] - t[:, 1], "q0": t[:, 4] - prev, "dq": t[:, 5] - t[:, 4]}
+        out = {name: _byte_planes(v) for name, v in columns.items()}
+        out["cellStart"] = self.cell_start.astype("<u4").tobytes()
+        cells = np.stack([self.cell_reach, self.cell_sweep], axis=1)
+        out["cells"] = cells.astype("<f4").tobytes()
+        out["wide"] = self.wide.astype("<f4").tobytes()
+        out["corners"] = self.corners.astype("<f4").tobytes()
+        out["dots"] = self.dots.astype("<f4").tobytes()
+        return out
+
+
+def _quantize(c: _Columns, keep: slice, origin: np.ndarray, scale: float,
+              base: int) -> dict[str, np.ndarray]:
+    """The narrow rows and the float rows of arcs ``keep`` of c (numbered from base).
+
+    Returns:
+        arc (m,) indices, x0, y0, x1, y1, q0, q1 (m,) uint16, dq (m,) int32,
+        ix, iy (m,) cells and reach (m,) mm (see :class:`PageArcs`) of the
+        narrow arcs; wide (6 w,) float32 rows and wide_arc (w,) of the others.
+    """
+    xs, ys, xe, ye = c.xs[keep], c.ys[keep], c.xe[keep], c.ye[keep]
+    q_start, q_end = c.q_start[keep], c.q_end[keep]
+    # Orient each arc so its tangent turns counter-clockwise: q1 = q0 + dq.
+    dq = q_end - q_start
+    dq += ANGLE_STEPS // 2
+    dq &= ANGLE_STEPS - 1
+    dq -= ANGLE_STEPS // 2
+    rev = dq < 0
+    q0 = np.where(rev, q_end, q_start)
+    dq = np.abs(dq)
+    ok = (np.abs(c.raw_sweep[keep]) <= 2.0 * WIDE) & ~c.at_corner[keep]
+
+    def grid(start: np.ndarray, o: float) -> np.ndarray:
+        g = (start - o) * (1.0 / scale)
+        np.rint(g, out=g)
+        np.clip(g, 0, 65535, out=g)
+        return g.astype(np.int32)
+
+    x0, x1 = grid(np.where(rev, xe, xs), origin[0]), grid(np.where(rev, xs, xe), origin[0])
+    y0, y1 = grid(np.where(rev, ye, ys), origin[1]), grid(np.where(rev, ys, ye), origin[1])
+    # The page takes the start direction (q0 or q0 + pi) the chord points
+    # along; only arcs where that is their real direction stay narrow.
+    chx = (x1 - x0) * scale
+    chy = (y1 - y0) * scale
+    mid_angle = (q0 + 0.5 * dq) * ANGLE_STEP
+    forward = chx * np.cos(mid_angle) + chy * np.sin(mid_angle) >= 0
+    theta = c.theta[keep] + np.where(rev, c.sweep[keep] + math.pi, 0.0)
+    ok &= forward == (np.cos(theta - q0 * ANGLE_STEP) > 0)
+    ok &= (chx != 0) | (chy != 0)
+    sel = np.flatnonzero(ok)
+    # Cells by chord midpoint. A minor arc lies within the circle on its chord
+    # (Thales): every point of it is within half the chord of the chord's midpoint.
+    mx = 0.5 * (x0[sel] + x1[sel]) * scale
+    my = 0.5 * (y0[sel] + y1[sel]) * scale
+    ix = np.floor(mx / CELL).astype(np.int32)
+    iy = np.floor(my / CELL).astype(np.int32)
+    ex = mx - (ix + 0.5) * CELL
+    ey = my - (iy + 0.5) * CELL
+    chx, chy = chx[sel], chy[sel]
+    reach = np.sqrt(ex * ex + ey * ey) + 0.5 * np.sqrt(chx * chx + chy * chy)
+    dq = dq[sel]
+    q0 = q0[sel]
+    other = np.flatnonzero(~ok)
+    rows = c.rows(np.arange(keep.start, keep.stop)[other])
+    u16 = np.uint16
+    return {"arc": sel + base, "x0": x0[sel].astype(u16), "y0": y0[sel].astype(u16),
+            "x1": x1[sel].astype(u16), "y1": y1[sel].astype(u16), "q0": q0.astype(u16),
+            "q1": ((q0 + dq) & (ANGLE_STEPS - 1)).astype(u16), "dq": dq, "ix": ix, "iy": iy,
+            "reach": reach, "wide": rows.ravel(), "wide_arc": other + base}
+
+
+def _sort_by_cell(cell: np.ndarray, q0: np.ndarray, cells: int) -> np.ndarray:
+    """Order (k,) sorting rows by cell, then q0 (uint16)."""
+    if cells <= 65536:
+        # Two stable 16-bit sorts (radix sorts in numpy): much faster than one on int64.
+        o = np.argsort(q0, kind="stable")
+        return o[np.argsort(cell[o].astype(np.uint16), kind="stable")]
+    return np.argsort(cell * ANGLE_STEPS + q0)
+
+
+def _byte_planes(v: np.ndarray) -> bytes:
+    """uint16 values as all low bytes, then all high bytes."""
+    b = np.ascontiguousarray(v, dtype="<u2").view(np.uint8).reshape(-1, 2)
+    return b[:, 0].tobytes() + b[:, 1].tobytes()
 
 
 def page_fov(setup: Setup, grooves: Grooves) -> float:
@@ -106,13 +453,33 @@ def page_meta(setup: Setup, grooves: Grooves, title: str = "specholo") -> dict[s
         "limits": {"azimuth": AZIMUTH_LIMIT, "elevation": ELEVATION_LIMIT,
                    "degreesPerPixel": DEGREES_PER_PIXEL},
         "iterations": ITERATIONS,
+        "wideIterations": WIDE_ITERATIONS,
         "noCorner": NO_CORNER,
         "viewRange": math.degrees(setup.viewer.half_range),
     }
 
 
-def _b64(a: np.ndarray) -> str:
-    return base64.b64encode(np.ascontiguousarray(a, dtype="<f4").tobytes()).decode("ascii")
+def pack_blocks(blocks: dict[str, bytes],
+                level: int = GZIP_LEVEL) -> tuple[str, list[dict[str, Any]]]:
+    """Gzip each block and base64 the lot.
+
+    Args:
+        blocks: name -> bytes.
+        level: gzip compression level.
+
+    Returns:
+        The base64 text, and per block its name, offset and length (bytes) in
+        the decoded text.
+    """
+    names = list(blocks)
+    # zlib releases the GIL: the blocks compress in parallel.
+    with ThreadPoolExecutor(max_workers=min(len(names), os.cpu_count() or 1) or 1) as pool:
+        packed = list(pool.map(lambda n: gzip.compress(blocks[n], level, mtime=0), names))
+    index, offset = [], 0
+    for name, data in zip(names, packed, strict=True):
+        index.append({"name": name, "offset": offset, "length": len(data)})
+        offset += len(data)
+    return base64.b64encode(b"".join(packed)).decode("ascii"), index
 
 
 def build_page(grooves: Grooves, setup: Setup, title: str = "specholo",
@@ -126,12 +493,15 @@ def build_page(grooves: Grooves, setup: Setup, title: str = "specholo",
         size: fixed canvas (width, height) in CSS pixels, or None to fill the
             window; the URL parameters ``w`` and ``h`` override it.
     """
-    arcs, dots = arc_table(grooves)
-    # Only real corners get a second vertex; biarc joins are smooth to ~1e-12 rad.
-    corners = arcs[np.abs(arcs[:, 5]) < NO_CORNER]
-    corners = corners[np.abs(corners[:, 5]) > MIN_TURN]
+    arcs = PageArcs.build(grooves)
+    data, index = pack_blocks(arcs.blocks())
     meta = page_meta(setup, grooves, title)
-    meta["counts"] = {"arcs": len(arcs), "corners": len(corners), "dots": len(dots)}
+    meta["counts"] = {"arcs": len(arcs.table) + len(arcs.wide), "narrow": len(arcs.table),
+                      "wide": len(arcs.wide), "corners": len(arcs.corners),
+                      "dots": len(arcs.dots)}
+    meta["grid"] = {"origin": arcs.origin.tolist(), "scale": arcs.scale, "cell": CELL,
+                    "nx": arcs.shape[0], "ny": arcs.shape[1], "angleSteps": ANGLE_STEPS}
+    meta["blocks"] = index
     meta["size"] = list(size) if size is not None else None
     # "<" escaped so the JSON cannot close its script element.
     meta_json = json.dumps(meta).replace("<", "\\u003c")
@@ -144,9 +514,7 @@ def build_page(grooves: Grooves, setup: Setup, title: str = "specholo",
         "<span id=\"help\">drag: move the eye &middot; shift+drag: move the light</span></div>\n"
         "<canvas id=\"view\"></canvas>\n<div id=\"message\" hidden></div>\n"
         f"<script type=\"application/json\" id=\"meta\">{meta_json}</script>\n"
-        f"<script type=\"text/plain\" id=\"arcs\">{_b64(arcs)}</script>\n"
-        f"<script type=\"text/plain\" id=\"corners\">{_b64(corners)}</script>\n"
-        f"<script type=\"text/plain\" id=\"dots\">{_b64(dots)}</script>\n"
+        f"<script type=\"text/plain\" id=\"data\">{data}</script>\n"
         f"<script>\n{script}\n</script>\n</body></html>\n"
     )
 
