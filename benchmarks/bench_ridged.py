@@ -136,13 +136,16 @@ def main() -> None:
 
         t0 = time.perf_counter()
         print("\n== refraction: paper's approximation vs exact planar-back solution "
-              "(heads +-30 az, +-15 el at 600 mm; light 30 deg above the axis behind the plate)")
-        print(" light mm  plate mm  p_z mm  centre     tilt deg  angle deg  p95 glint mm  "
-              "p95 3D mm  max 3D mm")
-        for r in approximation_table(distances=(300.0, 1000.0), thicknesses=(3.0, 10.0)):
-            print(f"{r.light_distance:9.0f} {r.thickness:9.0f} {r.depth:7.0f}  {r.centre:9s}"
-                  f"{math.degrees(r.max_tilt):10.4f} {math.degrees(r.max_angle):10.4f} "
-                  f"{r.p95_offset:13.3f} {r.p95_error:10.3f} {r.max_error:10.3f}")
+              "(heads +-30 az, +-15 el at 600 mm; stipple at x 15, y 10 mm)")
+        print(" light el  light mm  plate mm  p_z mm  centre     tilt deg  angle deg  "
+              "p95 glint mm  p95 3D mm")
+        for elevation in (0.0, 30.0):
+            for r in approximation_table(distances=(300.0, 1000.0), thicknesses=(3.0, 10.0),
+                                         elevation=math.radians(elevation)):
+                print(f"{elevation:9.0f} {r.light_distance:9.0f} {r.thickness:9.0f} "
+                      f"{r.depth:7.0f}  {r.centre:9s}{math.degrees(r.max_tilt):10.4f} "
+                      f"{math.degrees(r.max_angle):10.4f} {r.p95_offset:13.3f} "
+                      f"{r.p95_error:10.3f}")
         print(f"({time.perf_counter() - t0:.1f} s)")
 
     if args.out is not None:

@@ -10,6 +10,7 @@ import contextlib
 import dataclasses
 import json
 import math
+import numbers
 import os
 import shutil
 import tempfile
@@ -45,6 +46,48 @@ DEFAULT_STIPPLES = 2000
 TILT_MARGIN = math.radians(2.0)
 TOOL_DEFAULTS = {"ball": (0.08, 12000.0), "drag": (0.012, 0.0), "scriber": (0.012, 0.0),
                  "vbit": (0.05, 12000.0), "laser": (0.04, 0.0)}
+
+
+#: Largest magnitude of any length, angle, feed or speed setting: far beyond any
+#: plate, light or machine, and small enough that squares and products stay finite.
+MAX_SETTING = 1e12
+
+
+def _check_setting(config: Any, name: str, kind: str) -> None:
+    """Refuse a setting of the wrong type or size, naming it.
+
+    A TOML string, list, table or date where a number is expected, a bool for a
+    number, NaN, infinity or a number beyond :data:`MAX_SETTING`; a whole float
+    where an int is expected becomes the int.
+    """
+    value = getattr(config, name)
+    option = name.replace("_", "-")
+    if value is None and "None" in kind:
+        return
+    if kind.startswith("bool"):
+        if not isinstance(value, bool):
+            raise SpecholoError(f"{option} must be true or false, got {value!r}")
+    elif kind.startswith("str"):
+        if not isinstance(value, str):
+            raise SpecholoError(f"{option} must be a string, got {value!r}")
+    elif kind.startswith(("int", "float")):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise SpecholoError(f"{option} must be a number, got {value!r}")
+        try:
+            number = float(value)
+        except OverflowError:  # an int beyond any float
+            number = math.inf
+        if not math.isfinite(number):
+            raise SpecholoError(f"{option} must be a finite number, got {value!r}")
+        if kind.startswith("int"):
+            if not number.is_integer():
+                raise SpecholoError(f"{option} must be a whole number, got {value!r}")
+            whole = int(getattr(config, name))
+            if whole < 0:
+                raise SpecholoError(f"{option} must not be negative, got {value!r}")
+            object.__setattr__(config, name, whole)
+        elif abs(number) > MAX_SETTING:
+            raise SpecholoError(f"{option} {value!r} is out of range (at most {MAX_SETTING:g})")
 
 
 @dataclass(frozen=True)
@@ -86,6 +129,8 @@ class DesignConfig:
     spindle: float | None = None
 
     def __post_init__(self) -> None:
+        for f in fields(self):
+            _check_setting(self, f.name, str(f.type))
         # The spindle defaults by tool (a frozen dataclass: filled in once here); the
         # depth is chosen by design() from the wall tilts the views need.
         _, spindle = TOOL_DEFAULTS.get(self.tool, (0.08, 0.0))
@@ -111,6 +156,8 @@ class DesignConfig:
                                     f"{getattr(self, name)}")
         if not self.band > 0:
             raise SpecholoError(f"band must be positive, got {self.band}")
+        if not self.size > 0:
+            raise SpecholoError(f"size must be a positive number of mm, got {self.size}")
         for name in ("plate_width", "plate_height"):
             v = getattr(self, name)
             if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v)
@@ -129,10 +176,12 @@ class DesignConfig:
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> DesignConfig:
         """Build from a mapping with option names (dashes or underscores)."""
+        if not isinstance(values, dict):
+            raise SpecholoError(f"settings must be a table of options, got {values!r:.60}")
         known = {f.name for f in fields(cls)}
         clean: dict[str, Any] = {}
         for key, value in values.items():
-            name = key.replace("-", "_")
+            name = str(key).replace("-", "_")
             if name not in known:
                 raise SpecholoError(f"unknown setting {key!r}")
             clean[name] = value
@@ -278,18 +327,25 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     """
     from specholo.scene.loading import load_model
     from specholo.scene.placement import place
-    from specholo.scene.stippling import stipple
+    from specholo.scene.stippling import check_memory, stipple
     from specholo.visibility.occlusion import visible_intervals
 
     setup = config.setup()
     rng = rng if rng is not None else np.random.default_rng(config.seed)
     timings: dict[str, float] = {}
+    count = None if config.spacing is not None else (config.stipples or DEFAULT_STIPPLES)
+    if count is not None:
+        check_memory(count)  # stipples = 10**9 is refused before any work
     t0 = time.perf_counter()
     model = place(load_model(model_path), config.size, config.center_z)
-    count = None if config.spacing is not None else (config.stipples or DEFAULT_STIPPLES)
     st = stipple(model, rng, count=count, spacing=config.spacing)
     points = st.points
     check_points(points, setup)
+    mesh = model.mesh
+    check_memory(len(points), 0 if mesh is None else len(mesh.faces),
+                 0 if mesh is None else len(mesh.vertices),
+                 request=None if count is not None else
+                 f"spacing = {config.spacing:g} mm ({len(points)} stipples)")
     timings["stippling"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     iv = visible_intervals(model.mesh, points, st.normals, setup.viewer)
@@ -368,25 +424,38 @@ def staged_output(out: str | os.PathLike[str],  # type: ignore[no-untyped-def]
             verification).
     """
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise SpecholoError(f"{out} exists and is not a folder")
-    parent = out.resolve().parent
-    parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
+    try:
+        if out.exists() and not out.is_dir():
+            raise SpecholoError(f"{out} exists and is not a folder")
+        parent = out.resolve().parent
+        made = [d for d in (parent, *parent.parents) if not d.exists()]
+        parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        raise SpecholoError(f"cannot create output folder {out}: "
+                            f"{getattr(exc, 'strerror', None) or exc}") from exc
     public_mode(tmp, directory=True)
+    done = False
     try:
         yield tmp
         if not out.exists():
             os.rename(tmp, out)
-            return
-        fresh = {f.name for f in tmp.iterdir()}
-        for name in fresh:
-            os.replace(tmp / name, out / name)
-        for name in set(stale) - fresh:
-            with contextlib.suppress(FileNotFoundError):
-                (out / name).unlink()
+        else:
+            fresh = {f.name for f in tmp.iterdir()}
+            for name in fresh:
+                os.replace(tmp / name, out / name)
+            for name in set(stale) - fresh:
+                with contextlib.suppress(FileNotFoundError):
+                    (out / name).unlink()
+        done = True
+    except OSError as exc:  # a full disk, a folder turned read-only
+        raise SpecholoError(f"cannot write {out}: {exc.strerror or exc}") from exc
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+        if not done:  # leave no folder behind that this run created
+            for d in made:
+                with contextlib.suppress(OSError):
+                    d.rmdir()
 
 
 #: Files ``write_design`` can add besides the design data, by format name.
@@ -448,8 +517,10 @@ def write_design(d: Design, out: str | os.PathLike[str],
     from specholo.fabrication.svg import write_svg
     from specholo.fabrication.timing import estimate_time
     from specholo.preview.preview import render_preview
+    from specholo.scene.stippling import check_disk
 
     check_formats(formats, d.config.method)
+    check_disk(len(d.points), out)
     setup = d.config.setup()
     timings: dict[str, float] = {}
     grooves = d.grooves

@@ -49,19 +49,50 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
 ]
 
 
+#: Largest config file read, bytes (a config is a few lines; /dev/zero never ends).
+MAX_CONFIG_BYTES = 1 << 20
+
+
 def _read_config(path: Path | None) -> dict[str, Any]:
     if path is None:
         return {}
     try:
         with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+            raw = fh.read(MAX_CONFIG_BYTES + 1)
+        if len(raw) > MAX_CONFIG_BYTES:
+            raise SpecholoError(f"config file {path} is larger than {MAX_CONFIG_BYTES} bytes")
+        data = tomllib.loads(raw.decode("utf-8"))
     except FileNotFoundError as exc:
         raise SpecholoError(f"config file {path} not found") from exc
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SpecholoError(f"config file {path} is not valid TOML: {exc}") from exc
+    except RecursionError as exc:
+        raise SpecholoError(f"config file {path} is not valid TOML: nested too deeply") from exc
     except OSError as exc:
-        raise SpecholoError(f"cannot read config file {path}: {exc.strerror}") from exc
+        raise SpecholoError(f"cannot read config file {path}: {exc.strerror or exc}") from exc
+    except ValueError as exc:  # a NUL byte in the path
+        if isinstance(exc, SpecholoError):
+            raise
+        raise SpecholoError(f"cannot read config file {path!r}: {exc}") from exc
     return data
+
+
+def _check_out(out: Path) -> None:
+    """Refuse an output folder that cannot be made, before the (long) design runs."""
+    try:
+        if out.exists() and not out.is_dir():
+            raise SpecholoError(f"{out} exists and is not a folder")
+        above = out.resolve().parent
+        while not above.exists() and above != above.parent:
+            above = above.parent
+        if not above.is_dir():
+            raise SpecholoError(f"cannot create output folder {out}: {above} is not a folder")
+        if not os.access(above, os.W_OK | os.X_OK):
+            raise SpecholoError(f"cannot create output folder {out}: {above} is not writable")
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        if isinstance(exc, SpecholoError):
+            raise
+        raise SpecholoError(f"bad output folder {str(out)!r}: {exc}") from exc
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -101,6 +132,7 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     from specholo.pipeline import DesignConfig, check_formats, write_design
     from specholo.pipeline import design as run_design
 
+    _check_out(out)
     values = _read_config(config_path)
     if method is not None:
         options["method"] = method
@@ -174,8 +206,8 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
     from specholo.preview.preview import plot_verification
     from specholo.simulation.verify import reports_to_dicts, summarise
 
-    if not (math.isfinite(step) and 0 < step <= 5.0):
-        raise SpecholoError(f"step must be in (0, 5] degrees, got {step}")
+    if not (math.isfinite(step) and 0.01 <= step <= 5.0):
+        raise SpecholoError(f"step must be in [0.01, 5] degrees, got {step}")
     if stl is not None and not cut:
         raise SpecholoError("--stl needs --cut")
     if stl is not None and stl.suffix.lower() != ".stl":
@@ -285,11 +317,17 @@ def _finite_option(name: str, value: float) -> float:
     return value
 
 
+def _distance(distance: float) -> float:
+    if not (math.isfinite(distance) and 1.0 <= distance <= 1e6):
+        raise SpecholoError(f"--distance must be in [1, 1e6] mm, got {distance:g}")
+    return distance
+
+
 def _fov(fov: float | None) -> float | None:
     if fov is None:
         return None
-    if not (math.isfinite(fov) and 0 < fov < 180):
-        raise SpecholoError(f"--fov must be in (0, 180) degrees, got {fov:g}")
+    if not (math.isfinite(fov) and 0.1 <= fov <= 170):
+        raise SpecholoError(f"--fov must be in [0.1, 170] degrees, got {fov:g}")
     return math.radians(fov)
 
 
@@ -344,7 +382,7 @@ def render(folder: Path, azimuth: float, elevation: float, width: int, height: i
     camera = design_camera(
         setup, loaded.grooves, math.radians(_finite_option("azimuth", azimuth)),
         math.radians(_finite_option("elevation", elevation)),
-        None if distance is None else _finite_option("distance", distance), _fov(fov),
+        None if distance is None else _distance(distance), _fov(fov),
         width, height)
     model = (loaded.mesh if loaded.mesh is not None else loaded.points) if ghost else None
     image = render_still(loaded.grooves, setup, camera,
@@ -384,10 +422,10 @@ def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: 
         raise SpecholoError(f"animation file must end in .gif or .mp4, got {out.name!r}")
     if not out.parent.is_dir():
         raise SpecholoError(f"folder {out.parent} does not exist")
-    if frames <= 0:
-        raise SpecholoError(f"--frames must be positive, got {frames}")
-    if not (math.isfinite(fps) and 0 < fps <= 240):
-        raise SpecholoError(f"--fps must be in (0, 240], got {fps:g}")
+    if not 0 < frames <= MAX_FRAMES:
+        raise SpecholoError(f"--frames must be in [1, {MAX_FRAMES}], got {frames}")
+    if not (math.isfinite(fps) and 0.01 <= fps <= 240):
+        raise SpecholoError(f"--fps must be in [0.01, 240], got {fps:g}")
     loaded = _design_folder(folder)
     rough = math.radians(_finite_option("roughness", roughness))
     with Progress("[progress.description]{task.description}", BarColumn(),
@@ -409,6 +447,10 @@ def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: 
         bar.update(task, description="encoding")
         write_animation(images, out, fps)
     click.echo(f"{frames} frames {width}x{height} at {fps:g} fps -> {out}")
+
+
+#: Most frames of an animation (an hour at 30 fps); every frame is held in memory.
+MAX_FRAMES = 108_000
 
 
 def _stderr_console() -> Any:
@@ -517,6 +559,10 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - the promise is one line, never a traceback
         if os.environ.get("SPECHOLO_DEBUG"):
             raise
+        if isinstance(exc, ValueError) and "null byte" in str(exc):
+            # click.Path stats its argument, and a NUL byte makes os.stat raise
+            click.echo("error: a path holds a NUL byte", err=True)
+            return 2
         click.echo(f"error: internal error ({type(exc).__name__}: {exc}); "
                    "set SPECHOLO_DEBUG=1 for details", err=True)
         return 3

@@ -594,6 +594,10 @@ _IGNORED_WORDS = frozenset("FSPTNHDQ")
 _IGNORED_G = frozenset({40, 170, 400, 490, 540, 610, 611, 640, 900, 911,
                         930, 940, 950, 960, 970, 980, 990})
 _NAN = math.nan
+# Largest number read_gcode accepts in a word, and largest stipple id: a metre
+# of travel is 1e3 mm, so 1e9 leaves every sum and square finite.
+_MAX_WORD = 1e9
+_MAX_STIPPLE = 2**63 - 1
 
 
 def _line_error(number: int, raw: str, why: str) -> SpecholoError:
@@ -640,7 +644,10 @@ class _Moves:
             for comment in _COMMENT.findall(text):
                 found = _STIPPLE.fullmatch(comment)
                 if found:
-                    self.stipple.append((number, int(found.group(1))))
+                    sid = int(found.group(1))
+                    if abs(sid) > _MAX_STIPPLE:
+                        raise _line_error(number, raw, "stipple id out of range")
+                    self.stipple.append((number, sid))
             text = _COMMENT.sub(" ", text)
             semi = text.find(";")
             if semi >= 0:
@@ -661,6 +668,9 @@ class _Moves:
         motion = self.motion
         for letter, text in words:
             value = float(text)
+            if not abs(value) <= _MAX_WORD:
+                raise _line_error(number, raw, f"{letter} word out of range (beyond "
+                                  f"{_MAX_WORD:g})")
             if letter == "G":
                 g = round(value * 10)
                 if g in (0, 10, 20, 30):
@@ -721,6 +731,13 @@ class _Moves:
                     "number": np.asarray(self.fast_number, dtype=np.int64),
                     "x": floats(1), "y": floats(2), "z": floats(3), "i": floats(4),
                     "j": floats(5)}
+            huge = np.zeros(n, dtype=bool)
+            for axis in "xyzij":
+                huge |= np.abs(fast[axis]) > _MAX_WORD
+            if huge.any():
+                first = int(np.argmax(huge))
+                raise SpecholoError(f"G-code line {fast['number'][first]}: number out of range "
+                                    f"(beyond {_MAX_WORD:g})")
             order = np.argsort(np.concatenate([cols["number"], fast["number"]]), kind="stable")
             cols = {k: np.concatenate([cols[k], fast[k]])[order] for k in cols}
             arc = cols["kind"] >= 2

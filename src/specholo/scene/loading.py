@@ -10,9 +10,15 @@ one-line message that names the file.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
+import logging
+import math
 import os
+import stat
+import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,6 +34,28 @@ FORMATS = tuple(sorted(set(MESH_FORMATS) | set(CLOUD_FORMATS)))
 # Faces smaller than this fraction of the squared bounding-box diagonal have no
 # usable area (collinear or repeated vertices up to rounding).
 _DEGENERATE_AREA = 1e-14
+
+# Peak memory per face and per vertex of a mesh through loading (trimesh's
+# parsing, merging and normal fixing) and the design's occlusion tests, bytes.
+# Measured: a 327,680-face sphere adds ~230 MB to loading and ~120 MB more to a
+# design; rounded up.
+BYTES_PER_FACE = 1000
+BYTES_PER_VERTEX = 200
+# Peak memory of loading per byte of file, bytes: the file is held in memory
+# while it is parsed; text is split into Python strings, binary data is viewed
+# in place (and checked against its declared counts). Measured on a
+# 327,680-face sphere: OBJ 22x (with the mesh processing), XYZ 11x.
+_LOAD_BYTES_PER_FILE_BYTE = {"mesh text": 24.0, "cloud text": 12.0, "binary": 3.0}
+# How much of a PLY header is searched for ``end_header``.
+_MAX_HEADER = 1 << 20
+# Sizes of PLY property types, bytes.
+_PLY_SIZES = {
+    "char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2,
+    "uint16": 2, "int": 4, "int32": 4, "uint": 4, "uint32": 4, "float": 4, "float32": 4,
+    "double": 8, "float64": 8,
+}
+# Characters str.splitlines breaks lines at (trimesh splits ASCII PLY data this way).
+_LINE_BREAKS = ("\n", "\r", "\x0b", "\x0c", "\x1c", "\x1d", "\x1e", "\x85", "\u2028", "\u2029")
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,6 +86,101 @@ def _one_line(exc: BaseException) -> str:
     return text if len(text) <= 200 else text[:197] + "..."
 
 
+# ---------------------------------------------------------------- memory
+
+
+def _read_int(path: str) -> int | None:
+    try:
+        with open(path, encoding="ascii") as fh:
+            text = fh.read().strip()
+    except (OSError, ValueError):
+        return None
+    return int(text) if text.isdigit() else None
+
+
+def available_memory() -> int | None:
+    """Bytes of memory this process can still allocate, or None when unknown.
+
+    The least of: the kernel's estimate of available memory (``MemAvailable``),
+    the room left under a cgroup memory limit (containers), and the address-space
+    limit (``ulimit -v``).
+    """
+    room: list[int] = []
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    room.append(int(line.split()[1]) * 1024)
+                    break
+    except (OSError, ValueError, IndexError):
+        pass
+    if not room:
+        with contextlib.suppress(AttributeError, ValueError, OSError):
+            room.append(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    for limit_file, usage_file in (
+        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+        ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
+         "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
+    ):
+        limit = _read_int(limit_file)
+        usage = _read_int(usage_file)
+        if limit is not None and usage is not None and limit < 1 << 60:
+            room.append(max(0, limit - usage))
+    with contextlib.suppress(ImportError, ValueError, OSError):
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft != resource.RLIM_INFINITY:
+            with open("/proc/self/statm", encoding="ascii") as fh:
+                used = int(fh.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+            room.append(max(0, soft - used))
+    return min(room) if room else None
+
+
+def format_bytes(n: float) -> str:
+    """A byte count for people: '640 MB', '5.8 GB', '60 PB'."""
+    for unit in ("B", "KB", "MB", "GB", "TB", "PB"):
+        if abs(n) < 999.5:
+            return f"{n:.3g} {unit}"
+        n /= 1000.0
+    return f"{n:.3g} EB"
+
+
+def mesh_memory(n_vertices: int, n_faces: int) -> int:
+    """Bytes a mesh of that size needs through loading and the design (an estimate)."""
+    return int(n_vertices) * BYTES_PER_VERTEX + int(n_faces) * BYTES_PER_FACE
+
+
+def _refuse_unless_fits(p: Path, what: str, need: int) -> None:
+    """Raise if ``need`` bytes exceed the memory available."""
+    room = available_memory()
+    if room is not None and need > room:
+        raise SpecholoError(
+            f"{p}: {what} would need ~{format_bytes(need)} of memory; "
+            f"this machine has {format_bytes(room)} available")
+
+
+# ---------------------------------------------------------------- loading
+
+
+@contextlib.contextmanager
+def _quiet() -> Iterator[None]:
+    """Keep trimesh's log records and numpy's warnings off the user's terminal.
+
+    Bad input is reported once, as a SpecholoError; trimesh logs tracebacks
+    (e.g. of a texture it cannot find) that Python would print on stderr.
+    """
+    log = logging.getLogger("trimesh")
+    level = log.level
+    log.setLevel(logging.CRITICAL + 1)
+    try:
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        log.setLevel(level)
+
+
 def load_model(path: str | os.PathLike[str]) -> Model:
     """Load a mesh or point cloud from a file.
 
@@ -71,14 +194,19 @@ def load_model(path: str | os.PathLike[str]) -> Model:
         The model, with ``points`` (n, 3) float64.
 
     Raises:
-        SpecholoError: the file is missing, a directory, of an unknown format,
-            empty, unreadable, has no points or faces, or has NaN or infinite
-            coordinates.
+        SpecholoError: the file is missing, a directory or not a regular file,
+            of an unknown format, empty, unreadable, corrupt (including header
+            counts the file cannot hold), too large for the memory available,
+            has no points or faces, or has NaN or infinite coordinates.
     """
     p = Path(path)
-    if not p.exists():
-        raise SpecholoError(f"{p}: no such file")
-    if p.is_dir():
+    try:
+        info = os.stat(p)
+    except (FileNotFoundError, NotADirectoryError) as exc:
+        raise SpecholoError(f"{p}: no such file") from exc
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        raise SpecholoError(f"{p}: cannot read: {_one_line(exc)}") from exc
+    if stat.S_ISDIR(info.st_mode):
         raise SpecholoError(f"{p}: is a directory, not a model file")
     ext = p.suffix.lower()
     if ext not in FORMATS:
@@ -86,35 +214,112 @@ def load_model(path: str | os.PathLike[str]) -> Model:
             f"{p}: unknown model format {ext or '(no extension)'!r}; "
             f"expected one of {', '.join(FORMATS)}"
         )
-    try:
-        size = p.stat().st_size
-    except OSError as exc:
-        raise SpecholoError(f"{p}: cannot read: {_one_line(exc)}") from exc
+    if not stat.S_ISREG(info.st_mode):
+        # A FIFO or device (/dev/zero) would never end.
+        raise SpecholoError(f"{p}: not a regular file")
+    size = info.st_size
     if size == 0:
         raise SpecholoError(f"{p}: file is empty")
+    if ext in (".xyz", ".csv"):
+        kind = "cloud text"
+    elif ext in (".obj", ".off", ".gltf") or (ext in (".stl", ".ply") and _looks_like_text(p)):
+        kind = "mesh text"
+    else:
+        kind = "binary"
+    factor = _LOAD_BYTES_PER_FILE_BYTE[kind]
+    _refuse_unless_fits(p, f"loading this {format_bytes(size)} file", int(size * factor))
+    try:
+        data = p.read_bytes()
+    except MemoryError as exc:
+        raise SpecholoError(f"{p}: out of memory reading {format_bytes(size)}") from exc
+    except OSError as exc:
+        raise SpecholoError(f"{p}: cannot read: {_one_line(exc)}") from exc
+    if not data:
+        raise SpecholoError(f"{p}: file is empty")
 
-    if ext == ".xyz":
-        return _cloud(p, _read_xyz(p))
-    if ext == ".csv":
-        return _cloud(p, _read_csv(p))
-    return _read_with_trimesh(p, ext)
+    with _quiet():
+        if ext == ".xyz":
+            return _cloud(p, _read_xyz(p, _decode(p, data)))
+        if ext == ".csv":
+            return _cloud(p, _read_csv(p, _decode(p, data)))
+        return _read_with_trimesh(p, ext, data)
 
 
-def _read_with_trimesh(p: Path, ext: str) -> Model:
+def _looks_like_text(p: Path) -> bool:
+    """True for an ASCII STL or PLY (judged by the first bytes)."""
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(512)
+    except OSError:
+        return False
+    return head.lstrip()[:5].lower() == b"solid" or b"format ascii" in head
+
+
+def _decode(p: Path, data: bytes) -> str:
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SpecholoError(f"{p}: not a text file (cannot decode as UTF-8)") from exc
+
+
+def _as_text(data: bytes) -> bytes:
+    """Text-format bytes as valid UTF-8: stray bytes (say in a comment) become U+FFFD.
+
+    trimesh would otherwise guess the encoding with a package that may be missing.
+    """
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("utf-8", errors="replace").encode("utf-8")
+    return data
+
+
+class _FolderResolver(trimesh.resolvers.FilePathResolver):
+    """Reads a glTF's external buffers only from regular files in the model's folder."""
+
+    def get(self, name: str) -> bytes:
+        path = self.absolute(name)  # raises ValueError for a path outside the folder
+        if not path.is_file():  # missing, a folder, a FIFO or a device
+            raise FileNotFoundError(f"buffer {name!r} is not a file beside the model")
+        size = path.stat().st_size
+        room = available_memory()
+        if room is not None and 2 * size > room:
+            raise MemoryError(f"buffer {name!r} of {format_bytes(size)} does not fit in memory")
+        return path.read_bytes()
+
+
+def _read_with_trimesh(p: Path, ext: str, data: bytes) -> Model:
     """Load a mesh format (or a face-less PLY) with trimesh."""
     fmt = ext[1:].upper()
+    if ext == ".ply":
+        _check_ply_header(p, data)
+    elif ext == ".off":
+        _check_off_header(p, data)
+    elif ext == ".stl":
+        data = _check_stl(p, data)
+    elif ext == ".obj":
+        data = _as_text(data)
     try:
         # process=False: trimesh's processing would silently drop NaN vertices,
-        # which must be reported instead.
-        loaded = trimesh.load(str(p), file_type=ext[1:], process=False)
+        # which must be reported instead. skip_materials: textures and material
+        # files play no part (and could name any file).
+        if ext == ".gltf":
+            loaded = trimesh.load(str(p), file_type="gltf", process=False,
+                                  resolver=_FolderResolver(str(p)), skip_materials=True)
+        else:
+            loaded = trimesh.load(io.BytesIO(data), file_type=ext[1:], process=False,
+                                  skip_materials=True)
+    except MemoryError as exc:
+        raise SpecholoError(f"{p}: out of memory reading the {fmt} file") from exc
     except Exception as exc:  # trimesh raises anything from KeyError to JSON errors
         raise SpecholoError(f"{p}: cannot read {fmt} file: {_one_line(exc)}") from exc
+    del data
 
     try:
         parts = loaded.dump() if isinstance(loaded, trimesh.Scene) else [loaded]
         meshes = [g for g in parts if isinstance(g, trimesh.Trimesh) and len(g.faces) > 0]
         clouds = [
-            np.asarray(g.vertices, dtype=np.float64).reshape(-1, 3)
+            _xyz(p, g.vertices)
             for g in parts
             if isinstance(g, trimesh.PointCloud | trimesh.Trimesh) and len(g.vertices) > 0
         ]
@@ -125,32 +330,183 @@ def _read_with_trimesh(p: Path, ext: str) -> Model:
                 f"{p}: no faces in {fmt} file"
                 + (" (point clouds must be .ply, .xyz or .csv)" if clouds else "")
             )
-        vertices = np.concatenate([np.asarray(g.vertices, dtype=np.float64) for g in meshes])
+        vertices = np.concatenate([_xyz(p, g.vertices) for g in meshes])
         # Offset each part's face indices past the vertices of the parts before it.
         base = np.cumsum([0] + [len(g.vertices) for g in meshes[:-1]])
         faces = np.concatenate(
-            [np.asarray(g.faces, dtype=np.int64) + b for g, b in zip(meshes, base, strict=True)]
+            [_faces(p, g.faces) + b for g, b in zip(meshes, base, strict=True)]
         )
     except SpecholoError:
         raise
+    except MemoryError as exc:
+        raise SpecholoError(f"{p}: out of memory reading the {fmt} file") from exc
     except Exception as exc:
         raise SpecholoError(f"{p}: cannot read {fmt} file: {_one_line(exc)}") from exc
     return _clean_mesh(p, vertices, faces)
 
 
+def _xyz(p: Path, values: object) -> np.ndarray:
+    """Vertex coordinates as (n, 3) float64; refuse 2D or 4D vertices."""
+    v = np.asarray(values, dtype=np.float64)
+    if v.ndim != 2 or v.shape[1] != 3:
+        width = v.shape[1] if v.ndim == 2 else "?"
+        raise SpecholoError(f"{p}: corrupt model: vertices have {width} coordinates, expected 3")
+    return v
+
+
+def _faces(p: Path, values: object) -> np.ndarray:
+    """Faces as (m, 3) int64; refuse anything else."""
+    f = np.asarray(values)
+    if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer):
+        raise SpecholoError(f"{p}: corrupt mesh: faces are not triangles of vertex indices")
+    return f.astype(np.int64)
+
+
+def _check_ply_header(p: Path, data: bytes) -> None:
+    """Refuse a PLY whose header declares more elements than the file holds or memory takes.
+
+    trimesh reads an ASCII PLY leniently: with a vertex count too large it reads
+    the face lines as vertices. Anything this check cannot make sense of is
+    left to trimesh to report.
+    """
+    end = data.find(b"end_header", 0, _MAX_HEADER)
+    if end < 0:
+        return
+    newline = data.find(b"\n", end)
+    body_start = len(data) if newline < 0 else newline + 1
+    lines = data[:end].decode("ascii", errors="replace").splitlines()
+    if len(lines) < 2:
+        return
+    ascii_data = "ascii" in lines[1].lower()
+    elements: list[tuple[str, int, int, int]] = []  # name, count, bytes, values per row
+    for line in lines[2:]:
+        words = line.split()
+        if not words:
+            continue
+        if "element" in words[0]:
+            if len(words) != 3:
+                raise SpecholoError(f"{p}: corrupt PLY header: bad element line {line.strip()!r}")
+            try:
+                count = int(words[2])
+            except ValueError as exc:
+                raise SpecholoError(
+                    f"{p}: corrupt PLY header: element count {words[2]!r} is not a number"
+                ) from exc
+            if count < 0:
+                raise SpecholoError(f"{p}: corrupt PLY header: negative element count {count}")
+            elements.append((words[1], count, 0, 0))
+        elif "property" in words[0] and elements and len(words) >= 3:
+            name, count, size, values = elements[-1]
+            type_name = words[2] if "list" in words[1] else words[1]
+            elements[-1] = (name, count, size + _PLY_SIZES.get(type_name, 0), values + 1)
+    if not elements:
+        return
+    counts = ", ".join(f"{count} {name!r}" for name, count, _, _ in elements)
+    held = len(data) - body_start
+    if ascii_data:
+        # One line per element; each value takes a digit and a separator.
+        need = sum(count * 2 * values for _, count, _, values in elements)
+        rows = sum(count for _, count, _, values in elements if values)
+    else:
+        need = sum(count * size for _, count, size, _ in elements)
+        rows = 0
+    if need > held:
+        raise SpecholoError(
+            f"{p}: corrupt PLY: the header declares {counts} elements, which need at least "
+            f"{need} bytes, but the file holds {held} bytes after the header")
+    if rows:
+        text = data[body_start:].decode("utf-8", errors="replace").rstrip()
+        lines_held = (sum(text.count(c) for c in _LINE_BREAKS) - text.count("\r\n") + 1
+                      if text else 0)
+        if lines_held < rows:
+            raise SpecholoError(
+                f"{p}: corrupt PLY: the header declares {counts} elements ({rows} lines) "
+                f"but the file has {lines_held} lines of data")
+    n_faces = sum(count for name, count, _, _ in elements if name == "face")
+    n_vertices = sum(count for name, count, _, _ in elements if name == "vertex")
+    _refuse_unless_fits(p, f"a mesh of {n_vertices} vertices and {n_faces} faces",
+                        mesh_memory(n_vertices, n_faces))
+
+
+def _check_off_header(p: Path, data: bytes) -> None:
+    """Refuse an OFF whose counts the file cannot hold or memory cannot take."""
+    head = data[:_MAX_HEADER].decode("utf-8", errors="replace")
+    words: list[str] = []
+    for line in head.splitlines():
+        words += line.split("#", 1)[0].split()
+        if len(words) >= 3:
+            break
+    if not words or not words[0].upper().endswith("OFF"):
+        return
+    try:
+        n_vertices, n_faces = (int(w) for w in words[1:3])
+    except ValueError:
+        return
+    if n_vertices < 0 or n_faces < 0:
+        raise SpecholoError(
+            f"{p}: corrupt OFF header: negative counts ({n_vertices} vertices, {n_faces} faces)")
+    # A vertex line takes at least 6 bytes ("0 0 0\n"), a face line 2.
+    need = 6 * n_vertices + 2 * n_faces
+    if need > len(data):
+        raise SpecholoError(
+            f"{p}: corrupt OFF: the header declares {n_vertices} vertices and {n_faces} faces, "
+            f"which need at least {need} bytes, but the file has {len(data)}")
+    _refuse_unless_fits(p, f"a mesh of {n_vertices} vertices and {n_faces} faces",
+                        mesh_memory(n_vertices, n_faces))
+
+
+def _check_stl(p: Path, data: bytes) -> bytes:
+    """Tell a binary STL from an ASCII one; refuse one that is neither.
+
+    Returns:
+        The bytes to parse: an ASCII STL made valid UTF-8.
+    """
+    declared = int.from_bytes(data[80:84], "little") if len(data) >= 84 else None
+    if declared is not None and len(data) == 84 + 50 * declared:
+        _refuse_unless_fits(p, f"a mesh of {declared} triangles",
+                            mesh_memory(3 * declared, declared))
+        return data
+    if data.lstrip()[:5].lower() == b"solid":
+        return _as_text(data)
+    if declared is None:
+        raise SpecholoError(f"{p}: no faces in STL file: not ASCII (no 'solid' line) and "
+                            f"too short for a binary STL ({len(data)} bytes)")
+    raise SpecholoError(
+        f"{p}: no faces in STL file: not ASCII (no 'solid' line), and as a binary STL its "
+        f"header declares {declared} triangles ({84 + 50 * declared} bytes) but the file "
+        f"has {len(data)} bytes (truncated or corrupt)")
+
+
 def _clean_mesh(p: Path, vertices: np.ndarray, faces: np.ndarray) -> Model:
-    """Validate and tidy a raw mesh: finite, indices in range, no degenerate faces."""
+    """Validate and tidy a raw mesh: finite, indices in range, no degenerate faces.
+
+    The work is done on a copy scaled to a unit box (by powers of two), so that
+    merging and the zero-area test are relative to the model's size, and
+    coordinates such as 1e300 or 1e-300 neither overflow nor collapse.
+    """
     if len(vertices) == 0 or len(faces) == 0:
         raise SpecholoError(f"{p}: mesh has no faces")
-    if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
+    if faces.min() < 0 or faces.max() >= len(vertices):
         raise SpecholoError(f"{p}: corrupt mesh: face indices out of range")
-    used = np.unique(faces)
-    if not np.isfinite(vertices[used]).all():
+    # Unused vertices may hold NaN: keep only those the faces use.
+    used, faces = np.unique(faces, return_inverse=True)
+    faces = faces.reshape(-1, 3)
+    vertices = vertices[used]
+    if not np.isfinite(vertices).all():
         raise SpecholoError(f"{p}: mesh has NaN or infinite vertex coordinates")
+    largest = float(np.max(np.abs(vertices)))
+    if largest == 0.0:
+        raise SpecholoError(f"{p}: every face of the mesh is degenerate (zero area)")
+    k = math.frexp(largest)[1]
+    w = np.ldexp(vertices, -k)  # |w| < 1, exact
+    lo = w.min(axis=0)
+    extent = float(np.max(w.max(axis=0) - lo))
+    if not extent > 0:
+        raise SpecholoError(f"{p}: every face of the mesh is degenerate (zero area)")
+    e = math.frexp(extent)[1]
+    unit = np.ldexp(w - lo, -e)  # in [0, 1]
     try:
-        mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
-        # Unused vertices may hold NaN; drop them before anything hashes them.
-        mesh.remove_unreferenced_vertices()
+        mesh = trimesh.Trimesh(vertices=unit, faces=faces, process=False)
         mesh.merge_vertices()
         diag2 = float(np.sum(np.ptp(mesh.vertices, axis=0) ** 2))
         keep = mesh.area_faces > _DEGENERATE_AREA * diag2
@@ -161,8 +517,14 @@ def _clean_mesh(p: Path, vertices: np.ndarray, faces: np.ndarray) -> Model:
         # Consistent winding (and outward, for closed meshes) so face normals
         # tell the outer side of the surface.
         mesh.fix_normals(multibody=True)
+        restored = np.ldexp(np.ldexp(np.asarray(mesh.vertices), e) + lo, k)
+        if not np.isfinite(restored).all():
+            raise SpecholoError(f"{p}: vertex coordinates too large for floating point")
+        mesh = trimesh.Trimesh(vertices=restored, faces=np.asarray(mesh.faces), process=False)
     except SpecholoError:
         raise
+    except MemoryError as exc:
+        raise SpecholoError(f"{p}: out of memory processing the mesh") from exc
     except Exception as exc:
         raise SpecholoError(f"{p}: cannot process mesh: {_one_line(exc)}") from exc
     return Model(mesh=mesh, points=np.asarray(mesh.vertices, dtype=np.float64))
@@ -170,21 +532,12 @@ def _clean_mesh(p: Path, vertices: np.ndarray, faces: np.ndarray) -> Model:
 
 def _cloud(p: Path, points: np.ndarray) -> Model:
     """Validate a point cloud."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    if len(points) == 0:
+    if np.size(points) == 0:
         raise SpecholoError(f"{p}: no points in file")
+    points = _xyz(p, points)
     if not np.isfinite(points).all():
         raise SpecholoError(f"{p}: point cloud has NaN or infinite coordinates")
     return Model(mesh=None, points=points)
-
-
-def _read_text(p: Path) -> str:
-    try:
-        return p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise SpecholoError(f"{p}: not a text file (cannot decode as UTF-8)") from exc
-    except OSError as exc:
-        raise SpecholoError(f"{p}: cannot read: {_one_line(exc)}") from exc
 
 
 def _parse_rows(p: Path, rows: list[tuple[int, list[str]]]) -> np.ndarray:
@@ -206,10 +559,10 @@ def _parse_rows(p: Path, rows: list[tuple[int, list[str]]]) -> np.ndarray:
     raise SpecholoError(f"{p}: cannot parse coordinates")  # pragma: no cover
 
 
-def _read_xyz(p: Path) -> np.ndarray:
+def _read_xyz(p: Path, text: str) -> np.ndarray:
     """Points (n, 3) of a whitespace-separated ``x y z [...]`` text file."""
     rows: list[tuple[int, list[str]]] = []
-    for line_no, line in enumerate(_read_text(p).splitlines(), start=1):
+    for line_no, line in enumerate(text.splitlines(), start=1):
         fields = line.replace(",", " ").split()
         if not fields or fields[0].startswith("#"):
             continue
@@ -227,12 +580,12 @@ def _is_number(text: str) -> bool:
     return True
 
 
-def _read_csv(p: Path) -> np.ndarray:
+def _read_csv(p: Path, text: str) -> np.ndarray:
     """Points (n, 3) of a CSV file with x, y, z columns and an optional header."""
     try:
         table = [
             (i, [c.strip() for c in row])
-            for i, row in enumerate(csv.reader(io.StringIO(_read_text(p))), start=1)
+            for i, row in enumerate(csv.reader(io.StringIO(text)), start=1)
             if any(c.strip() for c in row)
         ]
     except csv.Error as exc:

@@ -10,6 +10,9 @@ import trimesh
 from specholo.errors import SpecholoError
 from specholo.scene.loading import Model
 
+# Largest relative error of the placed model's size.
+_SIZE_TOLERANCE = 1e-9
+
 
 def place(model: Model, size: float, center_z: float) -> Model:
     """Scale a model uniformly and centre it on the plate axis.
@@ -27,24 +30,49 @@ def place(model: Model, size: float, center_z: float) -> Model:
 
     Raises:
         SpecholoError: size is not a positive finite number, center_z is not
-            finite, or the model has zero extent (all points equal).
+            finite, the model has no points, NaN or infinite ones, or zero
+            extent (all points equal), or the placed model would not fit in
+            floating point.
     """
-    size = float(size)
-    center_z = float(center_z)
+    try:
+        size = float(size)
+        center_z = float(center_z)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise SpecholoError(f"model size and centre z must be numbers of mm, got {size!r} "
+                            f"and {center_z!r}") from exc
     if not math.isfinite(size) or size <= 0:
         raise SpecholoError(f"model size must be a positive number of mm, got {size:g}")
     if not math.isfinite(center_z):
         raise SpecholoError(f"model centre z must be a finite number of mm, got {center_z:g}")
 
     points = np.asarray(model.points, dtype=np.float64)
-    lo, hi = points.min(axis=0), points.max(axis=0)
+    if points.ndim != 2 or points.shape[1] != 3 or len(points) == 0:
+        raise SpecholoError(f"model has no points to place (points of shape {points.shape})")
+    if not np.isfinite(points).all():
+        raise SpecholoError("model has NaN or infinite coordinates; cannot place it")
+    # Bring the coordinates below 1 by a power of two (exact) first, so that
+    # the extent of a model spanning +-1e308 does not overflow and one of 1e-320
+    # does not lose its digits.
+    largest = float(np.max(np.abs(points)))
+    k = math.frexp(largest)[1] if largest > 0 else 0
+    unit = np.ldexp(points, -k)
+    lo, hi = unit.min(axis=0), unit.max(axis=0)
     extent = float(np.max(hi - lo))
     if not extent > 0:
         raise SpecholoError("model has zero extent (all its points coincide); cannot scale it")
 
     scale = size / extent
-    offset = np.array([0.0, 0.0, center_z]) - 0.5 * (lo + hi) * scale
-    placed = points * scale + offset
+    with np.errstate(over="ignore", invalid="ignore"):
+        placed = (unit - 0.5 * (lo + hi)) * scale + np.array([0.0, 0.0, center_z])
+    if not np.isfinite(placed).all():
+        raise SpecholoError(f"model size {size:g} mm at centre z {center_z:g} mm is beyond "
+                            "floating-point range")
+    # Far from the origin, floating point is coarse: a small model there would
+    # be squashed. Halves, so that a model spanning +-1e308 does not overflow.
+    got = 2.0 * float(np.max(placed.max(axis=0) / 2 - placed.min(axis=0) / 2))
+    if not abs(got - size) <= _SIZE_TOLERANCE * size:
+        raise SpecholoError(f"model size {size:g} mm is too small to place at centre z "
+                            f"{center_z:g} mm (floating point is too coarse there)")
 
     if model.mesh is None:
         return Model(mesh=None, points=placed)
