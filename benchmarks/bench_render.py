@@ -26,12 +26,15 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000])
     ap.add_argument("--turntable-sizes", type=int, nargs="*", default=[10_000])
     args = ap.parse_args()
-    print(f"{'stipples':>9} {'arcs':>11} {'still s':>8} {'turntable s':>12} {'frames/s':>9}")
+    print(f"{'stipples':>9} {'arcs':>11} {'prepare s':>10} {'still s':>8} {'turntable s':>12} "
+          f"{'frames/s':>9}")
     for n in sorted(set(args.sizes) | set(args.turntable_sizes)):
         cfg = DesignConfig(stipples=n)
         d = design(MODEL, cfg)
         setup = d.config.setup()
+        t0 = time.perf_counter()
         eng = Engraved.from_grooves(d.grooves, setup.tool)
+        prep = time.perf_counter() - t0
         camera = design_camera(setup, d.grooves, width=1024, height=1024)
         still = float("nan")
         if n in args.sizes:
@@ -44,7 +47,8 @@ def main() -> None:
             t0 = time.perf_counter()
             turntable(loaded, 90, size=(512, 512))
             spin = time.perf_counter() - t0
-        print(f"{n:>9} {len(eng.path):>11,} {still:>8.2f} {spin:>12.1f} {90 / spin:>9.1f}")
+        print(f"{n:>9} {len(eng.path):>11,} {prep:>10.1f} {still:>8.2f} {spin:>12.1f} "
+              f"{90 / spin:>9.1f}")
 
 
 if __name__ == "__main__":

@@ -591,8 +591,8 @@ def _assert_refused(code: int, err: str, what: object) -> None:
 
 
 _DESIGN_NAMES = [name for name, _, _ in _DESIGN_OPTIONS]
-# Hostile values only: plausible ones can be legitimately slow (a 45 mm tool radius
-# takes the striped design minutes and gigabytes), which is not what this test is for.
+# Hostile values only: values within and at the physical bounds are drawn by
+# tests/test_hardening.py::test_random_settings_design_completely_or_are_refused_in_one_line.
 _OPTION_VALUES = st.sampled_from(["nan", "inf", "-inf", "-1", "0", "1e309", "-1e309", "1e300",
                                   "abc", "", "1e13", "99999999999999999999", "-0", "0x10"])
 

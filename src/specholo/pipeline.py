@@ -23,7 +23,7 @@ import numpy as np
 
 from specholo import __version__
 from specholo.errors import SpecholoError
-from specholo.fabrication.atomic import atomic_open, public_mode
+from specholo.fabrication.atomic import atomic_open, public_mode, scratch
 from specholo.fabrication.tools import (
     Cutter,
     ViewCheck,
@@ -37,7 +37,7 @@ from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import Grooves
 from specholo.toolpaths.overlap import Overlaps, groove_overlaps
 
-METHODS = ("striped", "hyperbola", "arc")
+METHODS = ("striped", "hyperbola", "arc", "ridged")
 DEFAULT_STIPPLES = 2000
 #: Fallback groove depth (mm) and spindle speed (rpm) by tool. A design without a
 #: depth cuts just deep enough for the wall tilts its views need (see
@@ -48,9 +48,64 @@ TOOL_DEFAULTS = {"ball": (0.08, 12000.0), "drag": (0.012, 0.0), "scriber": (0.01
                  "vbit": (0.05, 12000.0), "laser": (0.04, 0.0)}
 
 
+#: Ball radius (mm) of a ridged plate's finishing raster when none is given: it
+#: must follow facets a few tenths of a millimetre wide.
+RIDGED_BALL_RADIUS = 0.05
+#: Largest head elevation range of a ridged design, degrees.
+MAX_ELEVATION_RANGE = 80.0
+#: Smallest and largest raster spacing of a ridged plate, mm.
+RASTER_RANGE = (0.002, 1.0)
+#: Side of the blocks a ridged plate is shared out by, mm (a whole number of raster cells).
+RIDGED_BLOCK = 0.2
+
+
 #: Largest magnitude of any length, angle, feed or speed setting: far beyond any
 #: plate, light or machine, and small enough that squares and products stay finite.
 MAX_SETTING = 1e12
+
+#: Physical bounds of the design settings: (lowest, highest, unit), both included.
+#: Beyond them a design is not a hologram anyone can cut or see (a 2 m tool, a
+#: 1 nm band, eyes 100 km up), and the construction's work grows without bound.
+SETTING_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "size": (0.01, 10_000.0, "mm"),
+    "center_z": (-10_000.0, 10_000.0, "mm"),
+    "light_distance": (1.0, 1e7, "mm"),
+    "view_distance": (10.0, 1e7, "mm"),
+    "view_range": (0.0, 89.0, "degrees"),
+    "eye_height": (-1e5, 1e5, "mm"),
+    "ipd": (1.0, 1000.0, "mm"),
+    "spacing": (0.001, 10_000.0, "mm"),
+    "band": (0.001, 1000.0, "mm"),
+    "tool_radius": (0.001, 25.0, "mm"),
+    "tool_angle": (1.0, 179.0, "degrees"),
+    "tip_flat": (0.0, 10.0, "mm"),
+    "spot": (0.005, 1.0, "mm"),
+    "depth": (1e-4, 100.0, "mm"),
+    "plate_width": (1.0, 100_000.0, "mm"),
+    "plate_height": (1.0, 100_000.0, "mm"),
+    "stock_thickness": (0.001, 1000.0, "mm"),
+    "feed": (0.01, 1e6, "mm/min"),
+    "plunge": (0.01, 1e6, "mm/min"),
+    "safe_z": (0.001, 1000.0, "mm"),
+    "spindle": (0.0, 1e6, "rpm"),
+}
+
+
+def _check_bounds(config: Any) -> None:
+    """Refuse a setting outside its physical bounds (:data:`SETTING_BOUNDS`), naming it."""
+    for name, (lo, hi, unit) in SETTING_BOUNDS.items():
+        value = getattr(config, name)
+        if value is not None and not lo <= value <= hi:
+            raise SpecholoError(f"{name.replace('_', '-')} {value:g} {unit} is out of range: "
+                                f"it must be in [{lo:g}, {hi:g}] {unit}")
+    # A laser's trough is modelled by the circle its floor follows, of radius
+    # spot^2 / (16 depth): a shallow trough of a wide spot is nearly flat.
+    radius = config.setup().tool.radius
+    most = SETTING_BOUNDS["tool_radius"][1]
+    if radius > most:
+        raise SpecholoError(f"a {config.depth_mm:g} mm deep groove of this {config.tool} is "
+                            f"too flat to show a glint (its floor curves with a radius of "
+                            f"{radius:.3g} mm, at most {most:g}): set a larger --depth")
 
 
 def _check_setting(config: Any, name: str, kind: str) -> None:
@@ -127,6 +182,9 @@ class DesignConfig:
     plunge: float = 100.0
     safe_z: float = 1.0
     spindle: float | None = None
+    elevation_range: float = 15.0
+    shell: float = 0.1
+    raster: float = 0.02
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -171,7 +229,53 @@ class DesignConfig:
         if isinstance(self.depth, (int, float)) and self.depth >= self.stock_thickness:
             raise SpecholoError(f"groove depth {self.depth:g} mm must be less than the stock "
                                 f"thickness {self.stock_thickness:g} mm")
+        self._check_ridged_ranges()
         self.setup()  # validates the physical settings
+        _check_bounds(self)
+        self._check_ridged_machine()
+
+    def _check_ridged_ranges(self) -> None:
+        """Refuse ridged settings out of range."""
+        if not 0.0 <= self.elevation_range < MAX_ELEVATION_RANGE:
+            raise SpecholoError(f"elevation-range must be in [0, {MAX_ELEVATION_RANGE:g}) "
+                                f"degrees, got {self.elevation_range:g}")
+        if not self.shell > 0:
+            raise SpecholoError(f"shell must be a positive number of mm, got {self.shell:g}")
+        if 2.0 * self.shell >= self.stock_thickness:
+            raise SpecholoError(f"a shell of {self.shell:g} mm cuts {2 * self.shell:g} mm deep, "
+                                f"not less than the stock thickness {self.stock_thickness:g} mm")
+        if not RASTER_RANGE[0] <= self.raster <= RASTER_RANGE[1]:
+            raise SpecholoError(f"raster must be in [{RASTER_RANGE[0]:g}, {RASTER_RANGE[1]:g}] "
+                                f"mm, got {self.raster:g}")
+
+    def _check_ridged_machine(self) -> None:
+        """Refuse a machine or tool that cannot mill a ridged plate."""
+        if self.method != "ridged":
+            return
+        if self.tool != "ball":
+            raise SpecholoError(f"a ridged plate is milled with a ball-end mill: use --tool ball "
+                                f"(got {self.tool})")
+        if self.depth is not None:
+            raise SpecholoError("depth is a groove's; a ridged plate is cut 2 x shell deep "
+                                "(set --shell)")
+        if self.dialect == "marlin":
+            raise SpecholoError("a ridged plate is milled: use --dialect grbl or linuxcnc "
+                                "(marlin drives a laser)")
+        if self.units != "mm":
+            raise SpecholoError("a ridged plate's G-code is written in mm: use --units mm")
+        if not (self.spindle or 0.0) > 0:
+            raise SpecholoError("a ridged plate is milled: --spindle must be positive")
+        if self.ball_radius < self.raster:
+            raise SpecholoError(f"tool-radius {self.ball_radius:g} mm is finer than the raster "
+                                f"{self.raster:g} mm: the ball must span a raster cell")
+        if (self.plate_width is None) != (self.plate_height is None):
+            raise SpecholoError("a ridged plate needs both plate-width and plate-height, "
+                                "or neither")
+
+    @property
+    def ball_radius(self) -> float:
+        """Ball radius of a ridged plate's finishing raster, mm."""
+        return float(self.tool_radius) if self.tool_radius is not None else RIDGED_BALL_RADIUS
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> DesignConfig:
@@ -185,6 +289,8 @@ class DesignConfig:
             if name not in known:
                 raise SpecholoError(f"unknown setting {key!r}")
             clean[name] = value
+        if clean.get("method") == "ridged":
+            clean.setdefault("tool", "ball")  # a ridged plate is milled
         try:
             return cls(**clean)
         except TypeError as exc:
@@ -192,9 +298,14 @@ class DesignConfig:
 
     @property
     def depth_mm(self) -> float:
-        """Groove depth, mm: as given, else the tool's fallback default."""
+        """Groove depth, mm: as given, else the tool's fallback default.
+
+        A ridged plate has no grooves: its ball reaches the shell's depth, stated
+        here within the ball's radius so the tool model stays a valid groove."""
         if self.depth is not None:
             return float(self.depth)
+        if self.method == "ridged":
+            return min(2.0 * float(self.shell), self.ball_radius)
         return TOOL_DEFAULTS.get(self.tool, (0.08, 0.0))[0]
 
     def cutter(self) -> Cutter:
@@ -246,6 +357,21 @@ class Design:
 PLATE_MARGIN = 5.0
 
 
+def groove_extent(grooves: Grooves) -> np.ndarray:
+    """(2, 2) corners of the grooves' centrelines, arcs included where they bulge
+    past their end points (the tool follows the arc, not its chord)."""
+    from specholo.fabrication.svg import arc_bounds
+
+    if not grooves.n_paths:
+        return np.zeros((2, 2))
+    box = grooves.bounds()
+    segs = grooves.segments()
+    if len(segs):
+        arcs = arc_bounds(segs)
+        box = np.stack([np.minimum(box[0], arcs[0]), np.maximum(box[1], arcs[1])])
+    return box
+
+
 def plate_rect(grooves: Grooves, width: float, config: DesignConfig) -> np.ndarray:
     """The plate's corners (2, 2), centred on the plate origin; refuse one too small.
 
@@ -254,7 +380,7 @@ def plate_rect(grooves: Grooves, width: float, config: DesignConfig) -> np.ndarr
         width: groove width, mm (grooves reach half of it past their centrelines).
         config: plate_width / plate_height, or None to fit the grooves with a margin.
     """
-    lo, hi = grooves.bounds() if grooves.n_paths else (np.zeros(2), np.zeros(2))
+    lo, hi = groove_extent(grooves)
     reach = np.maximum(np.abs(lo), np.abs(hi)) + 0.5 * width
     need = 2.0 * reach
     size = np.array([config.plate_width or 0.0, config.plate_height or 0.0])
@@ -307,8 +433,42 @@ def design_runs(runs: Runs, config: DesignConfig) -> tuple[Grooves, np.ndarray]:
     if config.method == "striped":
         return design_striped(runs, setup, StripeOptions(band=config.band))
     if config.method == "hyperbola":
-        return design_hyperbola(runs, setup), np.zeros(0, dtype=np.int64)
+        from specholo.toolpaths.hyperbola import serves
+
+        ok = serves(runs, setup)
+        dropped = np.setdiff1d(runs.stipple[~ok], runs.stipple[ok])
+        return design_hyperbola(runs.take(ok), setup), dropped.astype(np.int64)
     return design_classic(runs, setup), np.zeros(0, dtype=np.int64)
+
+
+def _stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
+                   rng: np.random.Generator | None, timings: dict[str, float]) -> tuple[Any, Any]:
+    """Load and place the model and stipple it; refuse what would not fit in memory or
+    could not be seen through the plate.
+
+    Returns:
+        The placed model and its stipples (``timings["stippling"]`` is set).
+    """
+    from specholo.scene.loading import load_model
+    from specholo.scene.placement import place
+    from specholo.scene.stippling import check_memory, stipple
+
+    setup = config.setup()
+    rng = rng if rng is not None else np.random.default_rng(config.seed)
+    count = None if config.spacing is not None else (config.stipples or DEFAULT_STIPPLES)
+    if count is not None:
+        check_memory(count)  # stipples = 10**9 is refused before any work
+    t0 = time.perf_counter()
+    model = place(load_model(model_path), config.size, config.center_z)
+    st = stipple(model, rng, count=count, spacing=config.spacing)
+    check_points(st.points, setup)
+    mesh = model.mesh
+    check_memory(len(st.points), 0 if mesh is None else len(mesh.faces),
+                 0 if mesh is None else len(mesh.vertices),
+                 request=None if count is not None else
+                 f"spacing = {config.spacing:g} mm ({len(st.points)} stipples)")
+    timings["stippling"] = time.perf_counter() - t0
+    return model, st
 
 
 def design(model_path: str | os.PathLike[str], config: DesignConfig,
@@ -325,28 +485,14 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
         SpecholoError: on bad input, a plate smaller than the design, or (with
             ``config.strict``) a tool whose walls lose views.
     """
-    from specholo.scene.loading import load_model
-    from specholo.scene.placement import place
-    from specholo.scene.stippling import check_memory, stipple
     from specholo.visibility.occlusion import visible_intervals
 
+    if config.method == "ridged":
+        raise SpecholoError("a ridged design is made by design_ridged_model, not design")
     setup = config.setup()
-    rng = rng if rng is not None else np.random.default_rng(config.seed)
     timings: dict[str, float] = {}
-    count = None if config.spacing is not None else (config.stipples or DEFAULT_STIPPLES)
-    if count is not None:
-        check_memory(count)  # stipples = 10**9 is refused before any work
-    t0 = time.perf_counter()
-    model = place(load_model(model_path), config.size, config.center_z)
-    st = stipple(model, rng, count=count, spacing=config.spacing)
+    model, st = _stipple_model(model_path, config, rng, timings)
     points = st.points
-    check_points(points, setup)
-    mesh = model.mesh
-    check_memory(len(points), 0 if mesh is None else len(mesh.faces),
-                 0 if mesh is None else len(mesh.vertices),
-                 request=None if count is not None else
-                 f"spacing = {config.spacing:g} mm ({len(points)} stipples)")
-    timings["stippling"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     iv = visible_intervals(model.mesh, points, st.normals, setup.viewer)
     runs = make_runs(points, iv.stipple, iv.start, iv.end)
@@ -406,7 +552,7 @@ def hologram_json(d: Design) -> dict[str, Any]:
                   "dots": int(d.grooves.is_dot.sum()),
                   "groove_length_mm": d.grooves.total_length(),
                   "dropped_stipples": d.dropped.tolist(),
-                  "seconds": d.timings},
+                  "dropped_reasons": drop_reasons(d.points, d.dropped, setup)},
         "stipples": [{"id": i, "x": float(p[0]), "y": float(p[1]), "z": float(p[2]),
                       "visible_deg": iv[i]} for i, p in enumerate(d.points.tolist())],
     }
@@ -423,6 +569,13 @@ def staged_output(out: str | os.PathLike[str],  # type: ignore[no-untyped-def]
             files are in place (a new design's folder must not keep an old
             verification).
     """
+    with scratch(), _staged(out, stale) as tmp:
+        yield tmp
+
+
+@contextlib.contextmanager
+def _staged(out: str | os.PathLike[str],  # type: ignore[no-untyped-def]
+            stale: tuple[str, ...]):
     out = Path(out)
     try:
         if out.exists() and not out.is_dir():
@@ -458,10 +611,66 @@ def staged_output(out: str | os.PathLike[str],  # type: ignore[no-untyped-def]
                     d.rmdir()
 
 
+def software_versions() -> dict[str, str]:
+    """Versions of specholo, Python and the libraries a design's numbers depend on."""
+    import platform
+    from importlib import metadata
+
+    versions = {"specholo": __version__, "python": platform.python_version()}
+    for name in ("numpy", "scipy", "numba", "trimesh", "embreex", "ezdxf", "matplotlib",
+                 "pillow"):
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return versions
+
+
+def run_record(config: DesignConfig, command: list[str] | None,
+               seconds: dict[str, Any]) -> dict[str, Any]:
+    """What ``run.json`` records of one run: when, how it was asked for, with which
+    software, and how long each stage took. It is the one file of a design
+    folder that differs between two runs of the same design."""
+    import sys
+
+    return {
+        "specholo_version": __version__,
+        "command": list(sys.argv if command is None else command),
+        "settings": asdict(config),
+        "software": software_versions(),
+        "platform": {"system": __import__("platform").platform(),
+                     "numba_threads": _numba_threads()},
+        "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "seconds": seconds,
+    }
+
+
+def _numba_threads() -> int | None:
+    try:
+        import numba
+    except ImportError:
+        return None
+    return int(getattr(numba.config, "NUMBA_NUM_THREADS"))  # noqa: B009 - set at run time
+
+
+def drop_reasons(points: np.ndarray, dropped: np.ndarray, setup: Setup) -> dict[str, str]:
+    """Why each dropped stipple could not be designed, by id (as a JSON key)."""
+    from specholo.toolpaths.striped import at_light
+
+    near = at_light(np.asarray(points, dtype=float).reshape(-1, 3)[dropped], setup)
+    return {str(int(i)): ("at the light: its glint would be the light itself" if n else
+                          "light in the eyes' plane: its groove would run vertically")
+            for i, n in zip(dropped.tolist(), near.tolist(), strict=True)}
+
+
 #: Files ``write_design`` can add besides the design data, by format name.
 FORMATS = {"gcode": "hologram.gcode", "svg": "hologram.svg", "dxf": "hologram.dxf",
            "pdf": "pattern.pdf"}
 DEFAULT_FORMATS = ("gcode", "svg")
+#: The files of a ridged design (see :func:`write_ridged_design`), besides
+#: ``hologram.json``, ``stipples.npz`` and ``model.ply``.
+RIDGED_STALE = ("plate.npz", "heightmap.png", "heightmap.tif", "heightmap.json",
+                "hologram.stl")
 
 
 def check_written_gcode(path: str | os.PathLike[str], d: Design) -> Any:
@@ -490,6 +699,14 @@ def check_written_gcode(path: str | os.PathLike[str], d: Design) -> Any:
 
 def check_formats(formats: tuple[str, ...], method: str) -> None:
     """Refuse unknown formats, and a compass pattern of grooves that are not arcs."""
+    if method == "ridged":
+        from specholo.toolpaths.ridged import RIDGED_FILES
+
+        for f in formats:
+            if f not in RIDGED_FILES:
+                raise SpecholoError(f"a ridged design's formats are among "
+                                    f"{', '.join(RIDGED_FILES)}, got {f!r}")
+        return
     for f in formats:
         if f not in FORMATS:
             raise SpecholoError(f"format must be among {', '.join(FORMATS)}, got {f!r}")
@@ -499,19 +716,24 @@ def check_formats(formats: tuple[str, ...], method: str) -> None:
 
 
 def write_design(d: Design, out: str | os.PathLike[str],
-                 formats: tuple[str, ...] = DEFAULT_FORMATS) -> dict[str, float]:
+                 formats: tuple[str, ...] = DEFAULT_FORMATS,
+                 command: list[str] | None = None) -> dict[str, float]:
     """Write every output of a design into ``out`` (all or nothing).
+
+    Every file but ``run.json`` is the same byte for byte for the same model,
+    settings and software; ``run.json`` records this run (see :func:`run_record`).
 
     Args:
         d: the design.
         out: output folder.
         formats: fabrication files to write, from :data:`FORMATS`.
+        command: the command line, for ``run.json`` (default ``sys.argv``).
 
     Returns:
         Seconds spent per output.
     """
     from specholo.fabrication.dxf import write_dxf
-    from specholo.fabrication.gcode import GcodeOptions, write_gcode
+    from specholo.fabrication.gcode import GcodeOptions, check_grooves, write_gcode
     from specholo.fabrication.order import order_paths
     from specholo.fabrication.pattern import write_pattern
     from specholo.fabrication.svg import write_svg
@@ -521,6 +743,7 @@ def write_design(d: Design, out: str | os.PathLike[str],
 
     check_formats(formats, d.config.method)
     check_disk(len(d.points), out)
+    check_grooves(d.grooves)  # e.g. grooves beyond any machine, before ordering them
     setup = d.config.setup()
     timings: dict[str, float] = {}
     grooves = d.grooves
@@ -542,7 +765,8 @@ def write_design(d: Design, out: str | os.PathLike[str],
     if d.config.order:
         info["machining"]["travel_unordered_mm"] = order_stats.travel_before_mm
         info["machining"]["travel_mm"] = order_stats.travel_after_mm
-    stale = ("verify.json", "verify.png", "model.ply", *FORMATS.values())
+    stale = ("verify.json", "verify.png", "verify_cut.json", "model.ply", *FORMATS.values(),
+             *RIDGED_STALE)
     with staged_output(out, stale=stale) as tmp:
         if "gcode" in formats:
             t0 = time.perf_counter()
@@ -551,7 +775,8 @@ def write_design(d: Design, out: str | os.PathLike[str],
                         header={"design": d.config.method, "stipples": str(len(d.points)),
                                 "cutter": d.config.cutter().describe()},
                         options=GcodeOptions(dialect=d.config.dialect,  # type: ignore[arg-type]
-                                             units=d.config.units))  # type: ignore[arg-type]
+                                             units=d.config.units),  # type: ignore[arg-type]
+                        depth=d.config.depth_mm)
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = check_written_gcode(path, d)
@@ -585,6 +810,9 @@ def write_design(d: Design, out: str | os.PathLike[str],
         t0 = time.perf_counter()
         render_preview(d.grooves, setup, tmp / "preview.png")
         timings["preview"] = time.perf_counter() - t0
+        with atomic_open(tmp / "run.json") as fh:
+            json.dump(run_record(d.config, command, {"design": d.timings, "writing": timings}),
+                      fh, indent=1)
     return timings
 
 
@@ -616,6 +844,9 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
     try:
         info = json.loads(meta.read_text())
         config = DesignConfig.from_dict(info["settings"])
+        if config.method == "ridged":
+            raise SpecholoError(f"{folder} holds a ridged design (a height field, no "
+                                "grooves): render, verify and view read it")
         with np.load(folder / "stipples.npz") as data:
             points = data["points"]
             normals = data["normals"] if len(data["normals"]) else None
@@ -681,3 +912,324 @@ def verify_cut_design(loaded: Loaded, max_step_deg: float = 5.0, resolution: flo
         write_stl(stl, field, loaded.config.stock_thickness)
     az = view_azimuths(setup.viewer.half_range, math.radians(max_step_deg))
     return verify_cut(field, loaded.points, setup, _visibility(loaded), az), field
+
+
+# ---------------------------------------------------------------------------
+# Ridged (full-parallax) designs: a height field instead of grooves
+
+
+#: A ridged design's fabrication files by default (see
+#: :data:`specholo.toolpaths.ridged.RIDGED_FILES`).
+DEFAULT_RIDGED_FORMATS = ("png", "tiff", "stl", "gcode")
+#: Peak memory per raster cell of a ridged design and its files, bytes: heights
+#: and labels, the slope index, the ball's tip heights (float64) and the images.
+RIDGED_BYTES_PER_CELL = 40
+
+
+@dataclass
+class RidgedDesign:
+    """A ridged full-parallax design: the placed model, its stipples and the plate.
+
+    Attributes:
+        config: the options.
+        model: the placed model (``scene.loading.Model``).
+        points: (n, 3) stipples, mm.
+        normals: (n, 3) their face normals, or None for a point cloud.
+        plate: the plate (``toolpaths.ridged.RidgedPlate``).
+        timings: seconds per stage.
+    """
+
+    config: DesignConfig
+    model: Any
+    points: np.ndarray
+    normals: np.ndarray | None
+    plate: Any
+    timings: dict[str, float]
+
+
+def ridge_options(config: DesignConfig) -> Any:
+    """The ridged construction's settings (``toolpaths.ridged.RidgeOptions``) of a config.
+
+    The plate is shared out in blocks of about :data:`RIDGED_BLOCK` (a whole number
+    of raster cells), with a blank border wide enough for the finishing ball.
+    """
+    from specholo.scene.loading import available_memory
+    from specholo.toolpaths.ridged import RidgeOptions
+
+    raster = float(config.raster)
+    ratio = max(1, round(RIDGED_BLOCK / raster))
+    room = available_memory()
+    cells = RidgeOptions.max_cells
+    if room is not None:
+        cells = max(1, min(cells, int(room) // RIDGED_BYTES_PER_CELL))
+    return RidgeOptions(delta=float(config.shell), resolution=raster, block=ratio * raster,
+                        elevation_range=math.radians(float(config.elevation_range)),
+                        margin=max(RidgeOptions.margin, 2.0 * config.ball_radius),
+                        max_cells=cells)
+
+
+def _ridged_plate_rect(config: DesignConfig) -> np.ndarray | None:
+    """The plate's corners (2, 2) from plate_width and plate_height, or None to fit."""
+    if config.plate_width is None or config.plate_height is None:
+        return None
+    half = 0.5 * np.array([float(config.plate_width), float(config.plate_height)])
+    return np.stack([-half, half])
+
+
+def design_ridged_model(model_path: str | os.PathLike[str], config: DesignConfig,
+                        rng: np.random.Generator | None = None) -> RidgedDesign:
+    """Load, place and stipple a model, then design its ridged full-parallax plate.
+
+    Args:
+        model_path: mesh or point-cloud file.
+        config: the options (``method`` "ridged").
+        rng: random generator for stippling; default seeded from ``config.seed``.
+
+    Raises:
+        SpecholoError: on bad input, or a raster too large for the memory.
+    """
+    from specholo.toolpaths.ridged import design_ridged
+
+    if config.method != "ridged":
+        raise SpecholoError(f"design_ridged_model needs method ridged, got {config.method!r}")
+    setup = config.setup()
+    options = ridge_options(config)
+    plate_rect = _ridged_plate_rect(config)
+    timings: dict[str, float] = {}
+    model, st = _stipple_model(model_path, config, rng, timings)
+    t0 = time.perf_counter()
+    try:
+        plate = design_ridged(st.points, st.normals, model.mesh, setup, options, plate_rect)
+    except SpecholoError as exc:
+        if "raster is too large" not in str(exc):
+            raise
+        raise SpecholoError(f"the ridged plate would need more than {options.max_cells:,} "
+                            f"raster cells: coarsen --raster {config.raster:g}, narrow the view "
+                            "or elevation range, or make the model smaller") from exc
+    timings["plate"] = time.perf_counter() - t0
+    return RidgedDesign(config, model, st.points, st.normals, plate, timings)
+
+
+def plate_edges(heights: Any) -> np.ndarray:
+    """The plate rectangle (2, 2) of a height map: its samples' cells, edge to edge, mm."""
+    half = 0.5 * heights.resolution
+    return np.asarray(heights.bounds, dtype=float) + np.array([[-half], [half]])
+
+
+def ridged_json(d: RidgedDesign) -> dict[str, Any]:
+    """A ridged design's settings, figures and stipples, for ``hologram.json``."""
+    plate = d.plate
+    hm = plate.heights
+    summary = plate.summary()
+    edges = plate_edges(hm)
+    records = plate.stipple_records()
+    dropped = np.zeros(len(d.points), dtype=bool)
+    dropped[plate.dropped] = True
+    visible_share = plate.visible.mean(axis=(1, 2)) if plate.visible.size else \
+        np.zeros(len(d.points))
+    stipples = []
+    for i, p in enumerate(d.points.tolist()):
+        rec = {"id": i, "x": p[0], "y": p[1], "z": p[2], "dropped": bool(dropped[i]),
+               "visible_share": float(visible_share[i])}
+        rec.update({k: v for k, v in records[i].items() if k != "id"})
+        stipples.append(rec)
+    return {
+        "specholo_version": __version__,
+        "design": "ridged",
+        "settings": asdict(d.config),
+        "frame": "plate mm: x right, y up, z toward the viewer, plate at z = 0",
+        "tool": {"kind": "ball", "description": f"ball-end mill, radius "
+                 f"{d.config.ball_radius:g} mm (raster finishing)",
+                 "ball_radius_mm": d.config.ball_radius},
+        "plate": {"plate_mm": edges.tolist(), "raster_mm": hm.resolution,
+                  "cells": [int(hm.shape[1]), int(hm.shape[0])],
+                  "shell_mm": [-2.0 * plate.delta, 0.0],
+                  "stock_thickness_mm": d.config.stock_thickness},
+        "ridged": summary,
+        "stats": {"stipples": len(d.points), "kept_stipples": summary["kept_stipples"],
+                  "dropped_stipples": summary["dropped_stipples"],
+                  "median_kept_share": summary["median_kept_share"],
+                  "seconds": d.timings},
+        "stipples": stipples,
+    }
+
+
+def check_ridged_gcode(path: str | os.PathLike[str], d: RidgedDesign) -> Any:
+    """The independent safety check of a ridged plate's G-code: the ball's centre
+    inside the plate less its radius, no deeper than the shell, rapids only at the
+    safe height, feeds and spindle as set."""
+    from specholo.fabrication.check import Stock, check_gcode
+
+    m = d.config.setup().machining
+    r = d.config.ball_radius
+    (x0, y0), (x1, y1) = plate_edges(d.plate.heights)
+    stock = Stock(x0 + r, y0 + r, x1 - r, y1 - r, d.config.stock_thickness)
+    feeds = (min(m.feed, m.plunge), max(m.feed, m.plunge))
+    return check_gcode(path, stock, 2.0 * d.plate.delta, m.safe_z, feeds,
+                       (m.spindle, m.spindle), spindle=True)
+
+
+def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
+                        formats: tuple[str, ...] = DEFAULT_RIDGED_FORMATS) -> dict[str, Any]:
+    """Write every output of a ridged design into ``out`` (all or nothing).
+
+    Always ``hologram.json``, ``plate.npz`` (the exact heights and the stipple of
+    each cell), ``stipples.npz`` and, for a mesh, ``model.ply``; then the
+    formats asked for: ``png`` and ``tiff`` (16-bit height maps, with the sidecar
+    ``heightmap.json``), ``stl`` and ``gcode`` (ball-end raster finishing, read
+    back by the safety check before anything is kept).
+
+    Returns:
+        Seconds spent per output (``timings``) and the G-code's figures
+        (``machining``, empty without G-code).
+    """
+    from specholo.fabrication.heightmap import write_raster_gcode
+    from specholo.toolpaths.ridged import RIDGED_FILES, write_ridged_files
+
+    check_formats(formats, "ridged")
+    setup = d.config.setup()
+    info = ridged_json(d)
+    timings: dict[str, float] = {}
+    machining: dict[str, Any] = {}
+    stale = ("verify.json", "verify.png", "verify_cut.json", "model.ply", "grooves.npz",
+             "preview.png", *FORMATS.values(), *RIDGED_STALE)
+    with staged_output(out, stale=stale) as tmp:
+        images = tuple(f for f in formats if f != "gcode")
+        timings.update(write_ridged_files(d.plate, tmp, setup.machining, d.config.ball_radius,
+                                          d.config.stock_thickness, images))
+        if "gcode" in formats:
+            t0 = time.perf_counter()
+            path = tmp / RIDGED_FILES["gcode"]
+            stats = write_raster_gcode(
+                path, d.plate.heights, d.config.ball_radius, setup.machining,
+                header={"design": "ridged", "stipples": str(len(d.points)),
+                        "cutter": info["tool"]["description"]})
+            timings["gcode"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            safety = check_ridged_gcode(path, d)
+            if not safety.ok:
+                raise SpecholoError("the G-code failed its safety check, nothing written: "
+                                    + safety.summary().splitlines()[1].strip())
+            timings["gcode check"] = time.perf_counter() - t0
+            machining = {"dialect": d.config.dialect, "units": "mm",
+                         "ball_radius_mm": d.config.ball_radius,
+                         "passes": stats.passes, "lines": stats.lines,
+                         "cutting_length_mm": stats.cutting_length_mm,
+                         "deepest_tip_mm": stats.deepest_tip_mm,
+                         "estimated_hours": stats.minutes / 60.0,
+                         "safety_check": {"moves": safety.moves, "violations": 0}}
+            info["machining"] = machining
+        t0 = time.perf_counter()
+        with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
+            np.savez_compressed(fh, points=d.points,
+                                normals=d.normals if d.normals is not None else np.zeros((0, 3)))
+        if d.model.mesh is not None:
+            d.model.mesh.export(tmp / "model.ply")
+        info["files"] = sorted(p.name for p in tmp.iterdir()) + ["hologram.json"]
+        with atomic_open(tmp / "hologram.json") as fh:
+            json.dump(info, fh, indent=1)
+        timings["data"] = time.perf_counter() - t0
+    return {"timings": timings, "machining": machining, "files": info["files"]}
+
+
+def is_ridged_folder(folder: str | os.PathLike[str]) -> bool:
+    """Whether a design folder holds a ridged design (by its ``hologram.json``, else
+    by its ``plate.npz``)."""
+    folder = Path(folder)
+    try:
+        info = json.loads((folder / "hologram.json").read_text())
+    except (OSError, ValueError):
+        return (folder / "plate.npz").is_file()
+    if not isinstance(info, dict):
+        return False
+    settings = info.get("settings")
+    return info.get("design") == "ridged" or (isinstance(settings, dict)
+                                              and settings.get("method") == "ridged")
+
+
+@dataclass
+class LoadedRidged:
+    """A ridged design read back from its output folder.
+
+    Attributes:
+        config: the options.
+        points: (n, 3) stipples, mm.
+        normals: (n, 3) their face normals, or None.
+        heights: the plate (``fabrication.heightmap.HeightMap``, labelled).
+        mesh: the placed model, or None for a point cloud.
+    """
+
+    config: DesignConfig
+    points: np.ndarray
+    normals: np.ndarray | None
+    heights: Any
+    mesh: Any
+
+
+def load_ridged_design(folder: str | os.PathLike[str]) -> LoadedRidged:
+    """Read a ridged design folder written by :func:`write_ridged_design`."""
+    import trimesh
+
+    from specholo.toolpaths.ridged import load_ridged
+
+    folder = Path(folder)
+    meta = folder / "hologram.json"
+    if not meta.is_file():
+        raise SpecholoError(f"{folder} holds no hologram.json: not a design folder")
+    try:
+        info = json.loads(meta.read_text())
+        config = DesignConfig.from_dict(info["settings"])
+        if config.method != "ridged":
+            raise SpecholoError(f"{folder} holds a {config.method} design, not a ridged one")
+        heights = load_ridged(folder)
+        with np.load(folder / "stipples.npz") as data:
+            points = data["points"]
+            normals = data["normals"] if len(data["normals"]) else None
+        mesh = None
+        if (folder / "model.ply").is_file():
+            mesh = trimesh.load(folder / "model.ply", force="mesh", process=False)
+    except SpecholoError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError) as exc:
+        raise SpecholoError(f"cannot read design in {folder}: {exc}") from exc
+    if heights.labels is None:
+        raise SpecholoError(f"{folder / 'plate.npz'} holds no stipple labels")
+    if len(points) and int(heights.labels.max()) >= len(points):
+        raise SpecholoError(f"{folder / 'plate.npz'} does not match {folder / 'stipples.npz'}")
+    return LoadedRidged(config, points, normals, heights, mesh)
+
+
+def _occlusion(mesh: Any, normals: np.ndarray | None) -> Any:
+    """The occlusion test of a placed model, or None for a point cloud."""
+    from specholo.visibility.occlusion import visible
+
+    if mesh is None or normals is None:
+        return None
+
+    def vis(points: np.ndarray, eyes: np.ndarray) -> np.ndarray:
+        return visible(mesh, points, normals, eyes)
+
+    return vis
+
+
+def ridged_views(config: DesignConfig, max_step_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Head azimuths and elevations (radians) over the design's ranges, at most
+    ``max_step_deg`` apart."""
+    from specholo.simulation.verify import view_azimuths
+
+    step = math.radians(max_step_deg)
+    setup = config.setup()
+    return (view_azimuths(setup.viewer.half_range, step),
+            view_azimuths(math.radians(float(config.elevation_range)), step))
+
+
+def verify_ridged_design(loaded: LoadedRidged, max_step_deg: float = 5.0) -> list[Any]:
+    """Stereo heads over azimuth and elevation on a ridged plate
+    (``simulation.heightfield.FullViewReport`` per head, azimuth-major)."""
+    from specholo.simulation.heightfield import verify_field
+
+    setup = loaded.config.setup()
+    az, el = ridged_views(loaded.config, max_step_deg)
+    return verify_field(loaded.heights, loaded.points, setup,
+                        _occlusion(loaded.mesh, loaded.normals), az, el,
+                        shell=float(loaded.config.shell))

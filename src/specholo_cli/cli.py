@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
+import signal
 import sys
 import tomllib
 from pathlib import Path
@@ -14,6 +16,7 @@ import click
 
 from specholo import __version__
 from specholo.errors import SpecholoError
+from specholo_cli import INTERRUPTED, early_sigint, exit_interrupted
 
 _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("size", float, "Largest side of the model's bounding box, mm [60]."),
@@ -46,6 +49,11 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("plunge", float, "Plunge feed, mm/min [100]."),
     ("safe-z", float, "Rapid (safe) height, mm [1]."),
     ("spindle", float, "Spindle speed, rpm; 0 for none [12000 for ball and vbit, else 0]."),
+    ("elevation-range", float, "Ridged design: heads' elevation within +- this many degrees "
+     "[15]."),
+    ("shell", float, "Ridged design: half-thickness Delta of the shell; the facets lie within "
+     "2 Delta of the surface, mm [0.1]."),
+    ("raster", float, "Ridged design: height-field sample spacing, mm [0.02]."),
 ]
 
 
@@ -75,6 +83,13 @@ def _read_config(path: Path | None) -> dict[str, Any]:
             raise
         raise SpecholoError(f"cannot read config file {path!r}: {exc}") from exc
     return data
+
+
+def _command_line() -> list[str]:
+    """The command line this run was given (recorded in the design's run.json)."""
+    obj = click.get_current_context().find_root().obj
+    argv = obj.get("argv") if isinstance(obj, dict) else None
+    return [str(a) for a in (argv if argv is not None else sys.argv)]
 
 
 def _check_out(out: Path) -> None:
@@ -111,25 +126,34 @@ def _design_options(fn: Any) -> Any:
 @click.argument("model", type=click.Path(path_type=Path))
 @click.option("--out", "-o", type=click.Path(path_type=Path), required=True,
               help="Output folder.")
-@click.option("--method", type=click.Choice(["striped", "hyperbola", "arc"]), default=None,
+@click.option("--method", type=click.Choice(["striped", "hyperbola", "arc", "ridged"]),
+              default=None,
               help="Design: exact striped [default], the paper's closed-form hyperbola, "
-                   "or the classic circular arc.")
+                   "the classic circular arc, or ridged (full parallax, a milled height "
+                   "field; with a ball-end mill, --tool-radius [0.05]).")
 @click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
               help="TOML file with any of these options (same names).")
 @click.option("--strict", is_flag=True,
               help="Refuse a design whose tool cannot serve every view.")
 @click.option("--no-order", is_flag=True,
               help="Keep the paths in design order (default: ordered to cut air travel).")
-@click.option("--formats", default="gcode,svg", show_default=True,
+@click.option("--formats", default=None,
               help="Fabrication files, comma-separated: gcode, svg, dxf, pdf (the compass "
-                   "pattern of an arc design).")
+                   "pattern of an arc design) [gcode,svg]; for a ridged design png, tiff "
+                   "(16-bit height maps), stl, gcode [all four].")
 @_design_options
 def design(model: Path, out: Path, method: str | None, config_path: Path | None,
-           strict: bool, no_order: bool, formats: str, **options: Any) -> None:
+           strict: bool, no_order: bool, formats: str | None, **options: Any) -> None:
     """Design a hologram of MODEL (OBJ, STL, PLY, OFF, GLB; PLY/XYZ/CSV point clouds)."""
     from rich.console import Console
 
-    from specholo.pipeline import DesignConfig, check_formats, write_design
+    from specholo.pipeline import (
+        DEFAULT_FORMATS,
+        DEFAULT_RIDGED_FORMATS,
+        DesignConfig,
+        check_formats,
+        write_design,
+    )
     from specholo.pipeline import design as run_design
 
     _check_out(out)
@@ -142,13 +166,21 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
         options["order"] = False
     values.update({k: v for k, v in options.items() if v is not None})
     config = DesignConfig.from_dict(values)
-    wanted = tuple(f.strip().lower() for f in formats.split(",") if f.strip())
+    ridged = config.method == "ridged"
+    wanted: tuple[str, ...]
+    if formats is None:
+        wanted = DEFAULT_RIDGED_FORMATS if ridged else DEFAULT_FORMATS
+    else:
+        wanted = tuple(f.strip().lower() for f in formats.split(",") if f.strip())
     check_formats(wanted, config.method)
+    if ridged:
+        _design_ridged(model, out, config, wanted)
+        return
     console = Console(stderr=True)
     with console.status("designing..."):
         d = run_design(model, config)
     with console.status("writing..."):
-        write_design(d, out, wanted)
+        write_design(d, out, wanted, command=_command_line())
     stats = (f"{len(d.points)} stipples, {d.grooves.n_paths} paths, "
              f"{d.grooves.total_length() / 1000:.2f} m of groove")
     click.echo(f"{config.method}: {stats} -> {out}")
@@ -178,8 +210,42 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     click.echo(f"machining: about {mach['estimated_hours']:.1f} h, "
                f"{mach['stipples_per_second']:.2f} stipples/s{travel}")
     if len(d.dropped):
-        click.echo(f"warning: {len(d.dropped)} stipples could not be designed "
-                   "(light in the eyes' plane)", err=True)
+        from collections import Counter
+
+        from specholo.pipeline import drop_reasons
+
+        why = Counter(r.split(":")[0] for r in
+                      drop_reasons(d.points, d.dropped, d.config.setup()).values())
+        click.echo(f"warning: {len(d.dropped)} stipples could not be designed ("
+                   + ", ".join(f"{n}: {r}" for r, n in sorted(why.items())) + ")", err=True)
+
+
+def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...]) -> None:
+    """The design command for a ridged (full-parallax) plate."""
+    from rich.console import Console
+
+    from specholo.pipeline import design_ridged_model, plate_edges, write_ridged_design
+
+    console = Console(stderr=True)
+    with console.status("designing the ridged plate..."):
+        d = design_ridged_model(model, config)
+    with console.status("writing..."):
+        written = write_ridged_design(d, out, formats)
+    s = d.plate.summary()
+    hm = d.plate.heights
+    (x0, y0), (x1, y1) = plate_edges(hm)
+    click.echo(f"ridged: {len(d.points)} stipples, {s['kept_stipples']} kept, "
+               f"{len(s['dropped_stipples'])} dropped (no view within the ranges, or no plate "
+               f"area left); median kept share of views {s['median_kept_share']:.3f} -> {out}")
+    click.echo(f"plate {x1 - x0:.1f} x {y1 - y0:.1f} mm, raster {hm.resolution:g} mm "
+               f"({hm.shape[1]} x {hm.shape[0]} cells); shell {-2 * d.plate.delta:g} to 0 mm, "
+               f"deepest {s['deepest_mm']:.3f} mm")
+    mach = written["machining"]
+    if mach:
+        click.echo(f"machining: ball-end mill radius {mach['ball_radius_mm']:g} mm, "
+                   f"{mach['passes']} raster passes, about {mach['estimated_hours']:.1f} h at "
+                   f"the feed; safety check passed ({mach['lines']:,} lines)")
+    click.echo("files: " + ", ".join(written["files"]))
 
 
 @cli.command()
@@ -202,7 +268,12 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
     from rich.table import Table
 
     from specholo.fabrication.atomic import atomic_open
-    from specholo.pipeline import load_design, verify_cut_design, verify_design
+    from specholo.pipeline import (
+        is_ridged_folder,
+        load_design,
+        verify_cut_design,
+        verify_design,
+    )
     from specholo.preview.preview import plot_verification
     from specholo.simulation.verify import reports_to_dicts, summarise
 
@@ -214,6 +285,12 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
         raise SpecholoError(f"--stl must name an .stl file, got {stl.name!r}")
     if not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
         raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
+    if is_ridged_folder(folder):
+        if from_gcode or cut:
+            raise SpecholoError("a ridged design is verified on its height field (plate.npz); "
+                                "--from-gcode and --cut are for grooves")
+        _verify_ridged(folder, step)
+        return
     loaded = load_design(folder, from_gcode=from_gcode or cut)
     with Console(stderr=True).status("simulating eye pairs..."):
         reports = verify_design(loaded, step)
@@ -257,6 +334,51 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
                        "azimuths": cut_rows}, fh, indent=1)
     plot_verification(rows, Path(folder) / "verify.png",
                       f"{loaded.config.method}: stereo verification")
+
+
+def _verify_ridged(folder: Path, step: float) -> None:
+    """The verify command for a ridged plate: heads over azimuth and elevation."""
+    from specholo.fabrication.atomic import atomic_open
+    from specholo.pipeline import load_ridged_design, verify_ridged_design
+    from specholo.preview.preview import plot_field_verification
+    from specholo.simulation.heightfield import report_table
+    from specholo.simulation.verify import reports_to_dicts, summarise
+
+    loaded = load_ridged_design(folder)
+    with _stderr_console().status("simulating eye pairs over azimuth and elevation..."):
+        reports = verify_ridged_design(loaded, step)
+    rows = reports_to_dicts(reports)
+    summary: dict[str, Any] = dict(summarise(reports))
+
+    def mean(key: str) -> float:
+        vals = [getattr(r, key) for r in reports if not math.isnan(getattr(r, key))]
+        return float(sum(vals) / len(vals)) if vals else math.nan
+
+    summary["mean_visibility"] = mean("visibility")
+    summary["mean_served_visibility"] = mean("served_visibility")
+    summary["mean_glinting_per_head"] = float(sum(
+        r.visibility * r.stipples_seen for r in reports if not math.isnan(r.visibility))
+        / max(len(reports), 1))
+    summary["heads"] = len(reports)
+    summary["heads_with_glints"] = sum(not math.isnan(r.p95_error) for r in reports)
+    click.echo(f"ridged design, {len(loaded.points)} stipples; heads every <= {step:g} deg "
+               "(rows: elevation, columns: azimuth; nan: no stipple glints for both eyes)")
+    for key, label in (("p95_error", "p95 error of the apparent point, mm"),
+                       ("visibility", "visibility: share of unoccluded stipples glinting for "
+                                      "both eyes"),
+                       ("served_visibility", "share of the stipples the plate serves to both "
+                                             "eyes that glint")):
+        click.echo(f"\n{label}:\n{report_table(reports, key)}")
+    click.echo(f"\nworst p95 error {summary['worst_p95_error']:.3f} mm over "
+               f"{summary['heads_with_glints']} of {len(reports)} heads with glints; "
+               f"mean visibility {summary['mean_visibility']:.3f} "
+               f"({summary['mean_glinting_per_head']:.1f} stipples per head), "
+               f"max false glints {summary['max_false_glints']:.3f}")
+    with atomic_open(Path(folder) / "verify.json") as fh:
+        json.dump({"method": "ridged", "source": "plate.npz", "summary": summary,
+                   "views": rows}, fh, indent=1)
+    plot_field_verification(rows, Path(folder) / "verify.png",
+                            "ridged: stereo verification")
 
 
 @cli.command()
@@ -374,9 +496,16 @@ def render(folder: Path, azimuth: float, elevation: float, width: int, height: i
            distance: float | None, fov: float | None, roughness: float, grooves: bool,
            ghost: bool, out: Path | None) -> None:
     """Render the lit plate of the design in FOLDER as a camera sees it (glints only)."""
+    from specholo.pipeline import is_ridged_folder
     from specholo.preview.render import design_camera, render_still, save_png
 
     out = _png_out(out, folder, "render.png")
+    if is_ridged_folder(folder):
+        if grooves:
+            raise SpecholoError("a ridged plate has no grooves to draw: leave out --grooves")
+        _render_ridged(folder, azimuth, elevation, width, height, distance, fov, roughness,
+                       ghost, out)
+        return
     loaded = _design_folder(folder)
     setup = loaded.config.setup()
     camera = design_camera(
@@ -390,6 +519,27 @@ def render(folder: Path, azimuth: float, elevation: float, width: int, height: i
                          grooves_overlay=grooves, ghost=model)
     save_png(image, out)
     click.echo(f"{width}x{height} render at azimuth {azimuth:+g} -> {out}")
+
+
+def _render_ridged(folder: Path, azimuth: float, elevation: float, width: int, height: int,
+                   distance: float | None, fov: float | None, roughness: float, ghost: bool,
+                   out: Path) -> None:
+    """The render command for a ridged plate: the glints on its height field."""
+    from specholo.pipeline import load_ridged_design
+    from specholo.preview.render import field_plate, plate_camera, render_field_still, save_png
+
+    loaded = load_ridged_design(folder)
+    setup = loaded.config.setup()
+    camera = plate_camera(
+        setup, field_plate(loaded.heights), math.radians(_finite_option("azimuth", azimuth)),
+        math.radians(_finite_option("elevation", elevation)),
+        None if distance is None else _distance(distance), _fov(fov), width, height)
+    model = (loaded.mesh if loaded.mesh is not None else loaded.points) if ghost else None
+    image = render_field_still(loaded.heights, setup, camera,
+                               math.radians(_finite_option("roughness", roughness)), ghost=model)
+    save_png(image, out)
+    click.echo(f"{width}x{height} render of the ridged plate at azimuth {azimuth:+g}, "
+               f"elevation {elevation:+g} -> {out}")
 
 
 @cli.command()
@@ -428,9 +578,11 @@ def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: 
         raise SpecholoError(f"--fps must be in [0.01, 240], got {fps:g}")
     loaded = _design_folder(folder)
     rough = math.radians(_finite_option("roughness", roughness))
+    console = _stderr_console()
+    # Off a terminal the bar would only leave an empty line on stderr.
     with Progress("[progress.description]{task.description}", BarColumn(),
                   MofNCompleteColumn(), TimeRemainingColumn(),
-                  console=_stderr_console(), transient=True) as bar:
+                  console=console, transient=True, disable=not console.is_terminal) as bar:
         task = bar.add_task(f"rendering {kind}", total=frames)
 
         def advance(done: int, total: int) -> None:
@@ -519,11 +671,17 @@ def report(folder: Path) -> None:
               help="Fixed canvas width in pixels [fills the window].")
 @click.option("--height", type=int, default=None,
               help="Fixed canvas height in pixels [fills the window].")
-def view(folder: Path, out: Path | None, width: int | None, height: int | None) -> None:
+@click.option("--step", type=float, default=2.0, show_default=True,
+              help="Ridged design: spacing of the views whose glints the page holds, degrees.")
+def view(folder: Path, out: Path | None, width: int | None, height: int | None,
+         step: float) -> None:
     """Write an interactive page of the design in FOLDER: drag to move the eye (WebGL2).
 
     One self-contained HTML file: the glints are recomputed in the browser for
     every viewpoint with the same physics as `verify`. Shift+drag moves the light.
+    For a ridged design the glints of a grid of views (every --step degrees) are
+    found beforehand with the physics of `verify`, and the page shows the view
+    nearest the pointer's.
     """
     from specholo.preview.page import write_page
 
@@ -531,14 +689,72 @@ def view(folder: Path, out: Path | None, width: int | None, height: int | None) 
     if (width is None) != (height is None):
         raise SpecholoError("give both --width and --height, or neither")
     size = None if width is None or height is None else (width, height)
-    path = write_page(folder, out, size)
+    with _stderr_console().status("writing the page...") as status:
+
+        def progress(done: int, total: int) -> None:
+            status.update(f"finding the glints of view {done} of {total}...")
+
+        path = write_page(folder, out, size, step, progress)
     click.echo(f"interactive page ({path.stat().st_size / 1e6:.1f} MB) -> {path}")
+
+
+#: SIGINTs received by the running command (see :func:`main`).
+_SIGINTS: list[int] = []
+#: Whether a Ctrl-C may end the process at once (the ``specholo`` command).
+_END_AT_ONCE = [False]
+
+
+def _on_sigint(signum: int, frame: Any) -> None:
+    """Ctrl-C: end at once where nothing needs cleaning up (a library that was
+    importing an optional module cannot swallow it then), else unwind, so the
+    scratch files go."""
+    from specholo.fabrication.atomic import scratch_open
+
+    _SIGINTS.append(signum)
+    if _END_AT_ONCE[0] and not scratch_open():
+        exit_interrupted()
+    raise KeyboardInterrupt
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """Whether an error stands for a Ctrl-C: compiled (numba) code that was
+    running when it came returns with the KeyboardInterrupt set, and Python
+    reports a SystemError caused by it; a library that was importing an
+    optional module keeps the KeyboardInterrupt as that module's import error
+    and fails later in some other way. Any error after a SIGINT counts."""
+    if _SIGINTS:
+        return True
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; every failure is one line on stderr and a non-zero exit."""
+    args = [str(a) for a in (sys.argv[1:] if argv is None else argv)]
+    _SIGINTS.clear()
+    _END_AT_ONCE[0] = argv is None  # the command itself, not a caller in Python
+    previous = None
+    with contextlib.suppress(ValueError):  # ValueError: not the main thread
+        if signal.getsignal(signal.SIGINT) in (signal.default_int_handler, early_sigint):
+            previous = signal.signal(signal.SIGINT, _on_sigint)
     try:
-        cli.main(args=argv, prog_name="specholo", standalone_mode=False)
+        return _main(args)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _main(args: list[str]) -> int:
+    try:
+        # click's own main() would print an empty line on Ctrl-C: a second line.
+        with cli.make_context("specholo", list(args), obj={"argv": ["specholo", *args]}) as ctx:
+            cli.invoke(ctx)
     except click.exceptions.Exit as exc:
         return int(exc.exit_code)
     except click.Abort:
@@ -548,15 +764,24 @@ def main(argv: list[str] | None = None) -> int:
         click.echo(f"error: {exc.format_message()}", err=True)
         return exc.exit_code
     except SpecholoError as exc:
+        if _interrupted(exc):
+            click.echo(INTERRUPTED, err=True)
+            return 130
         click.echo(f"error: {str(exc).splitlines()[0] if str(exc) else 'bad input'}", err=True)
         return 1
     except KeyboardInterrupt:
-        click.echo("error: interrupted; no output was written", err=True)
+        click.echo(INTERRUPTED, err=True)
         return 130
-    except MemoryError:
+    except MemoryError as exc:
+        if _interrupted(exc):
+            click.echo(INTERRUPTED, err=True)
+            return 130
         click.echo("error: out of memory; try fewer stipples", err=True)
         return 1
     except Exception as exc:  # noqa: BLE001 - the promise is one line, never a traceback
+        if _interrupted(exc):
+            click.echo(INTERRUPTED, err=True)
+            return 130
         if os.environ.get("SPECHOLO_DEBUG"):
             raise
         if isinstance(exc, ValueError) and "null byte" in str(exc):

@@ -9,6 +9,26 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
+#: Scratch files and folders open now (see :func:`scratch`).
+_SCRATCH = [0]
+
+
+@contextlib.contextmanager
+def scratch() -> Iterator[None]:
+    """Mark a stretch during which scratch files exist that an error, or a Ctrl-C,
+    must remove on its way out; outside such stretches nothing is half-written
+    and the process may simply end (:func:`scratch_open`)."""
+    _SCRATCH[0] += 1
+    try:
+        yield
+    finally:
+        _SCRATCH[0] -= 1
+
+
+def scratch_open() -> bool:
+    """Whether any scratch file or folder exists now (inside :func:`scratch`)."""
+    return _SCRATCH[0] > 0
+
 
 def _umask() -> int:
     mask = os.umask(0)
@@ -35,19 +55,20 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w",
         encoding: text encoding (ignored for binary mode).
     """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp's 0600 is for the scratch file only
-        if "b" in mode:
-            fh = os.fdopen(fd, mode)
-        else:
-            fh = os.fdopen(fd, mode, encoding=encoding, newline="\n")
-        with fh:
-            yield fh
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
+    with scratch():
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+        try:
+            os.fchmod(fd, 0o666 & ~_umask())  # mkstemp's 0600 is for the scratch file only
+            if "b" in mode:
+                fh = os.fdopen(fd, mode)
+            else:
+                fh = os.fdopen(fd, mode, encoding=encoding, newline="\n")
+            with fh:
+                yield fh
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
+            raise

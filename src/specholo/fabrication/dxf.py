@@ -17,12 +17,19 @@ Layers are those of :func:`~specholo.fabrication.svg.plan_layers`: grooves and
 dots of each depth class, named like ``GROOVES_D0.080_R0.250`` (depth and ball
 radius in mm), each in its own colour. The drawing is in the plate frame (x
 right, y up, origin at the plate centre), $INSUNITS = 4 (mm), $MEASUREMENT = 1.
+
+The same grooves give the same file byte for byte: the drawing's dates and
+GUIDs, which ezdxf would otherwise take from the clock and a random source,
+are its fixed values (1 January 2000 and the constant GUID), and its classes
+are listed in name order, not in the order of a set of strings.
 """
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
+from collections.abc import Iterator
 
 import ezdxf
 import numpy as np
@@ -37,6 +44,17 @@ from specholo.toolpaths.grooves import Grooves
 #: DXF version written: R2010 has LWPOLYLINE, $INSUNITS and UTF-8 text, and
 #: every current CAD/CAM or laser program reads it.
 DXF_VERSION = "R2010"
+
+
+@contextlib.contextmanager
+def _reproducible() -> Iterator[None]:
+    """ezdxf's fixed dates, GUIDs and marker strings while a drawing is made or written."""
+    before = ezdxf.options.write_fixed_meta_data_for_testing
+    ezdxf.options.write_fixed_meta_data_for_testing = True
+    try:
+        yield
+    finally:
+        ezdxf.options.write_fixed_meta_data_for_testing = before
 
 
 def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
@@ -72,7 +90,8 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     # one [x, y, bulge] row per vertex, as Python floats for ezdxf
     xyb = np.column_stack([verts, bulge]).tolist()
 
-    doc = ezdxf.new(DXF_VERSION, units=units.MM)
+    with _reproducible():
+        doc = ezdxf.new(DXF_VERSION, units=units.MM)
     doc.header["$MEASUREMENT"] = 1  # metric
     msp = doc.modelspace()
     r = format_number(tool.radius, 3)
@@ -105,7 +124,12 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
                                                  float(0.5 * (lo[1] + hi[1]))))
 
     text = io.StringIO()
-    doc.write(text)
+    # The CLASSES section lists the entity types in use in the order of a set,
+    # which changes with the string hash seed: list them sorted instead.
+    in_use = doc.entitydb.dxf_types_in_use
+    doc.entitydb.dxf_types_in_use = lambda: sorted(in_use())  # type: ignore[method-assign,assignment,return-value]
+    with _reproducible():
+        doc.write(text)
     with atomic_open(path, "wb") as fh:
         fh.write(doc.encode(text.getvalue()))
     return layers

@@ -405,6 +405,7 @@ def write_gcode(
     machining: Machining,
     header: dict[str, str] | None = None,
     options: GcodeOptions | None = None,
+    depth: float | None = None,
 ) -> GcodeStats:
     """Write the program that cuts the grooves, atomically.
 
@@ -413,6 +414,8 @@ def write_gcode(
         grooves: m vertices in n paths; path j is preceded by ``(stipple N)``
             (``; stipple N`` for Marlin) with N = ``grooves.stipple[j]``.
         tool: cutter (depth of the grooves, width for the header).
+        depth: the cut's depth, mm, when it is not the round model's (a V-bit's
+            or a laser's model is a small round tip inside a deeper groove).
         machining: feeds (mm/min), safe height (mm) and spindle speed (rpm; 0
             leaves the spindle alone); the laser ignores the heights and spindle.
         header: extra ``key: value`` lines for the header comments.
@@ -430,7 +433,7 @@ def write_gcode(
     n_dots = int(np.sum(grooves.path_sizes == 1))
     grooves = split_wide_arcs(grooves, opt.max_arc_offset)
     mill = opt.mill
-    depth = tool.depth
+    depth = tool.depth if depth is None else float(depth)
     safe = machining.safe_z
     dec = opt.decimals
     scale = 10**dec * opt.per_mm  # written integers per mm

@@ -498,7 +498,15 @@ def _improve(pts: np.ndarray, cand: np.ndarray, tour: np.ndarray, flip: np.ndarr
     count = n
     moves = 0
     touched = np.empty(6, dtype=np.int64)
-    while count:
+    # A gain must beat the rounding of the distances compared: on paths far
+    # from the origin a fixed epsilon lets rounding noise pass for gains, and
+    # moves undo each other forever. The move count is bounded all the same.
+    extent = 0.0
+    for q in range(pts.shape[0]):
+        extent = max(extent, abs(pts[q, 0]), abs(pts[q, 1]))
+    eps = max(_EPS, 1e-12 * extent)
+    most = 100 * n + 10_000
+    while count and moves < most:
         v = queue[head]
         head = (head + 1) % n
         count -= 1
@@ -522,7 +530,7 @@ def _improve(pts: np.ndarray, cand: np.ndarray, tour: np.ndarray, flip: np.ndarr
                 if c < 0:
                     break
                 dac = _d(pts, a, c)
-                if dac >= dab - _EPS:
+                if dac >= dab - eps:
                     break
                 w = c >> 1
                 if w == v:
@@ -539,7 +547,7 @@ def _improve(pts: np.ndarray, cand: np.ndarray, tour: np.ndarray, flip: np.ndarr
                     d = _exit(flip, tour[(q - 1) % n])
                     i, j = q, (p - 1) % n
                 gain = dab + _d(pts, c, d) - dac - _d(pts, b, d)
-                if gain > _EPS and _reverse_cost(n, i, j) <= max_shift:
+                if gain > eps and _reverse_cost(n, i, j) <= max_shift:
                     _reverse(tour, pos, flip, i, j)
                     touched[0], touched[1], touched[2], touched[3] = a, b, c, d
                     n_touched = 4
@@ -556,13 +564,13 @@ def _improve(pts: np.ndarray, cand: np.ndarray, tour: np.ndarray, flip: np.ndarr
             x = _exit(flip, tour[(p - 1) % n])
             y = _entry(flip, tour[(p + size) % n])
             saved = _d(pts, x, s1) + _d(pts, s2, y) - _d(pts, x, y)
-            if saved > _EPS:
+            if saved > eps:
                 for from_end in range(2):
                     if improved:
                         break
                     s = s2 if from_end else s1
                     for c in cand[s]:
-                        if c < 0 or _d(pts, s, c) >= saved - _EPS:
+                        if c < 0 or _d(pts, s, c) >= saved - eps:
                             break
                         w = c >> 1
                         q = pos[w]
@@ -585,7 +593,7 @@ def _improve(pts: np.ndarray, cand: np.ndarray, tour: np.ndarray, flip: np.ndarr
                             added = _d(pts, e, s2) + _d(pts, s1, f) - _d(pts, e, f)
                         else:
                             added = _d(pts, e, s1) + _d(pts, s2, f) - _d(pts, e, f)
-                        if saved - added <= _EPS:
+                        if saved - added <= eps:
                             continue
                         ahead = (u - (p + size)) % n + 1
                         behind = n - size - ahead

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.atomic import public_mode
+from specholo.fabrication.atomic import public_mode, scratch
 from specholo.preview.render import REFERENCE_ROUGHNESS, Camera, design_camera, render_still
 from specholo.setup import Light
 from specholo.simulation.glints import Engraved
@@ -71,11 +71,16 @@ def _render_all(loaded: Any, cameras: Sequence[Camera], lights: Sequence[Light],
 
     frames: list[np.ndarray] = []
     # numpy releases the GIL in its loops, so a few threads render frames side by side.
-    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+    pool = ThreadPoolExecutor(max_workers=max(1, workers))
+    try:
         for done, frame in enumerate(pool.map(one, range(total)), start=1):
             frames.append(frame)
             if progress is not None:
                 progress(done, total)
+    finally:
+        # On Ctrl-C (or any error) the frames not started yet are dropped, not
+        # rendered first: only the few in progress are waited for.
+        pool.shutdown(wait=True, cancel_futures=True)
     return frames
 
 
@@ -225,18 +230,19 @@ def write_animation(frames: Sequence[np.ndarray], path: str | os.PathLike[str],
         raise SpecholoError("animation frames differ in size")
     if not path.parent.is_dir():
         raise SpecholoError(f"folder {path.parent} does not exist")
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".part{suffix}",
-                                dir=path.parent)
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        if suffix == ".gif":
-            _write_gif(frames, tmp, fps)
-        else:
-            _write_mp4(frames, tmp, fps)
-        public_mode(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
+    with scratch():
+        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".part{suffix}",
+                                    dir=path.parent)
+        os.close(fd)
+        tmp = Path(name)
+        try:
+            if suffix == ".gif":
+                _write_gif(frames, tmp, fps)
+            else:
+                _write_mp4(frames, tmp, fps)
+            public_mode(tmp)
+            os.replace(tmp, path)
+        except BaseException:
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
+            raise

@@ -16,6 +16,11 @@ draws the rest - about one arc per glint - with one indexed draw. The few wide
 arcs, the arcs at corners, the corners and the dimples are shipped in float32
 in the plate frame and always drawn. The arrays are gzipped and base64 encoded
 into the page, which inflates them before its first frame.
+
+A plate given as a height field (a ridged design) has no arcs: its page holds
+the glints one eye sees from a grid of views, found beforehand with the
+physics of ``verify`` (:class:`FieldViews`), and ``page_field.js`` draws the
+view nearest the pointer's on a 2D canvas.
 """
 
 from __future__ import annotations
@@ -68,6 +73,11 @@ REACH_SLACK = 1e-3
 GZIP_LEVEL = 4
 
 _JS_PATH = Path(__file__).with_name("page.js")
+#: Spacing of the precomputed views of a height-field page, degrees.
+FIELD_VIEW_STEP = 2.0
+#: Most views a height-field page precomputes.
+MAX_FIELD_VIEWS = 20_000
+_FIELD_JS_PATH = Path(__file__).with_name("page_field.js")
 
 
 def _wrap_half(a: np.ndarray) -> np.ndarray:
@@ -503,15 +513,21 @@ def build_page(grooves: Grooves, setup: Setup, title: str = "specholo",
                     "nx": arcs.shape[0], "ny": arcs.shape[1], "angleSteps": ANGLE_STEPS}
     meta["blocks"] = index
     meta["size"] = list(size) if size is not None else None
+    return _html(title, meta, data, _JS_PATH.read_text(encoding="utf-8"),
+                 "drag: move the eye &middot; shift+drag: move the light")
+
+
+def _html(title: str, meta: dict[str, Any], data: str, script: str, help_html: str) -> str:
+    """The page: a bar of angles and help, the canvas, the metadata and the data
+    inline, then the script."""
     # "<" escaped so the JSON cannot close its script element.
     meta_json = json.dumps(meta).replace("<", "\\u003c")
-    script = _JS_PATH.read_text(encoding="utf-8")
     return (
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
         "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
         f"<title>{html.escape(title)}</title>\n<style>{_CSS}</style></head>\n<body>\n"
         "<div id=\"hud\"><span id=\"angles\">loading...</span>"
-        "<span id=\"help\">drag: move the eye &middot; shift+drag: move the light</span></div>\n"
+        f"<span id=\"help\">{help_html}</span></div>\n"
         "<canvas id=\"view\"></canvas>\n<div id=\"message\" hidden></div>\n"
         f"<script type=\"application/json\" id=\"meta\">{meta_json}</script>\n"
         f"<script type=\"text/plain\" id=\"data\">{data}</script>\n"
@@ -532,20 +548,23 @@ _CSS = (
 
 
 def write_page(folder: str | os.PathLike[str], out: str | os.PathLike[str] | None = None,
-               size: tuple[int, int] | None = None) -> Path:
+               size: tuple[int, int] | None = None, step: float = FIELD_VIEW_STEP,
+               progress: Any = None) -> Path:
     """Write the interactive page of the design in ``folder``.
 
     Args:
         folder: a design folder written by ``specholo design``.
         out: the HTML file; default ``folder/view.html``.
         size: fixed canvas (width, height) in CSS pixels, or None to fill the window.
+        step: for a ridged design (a height field), the spacing of the views whose
+            glints the page holds, degrees.
+        progress: for a ridged design, called with (views done, views), or None.
 
     Returns:
         The path written.
     """
-    from specholo.pipeline import load_design
+    from specholo.pipeline import is_ridged_folder, load_design, load_ridged_design
 
-    loaded = load_design(folder)
     path = Path(folder) / "view.html" if out is None else Path(out)
     if path.suffix.lower() not in (".html", ".htm"):
         raise SpecholoError(f"page must be an .html file, got {path.name!r}")
@@ -553,8 +572,168 @@ def write_page(folder: str | os.PathLike[str], out: str | os.PathLike[str] | Non
         raise SpecholoError(f"folder {path.parent} does not exist")
     if size is not None and not all(0 < v <= 8192 for v in size):
         raise SpecholoError(f"canvas size must be in [1, 8192] pixels, got {size}")
-    text = build_page(loaded.grooves, loaded.config.setup(),
-                      f"specholo: {Path(folder).resolve().name}", size)
+    title = f"specholo: {Path(folder).resolve().name}"
+    if is_ridged_folder(folder):
+        ridged = load_ridged_design(folder)
+        setup = ridged.config.setup()
+        az, el = field_page_views(setup, float(ridged.config.elevation_range), step)
+        views = FieldViews.build(ridged.heights, setup, az, el, progress=progress)
+        text = build_field_page(views, ridged.heights, setup, title, size)
+    else:
+        loaded = load_design(folder)
+        text = build_page(loaded.grooves, loaded.config.setup(), title, size)
     with atomic_open(path) as fh:
         fh.write(text)
     return path
+
+
+# ---------------------------------------------------------------------------
+# Plates given as height fields (ridged designs): glints precomputed per view
+
+
+@dataclass(frozen=True)
+class FieldViews:
+    """The glints one eye sees on a height field, for a grid of views.
+
+    The eye of view (i, j) is where a :class:`~specholo.preview.render.Camera` at
+    azimuth ``azimuths[i]`` and elevation ``elevations[j]`` sits at ``distance``
+    from (0, eye height, 0); views are numbered ``i * len(elevations) + j``. Glint
+    positions are quantized to uint16 steps of ``scale`` from ``origin`` (x, y
+    over the plate, z over the shell).
+
+    Attributes:
+        azimuths, elevations: (na,), (ne,) view angles, degrees.
+        start: (na * ne + 1,) first glint of each view.
+        points: (g, 3) glint positions, mm (as found).
+        table: (g, 3) uint16 quantized positions.
+        origin: (3,) position of table value 0, mm.
+        scale: (3,) mm per table step.
+    """
+
+    azimuths: np.ndarray
+    elevations: np.ndarray
+    start: np.ndarray
+    points: np.ndarray
+    table: np.ndarray
+    origin: np.ndarray
+    scale: np.ndarray
+
+    @classmethod
+    def build(cls, field: Any, setup: Setup, azimuths: np.ndarray, elevations: np.ndarray,
+              distance: float | None = None, progress: Any = None) -> FieldViews:
+        """Find the glints of every view.
+
+        Args:
+            field: the labelled plate (``HeightMap``).
+            setup: the design's setup (light, viewer).
+            azimuths, elevations: view angles, degrees.
+            distance: the eye's distance from (0, eye height, 0), mm; default the
+                design's eyes' (``setup.viewer.eye_radius``).
+            progress: called with (views done, views) after each view, or None.
+        """
+        from specholo.preview.render import Camera, field_plate
+        from specholo.simulation.heightfield import SlopeIndex, find_field_glints
+
+        az = np.asarray(azimuths, dtype=float)
+        el = np.asarray(elevations, dtype=float)
+        d = setup.viewer.eye_radius if distance is None else float(distance)
+        index = SlopeIndex.build(field)
+        found = []
+        total = len(az) * len(el)
+        for i, a in enumerate(az):
+            for j, e in enumerate(el):
+                eye = Camera(math.radians(a), math.radians(e), d, 1.0, 2, 2,
+                             setup.viewer.height).position()
+                found.append(find_field_glints(index, eye, setup.light).glints.point)
+                if progress is not None:
+                    progress(i * len(el) + j + 1, total)
+        counts = np.array([len(f) for f in found], dtype=np.int64)
+        start = np.concatenate([[0], np.cumsum(counts)]).astype(np.uint32)
+        points = np.concatenate(found) if found else np.zeros((0, 3))
+        plate = field_plate(field)
+        lo = np.array([plate[0, 0], plate[0, 1], -2.0 * max(float(-np.min(field.z)), 1e-6)])
+        hi = np.array([plate[1, 0], plate[1, 1], 0.0])
+        scale = (hi - lo) / 65535.0
+        q = np.rint((points - lo) / scale) if len(points) else np.zeros((0, 3))
+        table = np.clip(q, 0, 65535).astype(np.uint16)
+        return cls(az, el, start, points, table, lo, scale)
+
+    def decoded(self) -> np.ndarray:
+        """(g, 3) positions as the page has them, mm."""
+        return self.origin + self.table.astype(float) * self.scale
+
+    def blocks(self) -> dict[str, bytes]:
+        """The arrays as the page embeds them, before gzip: ``start`` (uint32) and
+        ``x``, ``y``, ``z`` (uint16, low bytes then high bytes)."""
+        out = {"start": self.start.astype("<u4").tobytes()}
+        for k, name in enumerate(("x", "y", "z")):
+            out[name] = _byte_planes(self.table[:, k])
+        return out
+
+
+def field_page_views(setup: Setup, elevation_range: float,
+                     step: float = FIELD_VIEW_STEP) -> tuple[np.ndarray, np.ndarray]:
+    """The views (degrees) a height-field page precomputes: the design's azimuth
+    and elevation ranges, at most ``step`` apart.
+
+    Args:
+        setup: the design's setup (its viewer's azimuth range).
+        elevation_range: the design's elevation range, degrees.
+        step: largest spacing, degrees.
+    """
+    from specholo.simulation.verify import view_azimuths
+
+    if not (math.isfinite(step) and 0.1 <= step <= 10.0):
+        raise SpecholoError(f"view step must be in [0.1, 10] degrees, got {step:g}")
+    az = np.degrees(view_azimuths(setup.viewer.half_range, math.radians(step)))
+    el = np.degrees(view_azimuths(math.radians(elevation_range), math.radians(step)))
+    if len(az) * len(el) > MAX_FIELD_VIEWS:
+        raise SpecholoError(f"{len(az) * len(el)} views are too many (at most "
+                            f"{MAX_FIELD_VIEWS}): use a larger step")
+    return az, el
+
+
+def build_field_page(views: FieldViews, field: Any, setup: Setup, title: str = "specholo",
+                     size: tuple[int, int] | None = None) -> str:
+    """The page of a plate given as a height field, as one HTML string.
+
+    The glints of each view are precomputed (:class:`FieldViews`); the page draws
+    the view nearest the pointer's, the plate in perspective and a spot at each
+    glint, with the camera of :class:`~specholo.preview.render.Camera`.
+
+    Args:
+        views: the precomputed views.
+        field: the plate (``HeightMap``), for its outline.
+        setup: the design's setup (light, viewer).
+        title: page title.
+        size: fixed canvas (width, height) in CSS pixels, or None to fill the window.
+    """
+    from specholo.preview.render import field_plate, plate_camera
+
+    plate = field_plate(field)
+    half = setup.viewer.half_range
+    fov = plate_camera(setup, plate, width=FRAME_SIZE[0], height=FRAME_SIZE[1],
+                       frame_azimuths=(-half, half)).fov
+    data, index = pack_blocks(views.blocks())
+    step = float(np.max(np.diff(views.azimuths))) if len(views.azimuths) > 1 else 0.0
+    if len(views.elevations) > 1:
+        step = max(step, float(np.max(np.diff(views.elevations))))
+    meta = {
+        "mode": "field",
+        "title": title,
+        "light": {"elevation": math.degrees(setup.light.elevation),
+                  "distance": setup.light.distance},
+        "camera": {"distance": setup.viewer.eye_radius, "eyeHeight": setup.viewer.height,
+                   "fov": math.degrees(fov)},
+        "plate": plate.tolist(),
+        "views": {"azimuths": views.azimuths.tolist(), "elevations": views.elevations.tolist(),
+                  "step": step},
+        "counts": {"views": len(views.start) - 1, "glints": len(views.table)},
+        "quant": {"origin": views.origin.tolist(), "scale": views.scale.tolist()},
+        "limits": {"azimuth": AZIMUTH_LIMIT, "elevation": ELEVATION_LIMIT,
+                   "degreesPerPixel": DEGREES_PER_PIXEL},
+        "blocks": index,
+        "size": list(size) if size is not None else None,
+    }
+    return _html(title, meta, data, _FIELD_JS_PATH.read_text(encoding="utf-8"),
+                 f"drag: move the eye (views every {step:g}&deg;)")

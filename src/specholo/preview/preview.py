@@ -107,3 +107,39 @@ def plot_verification(rows: list[dict[str, float]], path: str | os.PathLike[str]
     plt.close(fig)
     with atomic_open(path, "wb", encoding=None) as fh:
         fh.write(buf.getvalue())
+
+
+def plot_field_verification(rows: list[dict[str, float]], path: str | os.PathLike[str],
+                            title: str = "") -> None:
+    """Write a PNG of error and visibility by azimuth, one line per elevation (rows
+    from a verification over azimuth and elevation)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    elevations = sorted({r["elevation"] for r in rows})
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    cmap = plt.get_cmap("viridis")
+    for k, el in enumerate(elevations):
+        sel = sorted((r for r in rows if r["elevation"] == el), key=lambda r: r["azimuth"])
+        colour = cmap(k / max(len(elevations) - 1, 1))
+        az = [r["azimuth"] for r in sel]
+        ax1.plot(az, [r["p95_error"] for r in sel], "o-", color=colour, ms=3,
+                 label=f"elevation {el:+.0f}°")
+        ax2.plot(az, [r["visibility"] for r in sel], "o-", color=colour, ms=3)
+    ax1.set_ylabel("95th-percentile error (mm)")
+    ax1.legend(fontsize=7, ncol=2)
+    ax1.grid(alpha=0.3)
+    ax2.set_ylabel("visibility")
+    ax2.set_ylim(bottom=0.0)
+    ax2.set_xlabel("head azimuth (degrees)")
+    ax2.grid(alpha=0.3)
+    if title:
+        ax1.set_title(title)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    with atomic_open(path, "wb", encoding=None) as fh:
+        fh.write(buf.getvalue())

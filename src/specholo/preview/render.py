@@ -1,8 +1,11 @@
 """Photographic stills of the engraved plate: the glints a camera sees, as light.
 
 Every bright spot is a glint that :func:`~specholo.simulation.glints.find_glints`
-finds for the camera's position; nothing is drawn from the model itself except
-the optional faint ghost. Images are (H, W, 3) uint8, row 0 at the top.
+finds for the camera's position (on a plate given as a height field, a ridged
+design, :func:`~specholo.simulation.heightfield.find_field_glints`); nothing is
+drawn from the model itself except the optional faint ghost. Both kinds of
+plate are drawn by :func:`draw_glints`. Images are (H, W, 3) uint8, row 0 at
+the top.
 
 Spot model. A glint is a patch of groove wall whose normals fall within the
 surface's specular lobe. We draw it as an isotropic Gaussian on the plate of
@@ -17,8 +20,8 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
+import threading
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -240,10 +243,22 @@ def design_camera(setup: Setup, grooves: Grooves, azimuth: float = 0.0, elevatio
         frame_azimuths: further azimuths (radians) the default fov must also frame,
             so every frame of an animation shares one fov.
     """
+    return plate_camera(setup, plate_bounds(grooves), azimuth, elevation, distance, fov,
+                        width, height, frame_azimuths)
+
+
+def plate_camera(setup: Setup, bounds: np.ndarray, azimuth: float = 0.0,
+                 elevation: float = 0.0, distance: float | None = None,
+                 fov: float | None = None, width: int = 1024, height: int = 1024,
+                 frame_azimuths: Sequence[float] = ()) -> Camera:
+    """A camera for a plate rectangle, by default where the design's eyes are.
+
+    As :func:`design_camera`, with the plate given as its corners (2, 2), mm.
+    """
     d = setup.viewer.eye_radius if distance is None else float(distance)
     h = setup.viewer.height
     if fov is None:
-        corners = plate_corners(plate_bounds(grooves))
+        corners = plate_corners(bounds)
         probes = [Camera(a, elevation, d, 1.0, width, height, h)
                   for a in (azimuth, *frame_azimuths)]
         fov = fit_fov(corners, probes)
@@ -423,17 +438,57 @@ def render_still(grooves: Grooves, setup: Setup, camera: Camera,
         (H, W, 3) uint8 RGB image.
     """
     _check_roughness(roughness)
-    if not (math.isfinite(bloom) and bloom >= 0):
-        raise SpecholoError(f"bloom must be >= 0, got {bloom}")
     light = light if light is not None else setup.light
     eng = engraved if engraved is not None else Engraved.from_grooves(grooves, setup.tool)
+
+    def glints() -> tuple[np.ndarray, float]:
+        g = find_glints(eng, camera.position(), light)
+        return g.point, spot_sigma(setup, roughness)
+
+    def overlay() -> np.ndarray:
+        return _groove_layer(camera, eng)
+
+    return draw_glints(camera, plate_bounds(grooves), light, glints, roughness, ghost, bloom,
+                       overlay if grooves_overlay else None)
+
+
+def draw_glints(camera: Camera, bounds: np.ndarray, light: Light,
+                glints: Callable[[], tuple[np.ndarray, np.ndarray | float]],
+                roughness: float = REFERENCE_ROUGHNESS, ghost: Any = None,
+                bloom: float = 0.006,
+                overlay: Callable[[], np.ndarray] | None = None) -> np.ndarray:
+    """Draw the lit plate as the camera sees it, with a spot at each glint: the look
+    of every still (see the module notes).
+
+    Args:
+        camera: the camera.
+        bounds: the plate rectangle (2, 2), mm.
+        light: the light.
+        glints: returns the glint points (g, 3), mm, and the standard deviation of
+            each one's spot on the plate (mm; one for all, or (g,)); called while
+            the plate is drawn.
+        roughness: width of the surface's specular lobe, radians: sets the spots'
+            exposure.
+        ghost: a mesh (anything with ``vertices``) or (n, 3) points to draw as
+            faint dots where they are in space, or None.
+        bloom: peak of a faint halo, five spot widths wide, around each glint, as a
+            fraction of the spot's peak (0 for none).
+        overlay: returns an (H, W) coverage in [0, 1) drawn faintly in the groove
+            colour, or None.
+
+    Returns:
+        (H, W, 3) uint8 RGB image.
+    """
+    _check_roughness(roughness)
+    if not (math.isfinite(bloom) and bloom >= 0):
+        raise SpecholoError(f"bloom must be >= 0, got {bloom}")
     shape = (camera.height, camera.width)
     ghost_pts = None if ghost is None else _ghost_points(ghost)
 
     def backdrop() -> np.ndarray:
-        image = _plate_layer(camera, plate_bounds(grooves), light)
-        if grooves_overlay:
-            image += _groove_layer(camera, eng)[..., None] * _GROOVE
+        image = _plate_layer(camera, bounds, light)
+        if overlay is not None:
+            image += overlay()[..., None] * _GROOVE
         if ghost_pts is not None:
             pixel, _, ok = camera.project(ghost_pts)
             dens = _points_layer(shape, pixel[ok], np.ones(int(ok.sum())))
@@ -442,26 +497,126 @@ def render_still(grooves: Grooves, setup: Setup, camera: Camera,
 
     # The backdrop does not depend on the glints: draw it on a second core
     # (numpy releases the GIL) while the glints are found.
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        behind = pool.submit(backdrop)
-        proj = glint_pixels(grooves, setup, camera, light, eng)
-        pixel = proj.pixel[proj.valid]
-        depth = proj.depth[proj.valid]
-        sigma_px = spot_sigma(setup, roughness) * camera.focal / depth
-        sigma = np.hypot(sigma_px, _MIN_SIGMA_PX)
-        # Fixed power per glint: peak radiance ~ 1 / sigma_mm^2, and an unresolved
-        # spot spreads over the pixel footprint, lowering its peak by the same area.
-        expo_px = np.maximum(sigma_px, 0.5 * _EXPOSURE_WIDTH * roughness
-                             / REFERENCE_ROUGHNESS * camera.focal / depth)
-        amp = (_GAIN * (REFERENCE_ROUGHNESS / roughness) ** 2
-               * (expo_px / np.hypot(expo_px, _MIN_SIGMA_PX)) ** 2)
-        glow = np.zeros(shape)
-        _splat(glow, pixel, sigma, amp)
-        if bloom > 0 and len(pixel):
-            _splat(glow, pixel, _HALO * sigma, bloom * amp, reach=2.0)
-        image = behind.result()
+    behind = _Background(backdrop)
+    points, sigma_mm = glints()
+    proj = camera.project(points)
+    pixel = proj.pixel[proj.valid]
+    depth = proj.depth[proj.valid]
+    if np.ndim(sigma_mm):
+        sigma_mm = np.asarray(sigma_mm, dtype=float)[proj.valid]
+    sigma_px = sigma_mm * camera.focal / depth
+    sigma = np.hypot(sigma_px, _MIN_SIGMA_PX)
+    # Fixed power per glint: peak radiance ~ 1 / sigma_mm^2, and an unresolved
+    # spot spreads over the pixel footprint, lowering its peak by the same area.
+    expo_px = np.maximum(sigma_px, 0.5 * _EXPOSURE_WIDTH * roughness
+                         / REFERENCE_ROUGHNESS * camera.focal / depth)
+    amp = (_GAIN * (REFERENCE_ROUGHNESS / roughness) ** 2
+           * (expo_px / np.hypot(expo_px, _MIN_SIGMA_PX)) ** 2)
+    glow = np.zeros(shape)
+    _splat(glow, pixel, sigma, amp)
+    if bloom > 0 and len(pixel):
+        _splat(glow, pixel, _HALO * sigma, bloom * amp, reach=2.0)
+    image = behind.result()
     image += (1.0 - np.exp(-glow))[..., None] * _GLINT
     return _to_srgb(image)
+
+
+class _Background:
+    """A function run on a daemon thread: a Ctrl-C in the main thread ends the
+    process at once instead of waiting for a large backdrop to finish."""
+
+    def __init__(self, fn: Any) -> None:
+        self._value: Any = None
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, args=(fn,), daemon=True)
+        self._thread.start()
+
+    def _run(self, fn: Any) -> None:
+        try:
+            self._value = fn()
+        except BaseException as exc:  # noqa: BLE001 - raised again in result()
+            self._error = exc
+
+    def result(self) -> Any:
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+
+def field_plate(field: Any) -> np.ndarray:
+    """The plate rectangle (2, 2) of a height field (a ``HeightMap`` or its
+    ``SlopeIndex``): its samples' cells, edge to edge, mm."""
+    hm = getattr(field, "field", field)
+    half = 0.5 * hm.resolution
+    return np.asarray(hm.bounds, dtype=float) + np.array([[-half], [half]])
+
+
+def field_glints(field: Any, setup: Setup, camera: Camera, light: Light | None = None) -> Any:
+    """The glints the camera sees on a height field, with the physics of
+    ``verify`` (:func:`~specholo.simulation.heightfield.find_field_glints`: the
+    plate's specular lobe, riser shadows, the stipple of each cell).
+
+    Args:
+        field: the labelled plate (``HeightMap``) or its ``SlopeIndex`` (build it
+            once for many cameras).
+        setup: the design's setup.
+        camera: the camera (its position is the eye).
+        light: the light; default the setup's.
+
+    Returns:
+        The ``FieldGlints``.
+    """
+    from specholo.simulation.heightfield import find_field_glints
+
+    return find_field_glints(field, camera.position(),
+                             light if light is not None else setup.light)
+
+
+def field_spot_sigma(glints: Any, resolution: float, roughness: float) -> np.ndarray:
+    """Standard deviation (g,) of each glint's spot on a height field, mm: the
+    spread of its lit cells (at least half a cell) at the reference roughness,
+    growing linearly with the lobe as a groove's spot does."""
+    _check_roughness(roughness)
+    spread = np.maximum(np.asarray(glints.spread, dtype=float), 0.5 * float(resolution))
+    return spread * (roughness / REFERENCE_ROUGHNESS)
+
+
+def field_glint_pixels(field: Any, setup: Setup, camera: Camera,
+                       light: Light | None = None) -> Projected:
+    """Where the glints the camera sees on a height field land in its image."""
+    return camera.project(field_glints(field, setup, camera, light).glints.point)
+
+
+def render_field_still(field: Any, setup: Setup, camera: Camera,
+                       roughness: float = REFERENCE_ROUGHNESS, ghost: Any = None,
+                       light: Light | None = None, bloom: float = 0.006) -> np.ndarray:
+    """Render what the camera sees of a plate given as a height field (a ridged design).
+
+    The glints are those :func:`field_glints` finds for the camera's position,
+    drawn as the stills of grooves are (:func:`draw_glints`).
+
+    Args:
+        field: the labelled plate (``HeightMap``) or its ``SlopeIndex``.
+        setup: the design's setup (light, viewer).
+        camera: the camera.
+        roughness: width of the drawn spots' specular lobe, radians.
+        ghost: a mesh or (n, 3) points to draw faintly, or None.
+        light: the light; default the setup's.
+        bloom: halo around each glint, as a fraction of its peak.
+
+    Returns:
+        (H, W, 3) uint8 RGB image.
+    """
+    _check_roughness(roughness)
+    light = light if light is not None else setup.light
+    resolution = getattr(field, "field", field).resolution
+
+    def glints() -> tuple[np.ndarray, np.ndarray]:
+        g = field_glints(field, setup, camera, light)
+        return g.glints.point, field_spot_sigma(g, resolution, roughness)
+
+    return draw_glints(camera, field_plate(field), light, glints, roughness, ghost, bloom)
 
 
 def luminance(image: np.ndarray) -> np.ndarray:

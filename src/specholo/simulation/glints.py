@@ -11,6 +11,7 @@ A dimple glints wherever h's tilt is within the tool's wall tilt.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,7 +69,15 @@ class ArcIndex:
         narrow = np.flatnonzero(half_turn <= cls.WIDE)
         wide = np.flatnonzero(half_turn > cls.WIDE)
         origin = mid.min(axis=0) if len(mid) else np.zeros(2)
-        ij = np.floor((mid[narrow] - origin) / cls.CELL).astype(np.int64)
+        # Cells of CELL mm, larger on a plate so wide the cells would outnumber
+        # the arcs by far (the grid must fit in memory).
+        size = cls.CELL
+        if len(mid):
+            wx, wy = (float(v) for v in mid.max(axis=0) - origin)
+            most = 4 * len(narrow) + 1024
+            if (wx / size + 1.0) * (wy / size + 1.0) > most:
+                size = max(size, math.sqrt(wx * wy / most), (wx + wy) / most)
+        ij = np.floor((mid[narrow] - origin) / size).astype(np.int64)
         ny = int(ij[:, 1].max()) + 1 if len(ij) else 1
         cell = ij[:, 0] * ny + ij[:, 1]
         angle = np.mod(tangent[narrow], np.pi)
@@ -78,10 +87,10 @@ class ArcIndex:
         keys = sorted_cell * 4.0 + angle[order]
         cells = sorted_cell[np.r_[True, sorted_cell[1:] != sorted_cell[:-1]]] if len(
             order) else sorted_cell
-        centres = origin + (np.stack([cells // ny, cells % ny], axis=1) + 0.5) * cls.CELL
+        centres = origin + (np.stack([cells // ny, cells % ny], axis=1) + 0.5) * size
         half_length = float(0.5 * chord[narrow].max()) if len(narrow) else 0.0
         # (half_turn is infinite for arcs at sharp corners: they join ``wide``.)
-        return cls(cls.CELL, origin, ny, keys, narrow[order], cells, centres, wide,
+        return cls(size, origin, ny, keys, narrow[order], cells, centres, wide,
                    half_length)
 
     def candidates(self, eye: np.ndarray, light: Light, reach: float) -> np.ndarray:

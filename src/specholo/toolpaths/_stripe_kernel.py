@@ -18,6 +18,8 @@ _DTHETA = 1e-6  # forward-difference steps for the toolpath's derivatives (rad, 
 _DY = 1e-3
 _NEAR_EDGE = 1e-12
 _SNAP = 0.02  # a step ending within this share of w from the edge ends its stripe
+_MAX_ITERATIONS = 64  # most fixed-point steps for the wall normal
+_CONVERGED = 1e-10  # mm: the wall glint's estimated remaining error at the last step
 
 
 @nb.njit(cache=True, inline="always")
@@ -52,11 +54,18 @@ def target(theta: float, y: float, px: float, py: float, pz: float, params: np.n
     d, ey, r, zc = params[0], params[1], params[6], params[7]
     ex, ez = d * math.sin(theta), d * math.cos(theta)
     inv_dz = 1.0 / (ez - pz)
-    for _ in range(iterations):
+    # At least ``iterations`` steps; a ball large against the distances (a
+    # coarse tool, a wide laser trough) converges slowly and takes more.
+    for k in range(_MAX_ITERATIONS):
         gx, gy, gz, _ = _wall_point(y, px, py, ex, ey, ez, inv_dz, r, zc, ny, nz)
         hx, hy, hz = _h(gx, gy, gz, ex, ey, ez, params)
         inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
+        change = abs(hx * inv - nx) + abs(hy * inv - ny) + abs(hz * inv - nz)
         nx, ny, nz = hx * inv, hy * inv, hz * inv
+        # The steps contract by about R / D: what is left to move is about
+        # change * R / D of the normal, r times that at the wall.
+        if k + 1 >= iterations and not change * r * r / d > _CONVERGED:
+            break
     gx, gy, gz, line_y = _wall_point(y, px, py, ex, ey, ez, inv_dz, r, zc, ny, nz)
     hx, hy, hz = _h(gx, gy, gz, ex, ey, ez, params)
     return gx + r * nx, line_y + r * ny, hx, hy, hz, nx, ny, nz
@@ -216,6 +225,10 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
             # Neighbouring stripes of one stipple are the band's height 2 wb apart
             # vertically, so wb |cos(slope)| >= spacing / 2 keeps their grooves apart.
             wb = max(w, 0.5 * spacing * math.hypot(dx, k1) / max(abs(dx), 1e-12))
+            # A stripe starts at the edge of the band where the last one ended;
+            # where the band has narrowed since, it is never outside its own band
+            # (it would end at once, over and over, and the walk never finish).
+            wb = max(wb, abs(u_start))
             dth = min(max_step, max_chord / max(abs(dx), 1e-12))
             # |du| <= 2w per step: a step can cross at most one band edge.
             dth = min(dth, 2.0 * w / max(abs(k1 - dc), 1e-12))

@@ -18,6 +18,23 @@ from specholo.toolpaths.arcs import arc_chain
 from specholo.toolpaths.common import Runs, dots_for, split_near_plate, straight_on_image
 from specholo.toolpaths.grooves import Grooves
 
+#: Smallest |h_y| / |h| the closed form serves (as the striped design): below it
+#: the sun is too near the eyes' plane and the hyperbola's arms, y ~ sec a, run
+#: off any plate (at a = 90 degrees, sec a ~ 1e16).
+MIN_LIGHT_TILT = 0.05
+
+
+def serves(runs: Runs, setup: Setup, near_plate: float | None = None) -> np.ndarray:
+    """Which runs the closed form can design: all of them unless the sun lies
+    within about 6 degrees of the eyes' plane (then only the dimples of points on
+    the plate); for eyes at infinity straight on, h = l + z has
+    |h_y| / |h| = cos a / sqrt(2 + 2 sin a)."""
+    a = setup.light.elevation
+    if math.cos(a) / math.sqrt(2.0 + 2.0 * math.sin(a)) >= MIN_LIGHT_TILT:
+        return np.ones(len(runs), dtype=bool)
+    threshold = 0.5 * setup.tool.width if near_plate is None else near_plate
+    return np.abs(runs.point[:, 2]) <= threshold
+
 
 def design_hyperbola(runs: Runs, setup: Setup, step: float = math.radians(0.5),
                      near_plate: float | None = None) -> Grooves:

@@ -24,6 +24,13 @@ from specholo.toolpaths.grooves import Grooves
 SAMPLES_PER_WIDTH = 4
 #: Paths of one stipple closer than this (mm) continue one groove.
 RETRACE = 0.02
+#: Most centreline samples the check takes over the whole design.
+MAX_SAMPLES = 10_000_000
+#: Most sample pairs compared between neighbouring paths over the whole design,
+#: and the fewest any one pair of neighbours may use (past those the closest
+#: distance is found on every few samples).
+MAX_PAIRS = 200_000_000
+MIN_PAIRS = 10_000
 
 
 @dataclass(frozen=True)
@@ -143,8 +150,15 @@ def _grid(pts: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray, np.ndar
     """Points bucketed by square cells: order, bucket starts, origin cell and grid shape."""
     n = pts.shape[0]
     x0, y0 = pts[:, 0].min(), pts[:, 1].min()
-    nx = int((pts[:, 0].max() - x0) / cell) + 1
-    ny = int((pts[:, 1].max() - y0) / cell) + 1
+    wx, wy = pts[:, 0].max() - x0, pts[:, 1].max() - y0
+    # Cells never outnumber the points by much: on a large plate with a fine
+    # groove the grid would not fit in memory. Larger cells keep every
+    # neighbour within one cell (only more points per cell).
+    most = 4 * n + 1024
+    if (wx / cell + 1.0) * (wy / cell + 1.0) > most:
+        cell = max(cell, math.sqrt(wx * wy / most), (wx + wy) / most)
+    nx = int(wx / cell) + 1
+    ny = int(wy / cell) + 1
     key = np.empty(n, np.int64)
     for i in range(n):
         key[i] = int((pts[i, 0] - x0) / cell) * ny + int((pts[i, 1] - y0) / cell)
@@ -198,12 +212,21 @@ def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray) -> 
     both draw the same stipple (inf otherwise)."""
     n_paths = first.size - 1
     gap = np.full(max(n_paths - 1, 0), np.inf)
+    # Every pair of neighbours gets its share of the budget, at least MIN_PAIRS.
+    pairs_of = 0
+    for p in range(n_paths - 1):
+        if stipple[p] == stipple[p + 1]:
+            pairs_of += 1
+    budget = max(MIN_PAIRS, MAX_PAIRS // max(pairs_of, 1))
     for p in nb.prange(n_paths - 1):
         if stipple[p] != stipple[p + 1]:
             continue
         best = np.inf
-        for i in range(first[p], first[p + 1]):
-            for j in range(first[p + 1], first[p + 2]):
+        # Two very long paths are compared on every few samples (bounded work).
+        pairs = (first[p + 1] - first[p]) * (first[p + 2] - first[p + 1])
+        stride = max(1, int(math.ceil(math.sqrt(pairs / budget))))
+        for i in range(first[p], first[p + 1], stride):
+            for j in range(first[p + 1], first[p + 2], stride):
                 d = math.hypot(pts[j, 0] - pts[i, 0], pts[j, 1] - pts[i, 1])
                 best = min(best, d)
         gap[p] = best
@@ -273,9 +296,12 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
     """
     if not (math.isfinite(width) and width > 0):
         raise ValueError(f"groove width must be positive, got {width}")
-    step = width / SAMPLES_PER_WIDTH
-    pts, path, share = sample_centrelines(grooves, step)
+    tolerance = min(tolerance, 0.25 * width)  # a groove finer than the slack itself
     total = float(grooves.segments().lengths().sum()) if grooves.n_paths else 0.0
+    # A fine groove on long paths is sampled more coarsely than a quarter width,
+    # so the work stays bounded (the figures are estimates past that).
+    step = max(width / SAMPLES_PER_WIDTH, total / MAX_SAMPLES)
+    pts, path, share = sample_centrelines(grooves, step)
     if len(pts) == 0:
         return Overlaps(width, 0, math.inf, 0, 0.0, total)
     stipple = np.asarray(grooves.stipple, dtype=np.int64)

@@ -31,6 +31,16 @@ MIN_SPACING = 0.02
 #: Extra stripe spacing over the groove width, as a fraction: the spacing is set
 #: where stripes hand over, and the paths' curvature brings them a little closer.
 SPACING_CLEARANCE = 0.02
+#: Memory per sample of the walk, through the arcs and the files written, bytes
+#: (measured on the bunny: about 250 bytes per sample, the bound is about twice
+#: the samples taken).
+BYTES_PER_SAMPLE = 125
+#: Most samples of one design's walk (about 20 times a 100,000-stipple design).
+MAX_SAMPLES = 500_000_000
+#: Most times a run's sample bound may grow (by 4 each time) before it is
+#: refused, over the coarse pass's bound or MIN_BOUND, whichever is larger.
+MAX_GROWTH = 4**4
+MIN_BOUND = 1024
 
 
 @dataclass(frozen=True)
@@ -70,16 +80,73 @@ def _params(setup: Setup, opts: StripeOptions) -> np.ndarray:
                      tool.radius - tool.depth, opts.max_step, opts.max_chord])
 
 
+def at_light(points: np.ndarray, setup: Setup) -> np.ndarray:
+    """Which points (n, 3) sit at a point light, within half a groove width.
+
+    The eye would see such a point where the light itself is: every sightline
+    through it meets the light, and the only optic showing it is a sphere about
+    the light, reflecting each eye's own line of sight back (no groove of a
+    flat plate). These stipples are dropped.
+    """
+    light = setup.light.position
+    if light is None or len(points) == 0:
+        return np.zeros(len(points), dtype=bool)
+    tol = max(0.5 * setup.tool.width, 1e-9 * float(np.linalg.norm(light)))
+    return np.linalg.norm(np.asarray(points, dtype=float) - light, axis=-1) <= tol
+
+
+def check_work(cap: np.ndarray, setup: Setup, w: float) -> None:
+    """Refuse a walk whose samples would not fit in memory, before it starts.
+
+    Args:
+        cap: (r,) bound on each run's samples (from the coarse pass).
+        setup: the setup (named in the message).
+        w: band half-height, mm.
+
+    Raises:
+        SpecholoError: e.g. "the striped design would need ~2.1e+09 groove
+            samples (~530 GB of memory; 20 GB available) with band 0.001 mm...".
+    """
+    from specholo.scene.loading import available_memory, format_bytes
+
+    samples = int(cap.sum())
+    need = samples * BYTES_PER_SAMPLE
+    room = available_memory()
+    if samples > MAX_SAMPLES or (room is not None and need > room):
+        v = setup.viewer
+        have = "" if room is None else f"; {format_bytes(room)} available"
+        raise SpecholoError(
+            f"the striped design would need ~{samples:.2g} groove samples "
+            f"(~{format_bytes(need)} of memory{have}) with band {w:g} mm, view range "
+            f"+-{math.degrees(v.half_range):g} deg and eye height {v.height:g} mm: use a wider "
+            "--band, a narrower --view-range, a lower --eye-height or fewer stipples")
+
+
 def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
                w: float, spacing: float) -> tuple[np.ndarray, ...]:
     """Samples of every run, in travel order.
 
     Returns:
         run (m,), stripe (m,), point (m, 2) and unit tangent (m, 2).
+
+    Raises:
+        SpecholoError: when a run needs far more samples than its bound (the
+            walk does not settle: the glint condition is ill-conditioned there).
     """
     pending = np.arange(len(runs))
     parts = []
+    first = cap.copy()
     while pending.size:
+        bound = MAX_GROWTH * np.maximum(first[pending], MIN_BOUND)
+        if np.any(cap[pending] > bound) or int(cap[pending].sum()) > MAX_SAMPLES:
+            i = int(pending[np.argmax(cap[pending] / bound)])
+            x, y, z = (float(v) for v in runs.point[i])
+            r, d = params[6], params[0]
+            raise SpecholoError(
+                f"the striped walk for the stipple at ({x:.3g}, {y:.3g}, {z:.3g}) mm does not "
+                f"settle (more than {int(cap[i]):,} samples): the groove's round wall (radius "
+                f"{r:g} mm, from the tool radius, spot and depth) is too coarse for eyes {d:g} mm "
+                "away, or the light grazes the eyes' plane there")
         offsets = np.concatenate([[0], np.cumsum(cap[pending])]).astype(np.int64)
         m = int(offsets[-1])
         stripe = np.empty(m, dtype=np.int64)
@@ -110,8 +177,10 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
             default half the groove width.
 
     Returns:
-        The grooves, and the ids of stipples that could not be designed (light
-        in the eyes' plane).
+        The grooves, and the ids of stipples that could not be designed: the
+        light in the eyes' plane there (a groove would run vertically and could
+        not follow the eyes' horizontal motion), or the stipple at a point
+        light (:func:`at_light`).
     """
     opts = opts or StripeOptions()
     w = opts.band
@@ -122,11 +191,13 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     pts3 = np.ascontiguousarray(far.point)
     u0, valid, cap = kernel.start_offsets(far.start, far.end, pts3, params, w,
                                           opts.min_light_tilt)
+    valid &= ~at_light(pts3, setup)
     dropped = np.unique(far.stipple[~valid])
     far = far.take(valid)
     u0, cap = u0[valid], cap[valid]
     if len(far) == 0:
         return dots_for(near, setup), dropped
+    check_work(cap, setup, w)
     spacing = setup.tool.width * (1 + SPACING_CLEARANCE) if opts.spacing is None else opts.spacing
     run, stripe, pts, tangent = _integrate(far, params, u0, cap, w, spacing)
     keep, breaks = kernel.tidy(run, stripe, pts, MIN_SPACING)
