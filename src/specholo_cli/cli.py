@@ -285,6 +285,14 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
         raise SpecholoError(f"--stl must name an .stl file, got {stl.name!r}")
     if not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
         raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
+    from specholo.compose import is_composed_folder
+
+    if is_composed_folder(folder):
+        if from_gcode or cut:
+            raise SpecholoError("a composed design is verified on its grooves; --from-gcode "
+                                "and --cut are for flat-plate designs")
+        _verify_composed(folder, step)
+        return
     if is_ridged_folder(folder):
         if from_gcode or cut:
             raise SpecholoError("a ridged design is verified on its height field (plate.npz); "
@@ -732,6 +740,62 @@ def _interrupted(exc: BaseException) -> bool:
         seen.add(id(e))
         e = e.__cause__ or e.__context__
     return False
+
+
+@cli.command()
+@click.argument("composition", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(path_type=Path), required=True,
+              help="Output folder (written atomically).")
+@click.option("--step", type=float, default=5.0, show_default=True,
+              help="Largest step between verified viewer positions, degrees.")
+def compose(composition: Path, out: Path, step: float) -> None:
+    """Design a hologram from a TOML composition: any host (plane, cylinder, sphere,
+    height field, mesh, panels), a walking viewer or a moving light, one or more
+    scenes keyed to the motion; then verify it."""
+    from rich.console import Console
+
+    from specholo.compose import design_composition, read_composition, write_composition
+
+    if not (math.isfinite(step) and 0.1 <= step <= 30.0):
+        raise SpecholoError(f"step must be in [0.1, 30] degrees, got {step}")
+    _check_out(out)
+    comp = read_composition(composition)
+    with Console(stderr=True).status("designing grooves along the motion..."):
+        d = design_composition(comp)
+        check = write_composition(d, out)
+    click.echo(f"{d.stats['stripes']} stripes, {d.stats['groove_length_mm'] / 1000:.2f} m of "
+               f"groove; G-code checked: {check['cutting_moves']} cutting moves, deepest "
+               f"{check['deepest_cut_mm']:.4f} mm")
+    _verify_composed(out, step)
+
+
+def _verify_composed(folder: Path, step: float) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from specholo.compose import load_composition_folder, verify_composition
+    from specholo.fabrication.atomic import atomic_open
+    from specholo.simulation.conforming import reports_to_dicts, summarise
+
+    d = load_composition_folder(folder)
+    with Console(stderr=True).status("simulating eye pairs along the motion..."):
+        reports = verify_composition(d, math.radians(step))
+    label = "azimuth" if d.comp.motion.mode == "walk" else "light elev."
+    table = Table(title=f"verification ({d.comp.host.kind} host, {d.comp.motion.mode})")
+    for name in (label, "shown", "median mm", "p95 mm", "p95 depth mm", "visibility",
+                 "stray"):
+        table.add_column(name, justify="right")
+    for r in reports:
+        table.add_row(f"{r.position:+.1f}", str(r.shown), f"{r.median_error:.3f}",
+                      f"{r.p95_error:.3f}", f"{r.p95_depth_error:.3f}", f"{r.visibility:.3f}",
+                      f"{r.stray:.3f}")
+    Console().print(table)
+    summary = summarise(reports)
+    with atomic_open(folder / "verify.json") as fh:
+        json.dump({"positions": reports_to_dicts(reports), "summary": summary}, fh, indent=1,
+                  sort_keys=True)
+    click.echo(f"worst p95 error {summary['worst_p95_error']:.3f} mm, lowest visibility "
+               f"{summary['min_visibility']:.3f}, most stray glints {summary['max_stray']:.3f}")
 
 
 def main(argv: list[str] | None = None) -> int:
