@@ -104,8 +104,8 @@ class Composition:
 def _host(t: dict[str, Any], base: Path) -> Host:
     kind = t.get("kind", "plane")
     if kind == "plane":
-        return Plane(_num(t, "width", math.inf, "host", positive=True) or math.inf,
-                     _num(t, "height", math.inf, "host", positive=True) or math.inf)
+        return Plane(_num(t, "width", None, "host", positive=True) or math.inf,
+                     _num(t, "height", None, "host", positive=True) or math.inf)
     if kind == "cylinder":
         return Cylinder(_num(t, "radius", 40.0, "host", positive=True) or 40.0,
                         _num(t, "height", 80.0, "host", positive=True) or 80.0)

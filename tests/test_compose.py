@@ -1,0 +1,214 @@
+"""Curved hosts, motion and animation: physical checks of `specholo compose`."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from specholo.compose import design_composition, parse_composition, verify_composition
+from specholo.fabrication.surface_gcode import check_surface_gcode, write_surface_gcode
+from specholo.hosts.surfaces import Cylinder, HeightField, MeshHost, Panel, Panels, Plane, Sphere
+from specholo.simulation.conforming import find_conforming_glints, summarise
+from specholo_cli.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+BUNNY = ROOT / "examples" / "bunny.obj"
+
+
+def _comp(host: str, mode: str = "walk", extra: str = "", scenes: str | None = None,
+          stipples: int = 60):
+    scenes = scenes if scenes is not None else (
+        f'[[scene]]\nmodel = "{BUNNY}"\nsize = 30\ncenter_z = -25\n')
+    text = (f'mode = "{mode}"\nstipples = {stipples}\nseed = 5\n{extra}\n'
+            f'[host]\n{host}\n[viewer]\nrange = 25\n[light]\nelevation = 45\nstop = 60\n'
+            f'{scenes}')
+    return parse_composition(text, ROOT)
+
+
+@pytest.mark.parametrize("host", [Plane(), Cylinder(30, 60), Sphere(40),
+                                  HeightField.from_function(
+                                      lambda x, y: 3 * np.sin(x / 15) * np.cos(y / 20)
+                                      - 0.0, 80, 80, 1.0)])
+def test_rays_meet_the_host_on_its_surface_with_outward_normals(host) -> None:
+    rng = np.random.default_rng(0)
+    origins = np.column_stack([rng.uniform(-20, 20, 200), rng.uniform(-20, 20, 200),
+                               np.full(200, 500.0)])
+    targets = np.column_stack([rng.uniform(-10, 10, 200), rng.uniform(-10, 10, 200),
+                               np.full(200, -20.0)])
+    hit = host.intersect(origins, targets - origins)
+    assert hit.valid.all()
+    on = host.project(hit.point)
+    assert np.abs(on - hit.point).max() < 1e-6
+    # Outward: toward the eye's side, and unit length.
+    assert np.allclose(np.linalg.norm(hit.normal, axis=1), 1.0)
+    assert (np.sum(hit.normal * (origins - hit.point), axis=1) > 0).all()
+    # The hit lies on the ray.
+    d = hit.point - origins
+    u = (targets - origins) / np.linalg.norm(targets - origins, axis=1, keepdims=True)
+    assert np.abs(np.linalg.norm(np.cross(d, u), axis=1)).max() < 1e-6
+
+
+def test_a_mesh_host_agrees_with_the_sphere_it_tessellates() -> None:
+    sphere = Sphere(40)
+    mesh = trimesh.creation.icosphere(subdivisions=5, radius=40)
+    mesh.apply_translation([0, 0, -40])
+    host = MeshHost(mesh)
+    rng = np.random.default_rng(1)
+    o = np.column_stack([rng.uniform(-15, 15, 100), rng.uniform(-15, 15, 100),
+                         np.full(100, 300.0)])
+    d = np.array([0.0, 0.0, -1.0]) + rng.normal(0, 0.02, (100, 3))
+    a, b = host.intersect(o, d), sphere.intersect(o, d)
+    assert a.valid.all() and b.valid.all()
+    assert np.abs(a.point - b.point).max() < 0.02  # the tessellation's sag
+    assert np.degrees(np.arccos(np.clip(np.sum(a.normal * b.normal, axis=1), -1, 1))).max() < 0.5
+
+
+def test_panels_take_the_nearest_panel_and_name_it() -> None:
+    host = Panels([Panel((-30, 0, 0), (0.2, 0, 1), 50, 60),
+                   Panel((30, 0, 0), (-0.2, 0, 1), 50, 60)])
+    hit = host.intersect(np.array([[-30, 0, 400], [30, 0, 400], [0, 0, 400]]),
+                         np.array([[0, 0, -1.0]] * 3))
+    # The third ray passes through the gap between the panels.
+    assert list(hit.valid) == [True, True, False]
+    assert list(hit.part[:2]) == [0, 1]
+    assert np.allclose(host.project(hit.point[:2]), hit.point[:2])
+    assert np.allclose(host.normal(hit.point[:2]), hit.normal[:2])
+
+
+@pytest.mark.parametrize("host", ['kind = "cylinder"\nradius = 35\nheight = 60',
+                                  'kind = "sphere"\nradius = 60'])
+def test_curved_host_glints_triangulate_to_their_points(host: str) -> None:
+    d = design_composition(_comp(host))
+    reports = verify_composition(d, math.radians(12.5))
+    s = summarise(reports)
+    assert s["worst_p95_error"] < 0.35          # the band is 0.2 mm across the sightline
+    assert s["worst_p95_depth_error"] < 0.05
+    assert s["min_visibility"] > 0.95
+    assert s["max_stray"] == 0.0
+
+
+def test_glints_on_a_cylinder_reflect_the_light_into_the_eye() -> None:
+    comp = _comp('kind = "cylinder"\nradius = 35\nheight = 60')
+    d = design_composition(comp)
+    tool = comp.tool
+    pos = comp.motion.positions(math.radians(10))[1]
+    light = np.array(pos.light)
+    g = find_conforming_glints(d.grooves, comp.host, pos.eyes[0], light, False, tool)
+    assert len(g.point) > 20
+    # The ball's centre for each glint: the groove point nearest it, lifted.
+    from scipy.spatial import cKDTree
+
+    near = cKDTree(d.grooves.point).query(g.point)[1]
+    s, t = d.grooves.point[near], d.grooves.tangent[near]
+    # The centreline point abreast of the glint (the wall is perpendicular to t).
+    c = comp.host.project(s + np.sum((g.point - s) * t, axis=1)[:, None] * t)
+    centre = c + (tool.radius - tool.depth) * comp.host.normal(c)
+    # The glint lies on the ball's surface, and the wall normal there (toward
+    # the ball centre) mirrors the sun into the eye.
+    wall = centre - g.point
+    r = np.linalg.norm(wall, axis=1)
+    n = wall / r[:, None]
+    out = -light + 2 * np.sum(light * n, axis=1)[:, None] * n
+    to_eye = pos.eyes[0] - g.point
+    to_eye /= np.linalg.norm(to_eye, axis=1, keepdims=True)
+    angle = np.degrees(np.arccos(np.clip(np.sum(out * to_eye, axis=1), -1, 1)))
+    assert np.median(np.abs(r - tool.radius)) < 2e-3
+    assert np.percentile(angle, 90) < 0.5
+
+
+def test_a_moving_light_shows_a_turning_scene_to_a_still_viewer() -> None:
+    scenes = f'[[scene]]\nmodel = "{BUNNY}"\nsize = 30\ncenter_z = -25\nturn = 0.5\n'
+    d = design_composition(_comp('kind = "plane"', "light", scenes=scenes))
+    s = summarise(verify_composition(d, math.radians(7.5)))
+    assert s["worst_p95_error"] < 0.3
+    assert s["max_stray"] == 0.0
+
+
+def test_viewpoint_keyed_scenes_hand_over_without_ghosts() -> None:
+    scenes = (f'[[scene]]\nmodel = "{BUNNY}"\nsize = 30\ncenter_z = -25\nto = 0\n'
+              f'[[scene]]\nmodel = "{BUNNY}"\nsize = 30\ncenter_z = -45\nfrom = 0\n')
+    d = design_composition(_comp('kind = "plane"', scenes=scenes, stipples=50))
+    reports = verify_composition(d, math.radians(5))
+    by = {round(r.position): r for r in reports}
+    # Each side shows its own scene, at its own depth, and nothing of the other.
+    for az in (-20, -10, 10, 20):
+        assert by[az].shown > 10 and by[az].p95_error < 0.35 and by[az].stray == 0.0
+    # A head straddling the hand-over sees a different scene in each eye: no
+    # stipple is shown to both.
+    assert by[0].shown == 0
+
+
+def test_gcode_on_curved_hosts_passes_its_check_and_a_deeper_cut_does_not() -> None:
+    comp = _comp('kind = "cylinder"\nradius = 35\nheight = 60', stipples=20)
+    d = design_composition(comp)
+    for axes in (3, 4):
+        prog = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, axes)
+        fig = check_surface_gcode(prog.text, comp.host, comp.tool, comp.machining, axes)
+        assert fig["cutting_moves"] > 100
+        assert fig["deepest_cut_mm"] <= comp.tool.depth + 2e-3
+        lines = prog.text.splitlines()
+        k = next(i for i, ln in enumerate(lines) if ln.startswith("G1 X"))
+        words = lines[k].split()
+        if axes == 4:
+            lines[k] = f"{lines[k]} Z{-3 * comp.tool.depth:.4f}"
+        else:
+            z = float(next(w for w in words if w.startswith("Z"))[1:])
+            lines[k] = " ".join([*(w for w in words if not w.startswith("Z")),
+                                 f"Z{z - 0.05:.4f}"])
+        with pytest.raises(Exception, match="deeper"):
+            check_surface_gcode("\n".join(lines), comp.host, comp.tool, comp.machining, axes)
+
+
+@pytest.mark.skipif(shutil.which("rs274") is None, reason="LinuxCNC's rs274 not installed")
+def test_four_axis_gcode_parses_in_linuxcnc(tmp_path: Path) -> None:
+    comp = _comp('kind = "cylinder"\nradius = 35\nheight = 60', stipples=10)
+    d = design_composition(comp)
+    prog = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, 4)
+    path = tmp_path / "cup.ngc"
+    path.write_text(prog.text)
+    run = subprocess.run(["rs274", "-g", str(path)], capture_output=True, text=True,
+                         timeout=120, input="")
+    assert run.returncode == 0, run.stdout[-500:] + run.stderr[-500:]
+    feeds = [ln for ln in run.stdout.splitlines() if "STRAIGHT_FEED" in ln]
+    assert len(feeds) > 50
+    # The canonical moves carry the A axis the program turns.
+    assert any("STRAIGHT_FEED" in ln for ln in feeds)
+
+
+def test_compose_cli_writes_a_verified_folder(tmp_path: Path) -> None:
+    text = (f'stipples = 30\n[host]\nkind = "cylinder"\nradius = 35\n[machining]\naxes = 4\n'
+            f'[[scene]]\nmodel = "{BUNNY}"\nsize = 30\ncenter_z = -25\n')
+    comp = tmp_path / "c.toml"
+    comp.write_text(text)
+    out = tmp_path / "out"
+    assert main(["compose", str(comp), "--out", str(out), "--step", "15"]) == 0
+    meta = json.loads((out / "hologram.json").read_text())
+    assert meta["design"] == "conforming" and meta["host"]["kind"] == "cylinder"
+    ver = json.loads((out / "verify.json").read_text())
+    assert ver["summary"]["worst_p95_error"] < 0.35
+    assert main(["verify", str(out), "--step", "5"]) == 0
+
+
+@pytest.mark.parametrize("text, message", [
+    ('colour = 1\n[[scene]]\nmodel = "x.obj"\n', "unknown key 'colour'"),
+    ('[host]\nkind = "torus"\n[[scene]]\nmodel = "x.obj"\n', "unknown host kind"),
+    ('[viewer]\ndistance = -5\n[[scene]]\nmodel = "x.obj"\n', "viewer.distance"),
+    ('mode = "walk"\n', "at least one [[scene]]"),
+    ('[[scene]]\nmodel = "missing.obj"\n', "missing.obj"),
+])
+def test_bad_compositions_fail_in_one_line_with_no_output(tmp_path: Path, capsys, text: str,
+                                                          message: str) -> None:
+    comp = tmp_path / "c.toml"
+    comp.write_text(text)
+    out = tmp_path / "out"
+    assert main(["compose", str(comp), "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and message in err[0]
+    assert not out.exists()
