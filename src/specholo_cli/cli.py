@@ -748,7 +748,9 @@ def _interrupted(exc: BaseException) -> bool:
               help="Output folder (written atomically).")
 @click.option("--step", type=float, default=5.0, show_default=True,
               help="Largest step between verified viewer positions, degrees.")
-def compose(composition: Path, out: Path, step: float) -> None:
+@click.option("--frames", type=int, default=48, show_default=True,
+              help="Frames of preview.gif along the motion (0 for none).")
+def compose(composition: Path, out: Path, step: float, frames: int) -> None:
     """Design a hologram from a TOML composition: any host (plane, cylinder, sphere,
     height field, mesh, panels), a walking viewer or a moving light, one or more
     scenes keyed to the motion; then verify it."""
@@ -758,6 +760,8 @@ def compose(composition: Path, out: Path, step: float) -> None:
 
     if not (math.isfinite(step) and 0.1 <= step <= 30.0):
         raise SpecholoError(f"step must be in [0.1, 30] degrees, got {step}")
+    if not 0 <= frames <= 1000:
+        raise SpecholoError(f"frames must be in [0, 1000], got {frames}")
     _check_out(out)
     comp = read_composition(composition)
     with Console(stderr=True).status("designing grooves along the motion..."):
@@ -767,6 +771,27 @@ def compose(composition: Path, out: Path, step: float) -> None:
                f"groove; G-code checked: {check['cutting_moves']} cutting moves, deepest "
                f"{check['deepest_cut_mm']:.4f} mm")
     _verify_composed(out, step)
+    _preview_composed(d, out, frames)
+
+
+def _preview_composed(d: Any, out: Path, frames: int) -> None:
+    """preview.png (start, middle and end of the motion) and preview.gif."""
+    from PIL import Image
+    from rich.progress import Progress
+
+    from specholo.fabrication.atomic import atomic_open
+    from specholo.preview.composed import composed_frames, contact_sheet
+    from specholo.preview.motion import write_animation
+
+    still = composed_frames(d, 3, (480, 480), loop=False)
+    with atomic_open(out / "preview.png", "wb", encoding=None) as fh:
+        Image.fromarray(contact_sheet(still)).save(fh, format="PNG")
+    if frames:
+        with Progress(transient=True, console=None) as bar:
+            task = bar.add_task("rendering preview.gif", total=frames)
+            shots = composed_frames(d, frames, (360, 360),
+                                    progress=lambda: bar.advance(task))
+        write_animation(shots, out / "preview.gif", fps=12)
 
 
 def _verify_composed(folder: Path, step: float) -> None:
