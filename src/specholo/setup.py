@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -72,6 +73,63 @@ class Light:
         v = self.position - points
         return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
+
+
+#: Refractive index of PMMA (acrylic) for visible light.
+ACRYLIC_INDEX = 1.49
+#: Largest refractive index of a clear plate (diamond is 2.42).
+MAX_INDEX = 3.0
+
+
+@dataclass(frozen=True)
+class BackLight(Light):
+    """A light BEHIND a clear plate, shining through it (refraction holograms).
+
+    The same frame as :class:`Light`: the direction from the plate centre toward
+    the light is (0, cos a, sin a), now with a in (-pi, 0): -pi/2 shines
+    straight through from behind, a near 0 grazes the back from above. A point
+    light sits ``distance`` mm from the plate centre (the front face's) along
+    that direction, and must lie behind the back face z = -thickness.
+
+    Attributes:
+        elevation: angle a, radians, in (-pi, 0).
+        distance: point light distance from the plate centre, mm, or None for a sun.
+        thickness: plate thickness T (front face z = 0, back face z = -T), mm.
+        index: refractive index n of the plate (air is 1).
+    """
+
+    thickness: float = 3.0
+    index: float = ACRYLIC_INDEX
+
+    def __post_init__(self) -> None:
+        a = _finite("light elevation", self.elevation)
+        if not -math.pi < a < 0.0:
+            raise SpecholoError(
+                f"a refraction plate is lit from behind: light elevation must be in "
+                f"(-180, 0) degrees (-90 straight behind), got {math.degrees(a):g}")
+        t = _finite("plate thickness", self.thickness)
+        if t <= 0:
+            raise SpecholoError(f"plate thickness must be positive, got {t:g}")
+        n = _finite("refractive index", self.index)
+        if not 1.0 < n <= MAX_INDEX:
+            raise SpecholoError(f"refractive index must be above 1 and at most {MAX_INDEX:g}, "
+                                f"got {n:g}")
+        if self.distance is not None:
+            d = _finite("light distance", self.distance)
+            if d <= 0:
+                raise SpecholoError(f"light distance must be positive, got {d:g}")
+            z = d * math.sin(a)
+            if not z < -t:
+                raise SpecholoError(
+                    f"the light must be behind the plate's back face (z < {-t:g} mm): at "
+                    f"{d:g} mm and {math.degrees(a):g} degrees it is at z = {z:.3g} mm")
+
+    @property
+    def plate(self) -> Any:
+        """The clear plate (:class:`~specholo.optics.refraction.ClearPlate`)."""
+        from specholo.optics.refraction import ClearPlate
+
+        return ClearPlate(float(self.thickness), float(self.index))
 
 @dataclass(frozen=True)
 class Viewer:

@@ -44,10 +44,8 @@ from specholo.optics.surfaces import (
     refract,
     sightline_on_level,
 )
+from specholo.setup import ACRYLIC_INDEX as ACRYLIC_INDEX
 from specholo.simulation.stereo import triangulate
-
-#: Refractive index of PMMA (acrylic) for visible light.
-ACRYLIC_INDEX = 1.49
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -250,6 +248,39 @@ def approximate_optics(points: np.ndarray, centre: np.ndarray,
     """The paper's approximation: Cartesian ovals n |s - c| + sigma |s - p| (focus c)."""
     return PointOptics.lens(points, Source(position=np.asarray(centre, dtype=float)),
                             plate.index, 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class CentredOptics(ImplicitOptics):
+    """The paper's approximation with a centre of divergence per stipple:
+    phi_k(s) = n |s - c_k| + sigma_k |s - p_k| (Cartesian ovals with foci c_k, p_k).
+
+    Attributes:
+        points: (n, 3) virtual points p, mm.
+        sigma: (n,) +1 for p in front of the plate, -1 behind the front face.
+        centres: (n, 3) centres of divergence c, mm.
+        index: the plate's refractive index n.
+    """
+
+    points: np.ndarray
+    sigma: np.ndarray
+    centres: np.ndarray
+    index: float
+
+    def phi(self, s: np.ndarray, stipple: np.ndarray | None = None) -> np.ndarray:
+        s = np.asarray(s, dtype=float)
+        p = self._p(s, stipple, self.points)
+        c = self._p(s, stipple, self.centres)
+        sigma = self._p(s, stipple, self.sigma)
+        return (self.index * np.linalg.norm(s - c, axis=-1)
+                + sigma * np.linalg.norm(s - p, axis=-1))
+
+    def gradient(self, s: np.ndarray, stipple: np.ndarray | None = None) -> np.ndarray:
+        s = np.asarray(s, dtype=float)
+        p = self._p(s, stipple, self.points)
+        c = self._p(s, stipple, self.centres)
+        sigma = self._p(s, stipple, self.sigma)
+        return self.index * _unit(s - c) + sigma[..., None] * _unit(s - p)
 
 
 def exit_direction(optics: ImplicitOptics, source: Source, plate: ClearPlate,

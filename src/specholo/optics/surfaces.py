@@ -45,6 +45,9 @@ class Kind(IntEnum):
     CARTESIAN_OVAL = 3
     DOT = 4
     SPHERE = 5
+    #: Refraction through a clear plate's planar back and the front optic: level
+    #: sets of the Fermat path length (:class:`~specholo.optics.refraction.TwoSurfaceOptics`).
+    TWO_SURFACE = 6
 
 
 #: Newton steps of the level-set solvers (they converge in 3-5 on these optics).
@@ -149,6 +152,8 @@ class ImplicitOptics:
     """
 
     points: np.ndarray
+    #: (n,) +1 for p in front of the optic, -1 behind it.
+    sigma: np.ndarray
 
     def phi(self, s: np.ndarray, stipple: np.ndarray | None = None) -> np.ndarray:
         """phi at points s (..., 3) (see the module docstring for the shapes)."""

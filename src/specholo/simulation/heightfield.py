@@ -42,7 +42,7 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.heightmap import HeightMap
-from specholo.setup import Light, Setup, Viewer
+from specholo.setup import BackLight, Light, Setup, Viewer
 from specholo.simulation.cut import MIN_COVERAGE
 from specholo.simulation.glints import Glints
 from specholo.simulation.verify import ViewReport, VisibilityFn, stereo_errors
@@ -419,7 +419,16 @@ def find_field_glints(field: HeightMap | SlopeIndex, eye: np.ndarray, light: Lig
 
     Raises:
         SpecholoError: the field has no labels, or a bad lobe or estimate.
+
+    A light behind the plate (:class:`~specholo.setup.BackLight`) makes it a clear
+    plate, its glints traced through it by
+    :func:`specholo.simulation.transmission.find_transmitted_glints`.
     """
+    if isinstance(light, BackLight):
+        from specholo.simulation.transmission import find_transmitted_glints
+
+        return find_transmitted_glints(field, eye, light, lobe, shadows, min_coverage,
+                                       estimate)
     if not (math.isfinite(lobe) and lobe > 0):
         raise SpecholoError(f"lobe must be a positive angle, got {lobe}")
     if estimate not in ESTIMATES:

@@ -47,8 +47,8 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.heightmap import HeightMap
 from specholo.hosts.flat import sightline_crossing
-from specholo.optics.surfaces import Kind, PointOptics, Source
-from specholo.setup import Setup, Viewer
+from specholo.optics.surfaces import ImplicitOptics, Kind, PointOptics, Source
+from specholo.setup import BackLight, Setup, Viewer
 
 #: Facet depth used, as a share of the shell (the rest absorbs the cone sectors).
 DEPTH_MARGIN = 0.95
@@ -56,6 +56,8 @@ DEPTH_MARGIN = 0.95
 MIN_LEAN_FACTOR = 0.3
 #: Largest number of sectors a column of the shell may cross.
 MAX_SECTORS = 8
+#: Models of a refraction plate's front optic (see :class:`Refraction`).
+REFRACTION_MODELS = ("exact", "approx", "single")
 
 
 @dataclass(frozen=True)
@@ -112,13 +114,141 @@ class RidgeOptions:
         return max(1, round(self.block / self.resolution))
 
 
+def refraction_optics(points: np.ndarray, light: BackLight, model: str = "exact",
+                      samples: np.ndarray | None = None,
+                      owner: np.ndarray | None = None) -> ImplicitOptics:
+    """The front optic of a refraction plate: clear, lit from behind, its front face
+    ridged.
+
+    The light shines through the planar back face z = -T (``light`` carries the
+    plate's thickness and index); the front face z = 0 holds the facets, level
+    sets of the front optic's phi:
+
+    - ``exact``: the two-surface optic, L(s) + sigma |s - p| with L the Fermat
+      path from the light through the back face
+      (:class:`~specholo.optics.refraction.TwoSurfaceOptics`);
+    - ``approx``: the paper's approximation, the Cartesian oval
+      n |s - c| + sigma |s - p| about a centre of divergence c per stipple,
+      fitted (least squares, :func:`~specholo.optics.refraction.fitted_centre`)
+      to the in-plate rays that reach the stipple's region
+      (:class:`~specholo.optics.refraction.CentredOptics`); with a sun the
+      in-plate rays are parallel and it is the exact optic;
+    - ``single``: the single-interface oval n |s - i| + sigma |s - p|, as if the
+      light were inside the plate (the back face ignored;
+      :meth:`~specholo.optics.surfaces.PointOptics.lens`).
+
+    Args:
+        points: (n, 3) stipples, mm.
+        light: the light behind the plate.
+        model: one of :data:`REFRACTION_MODELS`.
+        samples: for ``approx``, (m, 3) points of the stipples' regions, mm.
+        owner: for ``approx``, (m,) the stipple of each sample; a stipple without
+            samples gets the paraxial centre.
+
+    Returns:
+        The optic (phi increasing toward the viewer; see :class:`FacingOptics`).
+    """
+    from specholo.optics.refraction import (
+        CentredOptics,
+        TwoSurfaceOptics,
+        back_entry,
+        paraxial_centre,
+    )
+
+    if not isinstance(light, BackLight):
+        raise SpecholoError("a refraction plate is lit from behind (a BackLight)")
+    if model not in REFRACTION_MODELS:
+        raise SpecholoError(f"refraction model must be one of {', '.join(REFRACTION_MODELS)}, "
+                            f"got {model!r}")
+    points = np.asarray(points, dtype=float)
+    plate = light.plate
+    source = Source.from_light(light)
+    if model == "single":
+        return PointOptics.lens(points, source, plate.index, 1.0)
+    if model == "exact" or source.position is None:
+        return TwoSurfaceOptics.for_points(points, source, plate)
+    n = len(points)
+    centres = np.broadcast_to(paraxial_centre(source, plate), (n, 3)).copy()
+    if samples is not None and owner is not None and len(samples):
+        # Least squares over each stipple's rays: sum (I - d d^T) c = sum (I - d d^T) s.
+        _, _, d = back_entry(source, samples, plate)
+        proj = np.eye(3)[None] - d[:, :, None] * d[:, None, :]
+        mat = np.zeros((n, 3, 3))
+        rhs = np.zeros((n, 3))
+        np.add.at(mat, owner, proj)
+        np.add.at(rhs, owner, np.einsum("kij,kj->ki", proj, samples))
+        has = np.bincount(owner, minlength=n) >= 2
+        # A whisker of regularisation toward the paraxial centre: a small region's
+        # rays are nearly parallel, and the centre along them barely matters.
+        lam = 1e-12 * np.trace(mat, axis1=1, axis2=2)[:, None]
+        mat_r = mat + lam[..., None] * np.eye(3)[None]
+        rhs_r = rhs + lam * centres
+        with np.errstate(all="ignore"):
+            fit = np.linalg.solve(mat_r[has], rhs_r[has][..., None])[..., 0]
+        ok = np.all(np.isfinite(fit), axis=1) & (fit[:, 2] < plate.back_z)
+        idx = np.flatnonzero(has)[ok]
+        centres[idx] = fit[ok]
+    sigma = np.where(points[:, 2] > 0.0, 1.0, -1.0)
+    return CentredOptics(points, sigma, centres, float(plate.index))
+
+
+def _refraction_kernel(optics: ImplicitOptics, light: BackLight,
+                       n: int) -> tuple[bool, bool, np.ndarray, float]:
+    """The raster kernel's description of a refraction optic's light term:
+    (fermat, point, focus (n, 3), const); see :func:`_phi_refract`."""
+    from specholo.optics.refraction import CentredOptics, TwoSurfaceOptics, back_entry
+
+    source = Source.from_light(light)
+    plate = light.plate
+    if isinstance(optics, CentredOptics):
+        return False, True, np.ascontiguousarray(optics.centres, dtype=float), 0.0
+    if isinstance(optics, TwoSurfaceOptics):
+        if source.position is not None:
+            return True, True, np.tile(source.position, (n, 1)), 0.0
+        # A plane wave in the plate: n d.s plus the constant TwoSurfaceOptics uses.
+        _, _, d = back_entry(source, np.zeros((1, 3)), plate)
+        const = float((-np.asarray(source.direction)[2] - plate.index * d[0, 2]) * plate.back_z)
+        return False, False, np.tile(-d[0], (n, 1)), const
+    if source.position is not None:
+        return False, True, np.tile(source.position, (n, 1)), 0.0
+    return False, False, np.tile(np.asarray(source.direction), (n, 1)), 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class FacingOptics(ImplicitOptics):
+    """Another optic's phi negated, so that it decreases toward the viewer (+z) as a
+    mirror's does, which is how the ridged construction stacks its facets. The
+    level sets and normals are the other optic's.
+
+    Attributes:
+        points: (n, 3) virtual points. sigma: (n,) their sides.
+        inner: the optic.
+    """
+
+    points: np.ndarray
+    sigma: np.ndarray
+    inner: ImplicitOptics
+
+    @classmethod
+    def of(cls, inner: ImplicitOptics) -> FacingOptics:
+        return cls(inner.points, inner.sigma, inner)
+
+    def phi(self, s: np.ndarray, stipple: np.ndarray | None = None) -> np.ndarray:
+        return -self.inner.phi(s, stipple)
+
+    def gradient(self, s: np.ndarray, stipple: np.ndarray | None = None) -> np.ndarray:
+        return -self.inner.gradient(s, stipple)
+
+
 @dataclass(frozen=True, eq=False)
 class RidgedPlate:
     """A ridged full-parallax design: the plate's height field and what it shows.
 
     Attributes:
         heights: the plate (heights and the stipple of each cell).
-        optics: every stipple's phi (mirror, the design's light).
+        optics: every stipple's phi (the mirror's for the design's light; for a
+            refraction plate its optic, negated so that it decreases toward the
+            viewer as a mirror's does, :class:`FacingOptics`).
         kind: (n,) int8 :class:`~specholo.optics.surfaces.Kind` of each optic.
         level0: (n,) c0, the level of the facet through the region's centre.
         step: (n,) dc, the level step between facets.
@@ -135,10 +265,11 @@ class RidgedPlate:
         block_labels: (nby, nbx) int32 stipple of each block, -1 blank.
         block: block size, mm.
         timings: seconds per stage.
+        model: "mirror", or the refraction model (:data:`REFRACTION_MODELS`).
     """
 
     heights: HeightMap
-    optics: PointOptics
+    optics: ImplicitOptics
     kind: np.ndarray
     level0: np.ndarray
     step: np.ndarray
@@ -155,6 +286,7 @@ class RidgedPlate:
     block_labels: np.ndarray
     block: float
     timings: dict[str, float] = field(default_factory=dict)
+    model: str = "mirror"
 
     @property
     def points(self) -> np.ndarray:
@@ -329,13 +461,71 @@ def _phi(x: float, y: float, z: float, px: float, py: float, pz: float, sg: floa
     return -(lx * x + ly * y + lz * z) + sg * rp, -lz + sg * dz / rp
 
 
+@nb.njit(cache=True, inline="always")
+def _back_path(x: float, y: float, z: float, ix: float, iy: float, iz: float, n: float,
+               zback: float) -> tuple[float, float]:
+    """The Fermat path from a point light behind the back face z = zback to a point
+    inside the plate, min over b of |b - i| + n |s - b|, and its z-derivative
+    n (z - zback) / |s - b| (the solve of
+    :func:`~specholo.optics.refraction.back_entry`, for one point)."""
+    a = zback - iz
+    c = z - zback
+    dx, dy = x - ix, y - iy
+    rho = math.sqrt(dx * dx + dy * dy)
+    r = n * rho * a / (c + n * a)
+    lo, hi = 0.0, rho
+    for _ in range(60):
+        big_a = math.sqrt(r * r + a * a)
+        big_c = math.sqrt((rho - r) ** 2 + c * c)
+        f = r / big_a - n * (rho - r) / big_c
+        if f < 0:
+            lo = r
+        elif f > 0:
+            hi = r
+        r_new = r - f / (a * a / big_a**3 + n * c * c / big_c**3)
+        if not lo < r_new < hi:
+            r_new = 0.5 * (lo + hi)
+        if abs(r_new - r) <= 1e-13 * (1.0 + rho):
+            r = r_new
+            break
+        r = r_new
+    big_c = math.sqrt((rho - r) ** 2 + c * c)
+    return math.sqrt(r * r + a * a) + n * big_c, n * c / big_c
+
+
+@nb.njit(cache=True, inline="always")
+def _phi_refract(x: float, y: float, z: float, px: float, py: float, pz: float, sg: float,
+                 fermat: bool, point: bool, fx: float, fy: float, fz: float, n: float,
+                 zback: float, const: float) -> tuple[float, float]:
+    """Minus the phi of a refraction optic, and its z-derivative, at (x, y, z).
+
+    The light's term: the Fermat path through the back face from a point light f
+    (``fermat`` and ``point``); n |s - f| about a point f (a Cartesian oval's
+    focus); or -n f.s + const for light from the direction f (a plane wave)."""
+    dx, dy, dz = x - px, y - py, z - pz
+    rp = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if fermat and point:
+        big_l, lz = _back_path(x, y, z, fx, fy, fz, n, zback)
+    elif point:
+        ax, ay, az = x - fx, y - fy, z - fz
+        ri = math.sqrt(ax * ax + ay * ay + az * az)
+        big_l, lz = n * ri, n * az / ri
+    else:
+        big_l, lz = -n * (fx * x + fy * y + fz * z) + const, -n * fz
+    return -(big_l + sg * rp), -(lz + sg * dz / rp)
+
+
 @nb.njit(cache=True, parallel=True)
 def _raster(block_labels: np.ndarray, ratio: int, x0: float, y0: float, res: float,
             points: np.ndarray, sigma: np.ndarray, level0: np.ndarray, step: np.ndarray,
             apex: np.ndarray, dot: np.ndarray, dot_radius: float, point: bool,
-            light: np.ndarray, zbot: float, z_out: np.ndarray, lab_out: np.ndarray) -> None:
+            light: np.ndarray, zbot: float, z_out: np.ndarray, lab_out: np.ndarray,
+            refract: bool, fermat: bool, focus: np.ndarray, index: float, zback: float,
+            const: float) -> None:
     """The sawtooth height field: for each cell, the top of the solid formed by
-    each cone sector's material below its facet."""
+    each cone sector's material below its facet (a mirror's optic, or with
+    ``refract`` a refraction optic, :func:`_phi_refract`, with the light's term
+    per stipple in ``focus``)."""
     ny, nx = z_out.shape
     lx, ly, lz = light[0], light[1], light[2]
     for r in nb.prange(ny):
@@ -359,11 +549,20 @@ def _raster(block_labels: np.ndarray, ratio: int, x0: float, y0: float, res: flo
             c0 = level0[lab]
             dc = step[lab]
             qx, qy, qz = apex[lab, 0], apex[lab, 1], apex[lab, 2]
-            f0, g0 = _phi(x, y, 0.0, px, py, pz, sg, point, lx, ly, lz)
+            fx, fy, fz = focus[lab, 0], focus[lab, 1], focus[lab, 2]
+            if refract:
+                f0, g0 = _phi_refract(x, y, 0.0, px, py, pz, sg, fermat, point, fx, fy, fz,
+                                      index, zback, const)
+            else:
+                f0, g0 = _phi(x, y, 0.0, px, py, pz, sg, point, lx, ly, lz)
             # The plate point the cone from q projects the column's bottom onto.
             t = -zbot / (qz - zbot)
-            fb, _ = _phi(x + t * (qx - x), y + t * (qy - y), 0.0, px, py, pz, sg, point,
-                         lx, ly, lz)
+            if refract:
+                fb, _ = _phi_refract(x + t * (qx - x), y + t * (qy - y), 0.0, px, py, pz, sg,
+                                     fermat, point, fx, fy, fz, index, zback, const)
+            else:
+                fb, _ = _phi(x + t * (qx - x), y + t * (qy - y), 0.0, px, py, pz, sg, point,
+                             lx, ly, lz)
             k_top = math.ceil((f0 - c0) / dc)
             k_bot = math.ceil((fb - c0) / dc)
             k_lo = min(k_top, k_bot)
@@ -386,7 +585,11 @@ def _raster(block_labels: np.ndarray, ratio: int, x0: float, y0: float, res: flo
                 # The facet phi = c_hi over this column (Newton from the plate).
                 z = (f0 - c_hi) / g0
                 for _ in range(6):
-                    f, g = _phi(x, y, z, px, py, pz, sg, point, lx, ly, lz)
+                    if refract:
+                        f, g = _phi_refract(x, y, z, px, py, pz, sg, fermat, point, fx, fy,
+                                            fz, index, zback, const)
+                    else:
+                        f, g = _phi(x, y, z, px, py, pz, sg, point, lx, ly, lz)
                     z -= (f - c_hi) / g
                 top = min(z, z_hi)
                 if top >= z_lo and top > best:
@@ -396,8 +599,14 @@ def _raster(block_labels: np.ndarray, ratio: int, x0: float, y0: float, res: flo
 
 def design_ridged(points: np.ndarray, normals: np.ndarray | None, mesh: Any, setup: Setup,
                   options: RidgeOptions | None = None,
-                  plate: np.ndarray | None = None) -> RidgedPlate:
+                  plate: np.ndarray | None = None,
+                  refraction: str | None = None) -> RidgedPlate:
     """Design a ridged full-parallax plate for stipples of a model.
+
+    A mirror for a light in front (a :class:`~specholo.setup.Light`); for a light
+    behind the plate (a :class:`~specholo.setup.BackLight`) a clear refraction
+    plate, its front face ridged with the optic ``refraction`` names
+    (:func:`refraction_optics`).
 
     Args:
         points: (n, 3) stipples, mm.
@@ -406,6 +615,8 @@ def design_ridged(points: np.ndarray, normals: np.ndarray | None, mesh: Any, set
         setup: light and viewer (the viewer's azimuth range and distance).
         options: the construction's settings.
         plate: (2, 2) plate corners, mm; default the patches' extent plus the margin.
+        refraction: with a light behind the plate, the front optic's model
+            (:data:`REFRACTION_MODELS`, default ``"exact"``); None for a mirror.
 
     Returns:
         The plate.
@@ -426,8 +637,22 @@ def design_ridged(points: np.ndarray, normals: np.ndarray | None, mesh: Any, set
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     source = Source.from_light(setup.light)
-    optics = PointOptics.mirror(points, source)
-    kind = optics.kinds(tol=opts.dot_depth)
+    back = setup.light if isinstance(setup.light, BackLight) else None
+    if back is None and refraction is not None:
+        raise SpecholoError("a refraction plate is lit from behind: its light must be a "
+                            "BackLight")
+    model = "mirror" if back is None else (refraction or "exact")
+    optics: ImplicitOptics
+    if back is None:
+        mirror = PointOptics.mirror(points, source)
+        optics = mirror
+        kind = mirror.kinds(tol=opts.dot_depth)
+    else:
+        # Built once the regions are known (the approximation fits a centre to each).
+        optics = refraction_optics(points, back, "exact" if model == "approx" else model)
+        kind = np.full(n, Kind.TWO_SURFACE if model == "exact" else Kind.CARTESIAN_OVAL,
+                       dtype=np.int8)
+        kind[np.abs(points[:, 2]) <= opts.dot_depth] = Kind.DOT
     dot = kind == Kind.DOT
     nearest_eye = viewer.distance * math.cos(viewer.design_range)
     if n and points[:, 2].max() >= 0.9 * nearest_eye:
@@ -525,6 +750,15 @@ def design_ridged(points: np.ndarray, normals: np.ndarray | None, mesh: Any, set
     flat = np.flatnonzero(block_labels.ravel() >= 0)
     lab = block_labels.ravel()[flat]
     bxy = np.stack([centres_x[flat % nbx], centres_y[flat // nbx]], axis=1)
+    if back is not None:
+        samples = owner_s = None
+        if model == "approx":
+            # Each block's centre and corners, in the middle of the shell.
+            offsets = 0.5 * opts.block * np.array([[0, 0], [-1, -1], [-1, 1], [1, -1], [1, 1]])
+            sxy = (bxy[:, None, :] + offsets[None]).reshape(-1, 2)
+            samples = np.concatenate([sxy, np.full((len(sxy), 1), -opts.delta)], axis=1)
+            owner_s = np.repeat(lab, len(offsets))
+        optics = FacingOptics.of(refraction_optics(points, back, model, samples, owner_s))
     centroid = np.full((n, 2), np.nan)
     for axis in range(2):
         centroid[:, axis] = np.bincount(lab, bxy[:, axis], minlength=n) / np.maximum(region, 1)
@@ -553,10 +787,19 @@ def design_ridged(points: np.ndarray, normals: np.ndarray | None, mesh: Any, set
     labels = np.full((ny, nx), -1, np.int32)
     light = (source.position if source.position is not None else source.direction)
     safe_apex = np.where(np.isfinite(apex), apex, np.array([0.0, 0.0, viewer.distance]))
+    if back is None:
+        fermat, point, focus, const = False, source.is_point, np.zeros((n, 3)), 0.0
+        index, zback = 1.0, 0.0
+    else:
+        inner = optics.inner if isinstance(optics, FacingOptics) else optics
+        fermat, point, focus, const = _refraction_kernel(inner, back, n)
+        index, zback = float(back.index), -float(back.thickness)
     _raster(np.ascontiguousarray(block_labels), ratio, float(bx0 + 0.5 * opts.resolution),
             float(by0 + 0.5 * opts.resolution), float(opts.resolution), points,
             optics.sigma, level0, step, safe_apex, dot, float(opts.dot_radius),
-            source.is_point, np.asarray(light, dtype=float), -2.0 * opts.delta, z, labels)
+            source.is_point, np.asarray(light, dtype=float), -2.0 * opts.delta, z, labels,
+            back is not None, fermat, np.ascontiguousarray(focus, dtype=float), index, zback,
+            const)
     heights = HeightMap(z, np.array([bx0 + 0.5 * opts.resolution,
                                      by0 + 0.5 * opts.resolution]), opts.resolution, labels)
     timings["raster"] = time.perf_counter() - t0
@@ -569,7 +812,7 @@ def design_ridged(points: np.ndarray, normals: np.ndarray | None, mesh: Any, set
         seed=seed_xy, patch_area=counts * block_area, area=region * block_area, kept=kept,
         dropped=dropped, delta=float(opts.delta), azimuths=az, elevations=el,
         visible=vis_grid, block_labels=block_labels, block=float(opts.block),
-        timings=timings)
+        timings=timings, model=model)
 
 
 def _seeds(ptr: np.ndarray, cells: np.ndarray, counts: np.ndarray, nbx: int, nby: int,
