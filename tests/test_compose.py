@@ -212,3 +212,27 @@ def test_bad_compositions_fail_in_one_line_with_no_output(tmp_path: Path, capsys
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:") and message in err[0]
     assert not out.exists()
+
+
+def test_a_numbered_sequence_shows_each_frame_over_its_share_of_the_walk(
+        tmp_path: Path) -> None:
+    mesh = trimesh.load(BUNNY, process=False)
+    for i, angle in enumerate((0, 40, 80)):
+        m = mesh.copy()
+        m.apply_transform(trimesh.transformations.rotation_matrix(math.radians(angle),
+                                                                  [0, 1, 0]))
+        m.export(tmp_path / f"frame_{i:02d}.obj")
+    text = ('stipples = 40\n[host]\nkind = "plane"\n[viewer]\nrange = 24\n'
+            '[[scene]]\nframes = "frame_*.obj"\nsize = 30\ncenter_z = -25\n')
+    comp = parse_composition(text, tmp_path)
+    assert len(comp.scenes) == 3
+    d = design_composition(comp)
+    point = comp.motion.light_distance is not None
+    for frame, azimuth in enumerate((-18, 0, 18)):
+        pos = next(p for p in comp.motion.positions(math.radians(2))
+                   if abs(math.degrees(p.tau) - azimuth) < 1e-6)
+        for eye in pos.eyes:
+            g = find_conforming_glints(d.grooves, comp.host, eye, pos.light, point, comp.tool)
+            assert len(g.stipple) > 10
+            # Only the frame keyed to this part of the walk glints.
+            assert set((g.stipple // 40).tolist()) == {frame}

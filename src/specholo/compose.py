@@ -43,7 +43,8 @@ _KEYS: dict[str, set[str]] = {
     "viewer": {"distance", "range", "height", "ipd"},
     "tool": {"radius", "depth"},
     "machining": {"feed", "plunge", "safe_z", "spindle", "axes"},
-    "scene": {"model", "size", "center_z", "from", "to", "turn", "shift", "stipples"},
+    "scene": {"model", "frames", "size", "center_z", "from", "to", "turn", "shift",
+              "stipples"},
 }
 
 
@@ -214,26 +215,41 @@ def parse_composition(text: str, base: Path) -> Composition:
     scenes = []
     for k, raw in enumerate(rows):
         s = _table(raw, "scene")
-        if not isinstance(s.get("model"), str):
-            raise SpecholoError(f"composition: scene {k + 1} needs model = \"file\"")
+        if isinstance(s.get("frames"), str) == isinstance(s.get("model"), str):
+            raise SpecholoError(f"composition: scene {k + 1} needs model = \"file\" or "
+                                "frames = \"pattern*.obj\" (one of them)")
+        if isinstance(s.get("frames"), str):
+            files = sorted(base.glob(s["frames"]))
+            if not files:
+                raise SpecholoError(f"composition: scene {k + 1}: no file matches "
+                                    f"{s['frames']!r}")
+        else:
+            files = [(base / s["model"]).resolve()]
         start = _num(s, "from", None, "scene")
         stop = _num(s, "to", None, "scene")
-        # A scene open at the driver's ends covers the design margin beyond them.
-        start_r = lo - 1.0 if start is None or deg(start) <= a + 1e-9 else deg(start)
-        stop_r = hi + 1.0 if stop is None or deg(stop) >= b - 1e-9 else deg(stop)
+        first = a if start is None else max(deg(start), a)
+        last = b if stop is None else min(deg(stop), b)
+        if not last > first:
+            raise SpecholoError(f"composition: scene {k + 1} shows over an empty interval")
         shift = s.get("shift", [0.0, 0.0, 0.0])
         if not (isinstance(shift, list) and len(shift) == 3
                 and all(isinstance(v, int | float) and math.isfinite(v) for v in shift)):
             raise SpecholoError(f"composition: scene {k + 1} shift must be 3 numbers (mm/deg)")
-        scenes.append(SceneSpec(
-            model=(base / s["model"]).resolve(),
-            size=_num(s, "size", 40.0, "scene", positive=True) or 40.0,
-            center_z=_num(s, "center_z", -30.0, "scene", -1e4, 1e4) or 0.0,
-            start=start_r, stop=stop_r,
-            # Turn in degrees per degree, shift in mm per degree of the driver.
-            turn=_num(s, "turn", 0.0, "scene", -100, 100) or 0.0,
-            shift=tuple(float(v) * 180.0 / math.pi for v in shift),  # type: ignore[arg-type]
-            stipples=int(_num(s, "stipples", count, "scene", 1, 1e6) or count)))
+        # A numbered sequence shares the scene's interval out evenly, in name order.
+        edges = np.linspace(first, last, len(files) + 1)
+        for i, f in enumerate(files):
+            # An interval open at the driver's ends covers the design margin beyond them.
+            start_r = lo - 1.0 if edges[i] <= a + 1e-9 else float(edges[i])
+            stop_r = hi + 1.0 if edges[i + 1] >= b - 1e-9 else float(edges[i + 1])
+            scenes.append(SceneSpec(
+                model=f.resolve(),
+                size=_num(s, "size", 40.0, "scene", positive=True) or 40.0,
+                center_z=_num(s, "center_z", -30.0, "scene", -1e4, 1e4) or 0.0,
+                start=start_r, stop=stop_r,
+                # Turn in degrees per degree, shift in mm per degree of the driver.
+                turn=_num(s, "turn", 0.0, "scene", -100, 100) or 0.0,
+                shift=tuple(float(v) * 180.0 / math.pi for v in shift),  # type: ignore[arg-type]
+                stipples=int(_num(s, "stipples", count, "scene", 1, 1e6) or count)))
     band = _num(top, "band", max(0.2, tool.width), "top", positive=True) or 0.2
     seed = int(_num(top, "seed", 0, "top", 0, 2**32) or 0)
     settings = {"text": text, "base": str(base)}
