@@ -407,6 +407,11 @@ class MeshHost:
         self._vn = np.asarray(mesh.vertex_normals, dtype=float)
         self._tri = np.asarray(mesh.triangles, dtype=float)
         self._faces = np.asarray(mesh.faces)
+        from scipy.spatial import cKDTree
+
+        self._kd = cKDTree(np.asarray(mesh.vertices, dtype=float))
+        # How far above the surface projection rays start: a few edge lengths.
+        self._reach = 4.0 * float(np.mean(mesh.edges_unique_length))
         try:
             from trimesh.ray.ray_pyembree import RayMeshIntersector
             self._ray: Any = RayMeshIntersector(mesh)
@@ -451,17 +456,33 @@ class MeshHost:
         return Hit(point, normal, t, out.part, valid)
 
     def _closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest surface points and their smooth normals.
+
+        Points near the surface (as groove samples are) are cast back onto it
+        along the normal of their nearest vertex, with Embree; the few rays that
+        miss (near an edge of the mesh) fall back to an exact closest-point query.
+        """
         from trimesh.proximity import closest_point
 
-        q, _, tri = closest_point(self.mesh, points)
-        return np.asarray(q), np.asarray(tri)
+        _, vertex = self._kd.query(points)
+        n = self._vn[vertex]
+        reach = self._reach
+        hit = self.intersect(points + reach * n, -n)
+        near = hit.valid & (np.abs(hit.t) <= 2.0 * reach)
+        out_p = np.where(near[:, None], hit.point, 0.0)
+        out_n = np.where(near[:, None], hit.normal, 0.0)
+        miss = np.flatnonzero(~near)
+        if miss.size:
+            q, _, tri = closest_point(self.mesh, points[miss])
+            out_p[miss] = q
+            out_n[miss] = self._smooth(np.asarray(q), np.asarray(tri))
+        return out_p, out_n
 
     def normal(self, points: np.ndarray) -> np.ndarray:
         q = np.asarray(points, dtype=float).reshape(-1, 3)
         if len(q) == 0:
             return np.zeros((0, 3))
-        s, tri = self._closest(q)
-        return self._smooth(s, tri)
+        return self._closest(q)[1]
 
     def project(self, points: np.ndarray) -> np.ndarray:
         q = np.asarray(points, dtype=float).reshape(-1, 3)
