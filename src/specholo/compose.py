@@ -43,7 +43,7 @@ _KEYS: dict[str, set[str]] = {
     "viewer": {"distance", "range", "height", "ipd"},
     "tool": {"radius", "depth"},
     "machining": {"feed", "plunge", "safe_z", "spindle", "axes"},
-    "scene": {"model", "frames", "size", "center_z", "from", "to", "turn", "shift",
+    "scene": {"model", "frames", "size", "center_z", "from", "to", "turn", "shift", "yaw",
               "stipples"},
 }
 
@@ -85,6 +85,7 @@ class SceneSpec:
     turn: float
     shift: tuple[float, float, float]
     stipples: int
+    yaw: float = 0.0
 
 
 @dataclass
@@ -249,7 +250,8 @@ def parse_composition(text: str, base: Path) -> Composition:
                 # Turn in degrees per degree, shift in mm per degree of the driver.
                 turn=_num(s, "turn", 0.0, "scene", -100, 100) or 0.0,
                 shift=tuple(float(v) * 180.0 / math.pi for v in shift),  # type: ignore[arg-type]
-                stipples=int(_num(s, "stipples", count, "scene", 1, 1e6) or count)))
+                stipples=int(_num(s, "stipples", count, "scene", 1, 1e6) or count),
+                yaw=deg(_num(s, "yaw", 0.0, "scene", -360, 360) or 0.0)))
     band = _num(top, "band", max(0.2, tool.width), "top", positive=True) or 0.2
     seed = int(_num(top, "seed", 0, "top", 0, 2**32) or 0)
     settings = {"text": text, "base": str(base)}
@@ -279,7 +281,7 @@ def prepare_scenes(comp: Composition) -> list[ComposedScene]:
         st = stipple(model, rng, count=s.stipples)
         origin = 0.5 * (max(s.start, comp.motion.driver()[0])
                         + min(s.stop, comp.motion.driver()[1]))
-        key = SceneKey(s.start, s.stop, s.turn, s.shift, (0.0, 0.0, s.center_z), origin)
+        key = SceneKey(s.start, s.stop, s.turn, s.shift, (0.0, 0.0, s.center_z), origin, s.yaw)
         out.append(ComposedScene(key, model.mesh, st.points, st.normals))
     return out
 

@@ -54,6 +54,7 @@ class SceneKey:
         shift: (3,) the scene's shift per radian of driver, mm.
         centre: (3,) the point it turns about, mm (its box centre).
         origin: driver value at which the scene is in its placed pose, radians.
+        yaw: a fixed turn of the placed scene about its vertical axis, radians.
     """
 
     start: float
@@ -62,6 +63,7 @@ class SceneKey:
     shift: tuple[float, float, float] = (0.0, 0.0, 0.0)
     centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
     origin: float = 0.0
+    yaw: float = 0.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.start) and math.isfinite(self.stop)
@@ -69,12 +71,13 @@ class SceneKey:
             raise SpecholoError(
                 f"a scene's interval must be increasing, got [{math.degrees(self.start):g}, "
                 f"{math.degrees(self.stop):g}) degrees")
-        if not math.isfinite(self.turn) or not np.isfinite(self.shift).all():
+        if not (math.isfinite(self.turn) and math.isfinite(self.yaw)
+                and np.isfinite(self.shift).all()):
             raise SpecholoError("a scene's turn and shift must be finite")
 
     def angle(self, tau: np.ndarray) -> np.ndarray:
         """The scene's turn (m,) at driver values tau, radians."""
-        return self.turn * (np.asarray(tau, dtype=float) - self.origin)
+        return self.yaw + self.turn * (np.asarray(tau, dtype=float) - self.origin)
 
     def pose(self, points: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """The scene's points (n, 3) in the world at each tau (m,): (n, m, 3)."""
