@@ -236,3 +236,14 @@ def test_a_numbered_sequence_shows_each_frame_over_its_share_of_the_walk(
             assert len(g.stipple) > 10
             # Only the frame keyed to this part of the walk glints.
             assert set((g.stipple // 40).tolist()) == {frame}
+
+
+def test_a_host_that_no_sightline_meets_is_refused(tmp_path: Path, capsys) -> None:
+    comp = tmp_path / "c.toml"
+    comp.write_text(f'stipples = 10\n[host]\nkind = "plane"\nwidth = 2\nheight = 2\n'
+                    f'[[scene]]\nmodel = "{BUNNY}"\nsize = 30\ncenter_z = -25\n')
+    out = tmp_path / "out"
+    assert main(["compose", str(comp), "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "misses the host" in err[0]
+    assert not out.exists()

@@ -342,6 +342,13 @@ def design_composition(comp: Composition) -> ComposedDesign:
     cat = {k: np.concatenate([getattr(g, k) for g in parts]) for k in keys}
     grooves = ConformingGrooves(cat["point"], cat["tangent"], cat["normal"], cat["stripe"],
                                 cat["stipple"], cat["state"], cat["family"])
+    if len(grooves.stripe) == 0:
+        missed = sum(f["states_missing_the_host"] for f in stats["families"])
+        tilt = sum(f["states_lost_to_tilt"] for f in stats["families"])
+        raise SpecholoError(
+            "no groove could be designed: every view of every stipple is hidden, misses the "
+            f"host ({missed} stipple-views) or needs a wall steeper than the tool's "
+            f"({tilt}); enlarge the host, move the scene or use a deeper cut")
     stats["stripes"] = int(np.unique(grooves.stripe).size)
     stats["samples"] = int(len(grooves.stripe))
     stats["groove_length_mm"] = grooves.length()

@@ -21,7 +21,8 @@ from specholo_cli import INTERRUPTED, early_sigint, exit_interrupted
 _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("size", float, "Largest side of the model's bounding box, mm [60]."),
     ("center-z", float, "Depth of the model's box centre, mm; negative is behind the plate [-40]."),
-    ("light-elevation", float, "Light elevation a in degrees: direction (0, cos a, sin a) [45]."),
+    ("light-elevation", float, "Light elevation a in degrees: direction (0, cos a, sin a) [45]; "
+     "behind the plate, in (-180, 0), for --optic refract [-90: straight behind]."),
     ("light-distance", float, "Point light this far from the plate centre, mm [sun]."),
     ("view-distance", float, "Radius of the viewing arc, mm [600]."),
     ("view-range", float, "Eyes' azimuth within +- this many degrees [45]."),
@@ -54,6 +55,13 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("shell", float, "Ridged design: half-thickness Delta of the shell; the facets lie within "
      "2 Delta of the surface, mm [0.1]."),
     ("raster", float, "Ridged design: height-field sample spacing, mm [0.02]."),
+    ("optic", click.Choice(["reflect", "refract"]),
+     "Ridged design: a mirror lit from the front [reflect], or a clear plate "
+     "--stock-thickness thick lit from behind, its front face ridged (refract)."),
+    ("refraction", click.Choice(["exact", "approx", "single"]),
+     "--optic refract: the front optic: exact (through the planar back face) [exact], "
+     "approx (the paper's centre of divergence) or single (the back face ignored)."),
+    ("index", float, "--optic refract: the plate's refractive index [1.49, acrylic]."),
 ]
 
 
@@ -240,6 +248,13 @@ def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...]
     click.echo(f"plate {x1 - x0:.1f} x {y1 - y0:.1f} mm, raster {hm.resolution:g} mm "
                f"({hm.shape[1]} x {hm.shape[0]} cells); shell {-2 * d.plate.delta:g} to 0 mm, "
                f"deepest {s['deepest_mm']:.3f} mm")
+    if config.optic == "refract":
+        light = config.setup().light
+        where = ("a sun" if light.position is None else
+                 "a point light at (" + ", ".join(f"{v:.1f}" for v in light.position) + ") mm")
+        click.echo(f"refraction ({config.refraction}): clear plate of index {config.index:g}, "
+                   f"{config.stock_thickness:g} mm thick (back face z = "
+                   f"{-config.stock_thickness:g} mm), lit from behind by {where}")
     mach = written["machining"]
     if mach:
         click.echo(f"machining: ball-end mill radius {mach['ball_radius_mm']:g} mm, "
@@ -369,7 +384,10 @@ def _verify_ridged(folder: Path, step: float) -> None:
         / max(len(reports), 1))
     summary["heads"] = len(reports)
     summary["heads_with_glints"] = sum(not math.isnan(r.p95_error) for r in reports)
-    click.echo(f"ridged design, {len(loaded.points)} stipples; heads every <= {step:g} deg "
+    refract = loaded.config.optic == "refract"
+    kind = (f"ridged refraction design ({loaded.config.refraction}; light traced through the "
+            f"plate)" if refract else "ridged design")
+    click.echo(f"{kind}, {len(loaded.points)} stipples; heads every <= {step:g} deg "
                "(rows: elevation, columns: azimuth; nan: no stipple glints for both eyes)")
     for key, label in (("p95_error", "p95 error of the apparent point, mm"),
                        ("visibility", "visibility: share of unoccluded stipples glinting for "
@@ -383,10 +401,12 @@ def _verify_ridged(folder: Path, step: float) -> None:
                f"({summary['mean_glinting_per_head']:.1f} stipples per head), "
                f"max false glints {summary['max_false_glints']:.3f}")
     with atomic_open(Path(folder) / "verify.json") as fh:
-        json.dump({"method": "ridged", "source": "plate.npz", "summary": summary,
+        json.dump({"method": "ridged", "optic": loaded.config.optic,
+                   **({"refraction": loaded.config.refraction} if refract else {}),
+                   "source": "plate.npz", "summary": summary,
                    "views": rows}, fh, indent=1)
     plot_field_verification(rows, Path(folder) / "verify.png",
-                            "ridged: stereo verification")
+                            f"ridged{' refraction' if refract else ''}: stereo verification")
 
 
 @cli.command()
@@ -770,6 +790,13 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
     click.echo(f"{d.stats['stripes']} stripes, {d.stats['groove_length_mm'] / 1000:.2f} m of "
                f"groove; G-code checked: {check['cutting_moves']} cutting moves, deepest "
                f"{check['deepest_cut_mm']:.4f} mm")
+    fams = d.stats["families"]
+    missed = sum(f["states_missing_the_host"] for f in fams)
+    tilt = sum(f["states_lost_to_tilt"] for f in fams)
+    if missed or tilt:
+        click.echo(f"warning: of {sum(f['states_served'] for f in fams) + missed + tilt} "
+                   f"stipple-views, {missed} miss the host and {tilt} need a wall steeper "
+                   "than the tool's", err=True)
     _verify_composed(out, step)
     _preview_composed(d, out, frames)
 

@@ -230,6 +230,7 @@ def design_family(host: Host, eye: np.ndarray, light: np.ndarray, baseline: np.n
     prev_ok = np.zeros(n, dtype=bool)
     lost_tilt = 0
     lost_steep = 0
+    missed = 0
     served = 0
     cos_tilt = math.cos(tool.max_tilt)
 
@@ -258,6 +259,7 @@ def design_family(host: Host, eye: np.ndarray, light: np.ndarray, baseline: np.n
                            directional=not point_light)
             good = valid & tilt_ok & lit
             lost_tilt += int((valid & ~tilt_ok).sum())
+            missed += int((~valid).sum())
             ok[act[good]] = True
             target[act] = cs
             tgt_part[act] = ps
@@ -330,6 +332,7 @@ def design_family(host: Host, eye: np.ndarray, light: np.ndarray, baseline: np.n
     grooves.stats = {"stripes": int(np.unique(grooves.stripe).size), "samples": int(keep.sum()),
                      "states_served": served, "states_lost_to_tilt": lost_tilt,
                      "states_lost_to_steep_grooves": lost_steep,
+                     "states_missing_the_host": missed,
                      "next_stripe": next_id}
     return grooves
 
