@@ -32,7 +32,7 @@ from specholo.fabrication.tools import (
     make_cutter,
     needed_tilts,
 )
-from specholo.setup import Light, Machining, Setup, Viewer
+from specholo.setup import ACRYLIC_INDEX, MAX_INDEX, BackLight, Light, Machining, Setup, Viewer
 from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import Grooves
 from specholo.toolpaths.overlap import Overlaps, groove_overlaps
@@ -57,6 +57,13 @@ MAX_ELEVATION_RANGE = 80.0
 RASTER_RANGE = (0.002, 1.0)
 #: Side of the blocks a ridged plate is shared out by, mm (a whole number of raster cells).
 RIDGED_BLOCK = 0.2
+#: What a ridged plate does with the light: a mirror lit from the front, or a clear
+#: plate lit from behind (refraction).
+OPTICS = ("reflect", "refract")
+#: Models of a refraction plate's front optic (``toolpaths.ridged.REFRACTION_MODELS``).
+REFRACTION_MODELS = ("exact", "approx", "single")
+#: The light of a refraction plate when no elevation is given: straight behind, degrees.
+BACK_LIGHT_ELEVATION = -90.0
 
 
 #: Largest magnitude of any length, angle, feed or speed setting: far beyond any
@@ -185,6 +192,9 @@ class DesignConfig:
     elevation_range: float = 15.0
     shell: float = 0.1
     raster: float = 0.02
+    optic: str = "reflect"
+    refraction: str = "exact"
+    index: float = ACRYLIC_INDEX
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -230,6 +240,7 @@ class DesignConfig:
             raise SpecholoError(f"groove depth {self.depth:g} mm must be less than the stock "
                                 f"thickness {self.stock_thickness:g} mm")
         self._check_ridged_ranges()
+        self._check_optic()
         self.setup()  # validates the physical settings
         _check_bounds(self)
         self._check_ridged_machine()
@@ -247,6 +258,28 @@ class DesignConfig:
         if not RASTER_RANGE[0] <= self.raster <= RASTER_RANGE[1]:
             raise SpecholoError(f"raster must be in [{RASTER_RANGE[0]:g}, {RASTER_RANGE[1]:g}] "
                                 f"mm, got {self.raster:g}")
+
+    def _check_optic(self) -> None:
+        """Refuse a refraction plate that is not ridged, or refraction settings on a mirror."""
+        if self.optic not in OPTICS:
+            raise SpecholoError(f"optic must be reflect or refract, got {self.optic!r}")
+        if self.refraction not in REFRACTION_MODELS:
+            raise SpecholoError(f"refraction must be one of {', '.join(REFRACTION_MODELS)}, "
+                                f"got {self.refraction!r}")
+        if self.optic == "refract":
+            if self.method != "ridged":
+                raise SpecholoError(f"a refraction plate is a ridged design: use --method ridged "
+                                    f"(got {self.method})")
+            if not self.light_elevation < 0.0:
+                raise SpecholoError(f"a refraction plate is lit from behind: light-elevation must "
+                                    f"be in (-180, 0) degrees (-90 straight behind), got "
+                                    f"{self.light_elevation:g}")
+            if not 1.0 < self.index <= MAX_INDEX:
+                raise SpecholoError(f"index {self.index:g} is out of range: a clear plate's "
+                                    f"refractive index must be above 1 and at most {MAX_INDEX:g}")
+        elif self.index != ACRYLIC_INDEX or self.refraction != "exact":
+            raise SpecholoError("index and refraction are settings of a clear plate lit from "
+                                "behind: add --optic refract")
 
     def _check_ridged_machine(self) -> None:
         """Refuse a machine or tool that cannot mill a ridged plate."""
@@ -291,6 +324,8 @@ class DesignConfig:
             clean[name] = value
         if clean.get("method") == "ridged":
             clean.setdefault("tool", "ball")  # a ridged plate is milled
+        if clean.get("optic") == "refract":
+            clean.setdefault("light_elevation", BACK_LIGHT_ELEVATION)  # behind the plate
         try:
             return cls(**clean)
         except TypeError as exc:
@@ -321,9 +356,12 @@ class DesignConfig:
     def setup(self) -> Setup:
         """The physical setup in library units (radians)."""
         try:
+            distance = None if self.light_distance is None else float(self.light_distance)
+            elevation = math.radians(float(self.light_elevation))
             return Setup(
-                light=Light(math.radians(float(self.light_elevation)),
-                            None if self.light_distance is None else float(self.light_distance)),
+                light=(BackLight(elevation, distance, float(self.stock_thickness),
+                                 float(self.index)) if self.optic == "refract"
+                       else Light(elevation, distance)),
                 viewer=Viewer(float(self.view_distance), float(self.eye_height),
                               math.radians(float(self.view_range)), float(self.ipd)),
                 tool=self.cutter().model(self.depth_mm),
@@ -999,7 +1037,8 @@ def design_ridged_model(model_path: str | os.PathLike[str], config: DesignConfig
     model, st = _stipple_model(model_path, config, rng, timings)
     t0 = time.perf_counter()
     try:
-        plate = design_ridged(st.points, st.normals, model.mesh, setup, options, plate_rect)
+        plate = design_ridged(st.points, st.normals, model.mesh, setup, options, plate_rect,
+                              config.refraction if config.optic == "refract" else None)
     except SpecholoError as exc:
         if "raster is too large" not in str(exc):
             raise
@@ -1046,12 +1085,31 @@ def ridged_json(d: RidgedDesign) -> dict[str, Any]:
                   "shell_mm": [-2.0 * plate.delta, 0.0],
                   "stock_thickness_mm": d.config.stock_thickness},
         "ridged": summary,
+        **({"refraction": refraction_json(d.config)} if d.config.optic == "refract" else {}),
         "stats": {"stipples": len(d.points), "kept_stipples": summary["kept_stipples"],
                   "dropped_stipples": summary["dropped_stipples"],
                   "median_kept_share": summary["median_kept_share"],
                   "seconds": d.timings},
         "stipples": stipples,
     }
+
+
+def refraction_json(config: DesignConfig) -> dict[str, Any]:
+    """A refraction plate's optics, for ``hologram.json``."""
+    light = config.setup().light
+    assert isinstance(light, BackLight)
+    what = {"exact": "two surfaces: the planar back face and the front facets, level sets "
+                     "of the Fermat path from the light plus sigma |s - p|",
+            "approx": "the paper's approximation: Cartesian ovals n |s - c| + sigma |s - p| "
+                      "about a centre of divergence c fitted to each stipple's in-plate rays",
+            "single": "single interface: Cartesian ovals n |s - i| + sigma |s - p|, the back "
+                      "face ignored"}[config.refraction]
+    return {"model": config.refraction, "description": what, "index": light.index,
+            "front_face_z_mm": 0.0, "back_face_z_mm": -light.thickness,
+            "light": ({"kind": "sun", "direction": light.direction.tolist()}
+                      if light.position is None else
+                      {"kind": "point", "position_mm": light.position.tolist()}),
+            "elevation_deg": float(config.light_elevation)}
 
 
 def check_ridged_gcode(path: str | os.PathLike[str], d: RidgedDesign) -> Any:
