@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
 
 from specholo.compose import design_composition, parse_composition, verify_composition
 from specholo.fabrication.surface_gcode import check_surface_gcode, write_surface_gcode
@@ -247,3 +249,44 @@ def test_a_host_that_no_sightline_meets_is_refused(tmp_path: Path, capsys) -> No
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "misses the host" in err[0]
     assert not out.exists()
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(kind=st.sampled_from(["cylinder", "sphere", "plane"]),
+       radius=st.floats(30, 200), px=st.floats(-15, 15), py=st.floats(-15, 15),
+       pz=st.floats(-60, 20), elevation=st.floats(20, 70),
+       point_light=st.booleans())
+def test_any_host_and_light_put_a_point_where_it_belongs(kind: str, radius: float, px: float,
+                                                         py: float, pz: float,
+                                                         elevation: float,
+                                                         point_light: bool) -> None:
+    """A single point, striped on a random host under a random light, glints for both
+    eyes of every head and triangulates to within the band of the point: at most w
+    (0.2 mm) across the sightline plus one state's overshoot at a hand-over, and
+    a small fraction of that in depth."""
+    from specholo.scene.motion import MotionSpec
+    from specholo.setup import Tool
+    from specholo.simulation.verify import stereo_errors
+    from specholo.toolpaths.conforming import ConformingOptions, design_family
+
+    assume(abs(pz) > 2.0)  # off the host: a point on it is a dot, not a stripe
+    host = {"cylinder": Cylinder(radius, 200), "sphere": Sphere(radius), "plane": Plane()}[kind]
+    spec = MotionSpec(half_range=math.radians(20), light_elevation=math.radians(elevation),
+                      light_distance=800.0 if point_light else None)
+    fam = spec.families()[0]
+    p = np.array([[px, py, pz]])
+    # The point sits off the host on the viewer's side of it or behind: its
+    # sightlines cross the host once on the way.
+    hit = host.intersect(fam.eye, p - fam.eye)
+    assume(hit.valid.all())
+    tool = Tool(0.05, 0.02)
+    targets = np.broadcast_to(p[:, None, :], (1, len(fam.tau), 3))
+    g = design_family(host, fam.eye, fam.light, fam.baseline, fam.point_light, targets,
+                      np.ones((1, len(fam.tau)), dtype=bool), tool, ConformingOptions(0.2))
+    assume(g.stats["states_lost_to_tilt"] == 0 and g.stats["states_lost_to_steep_grooves"] == 0)
+    for pos in spec.positions(math.radians(10)):
+        gl = find_conforming_glints(g, host, pos.eyes[0], pos.light, fam.point_light, tool)
+        gr = find_conforming_glints(g, host, pos.eyes[1], pos.light, fam.point_light, tool)
+        assert len(gl.stipple) >= 1 and len(gr.stipple) >= 1
+        err, depth = stereo_errors(p, gl, gr, pos.eyes[0], pos.eyes[1], np.array([0]))
+        assert err[0] < 2 * 0.2 and abs(depth[0]) < 0.05
