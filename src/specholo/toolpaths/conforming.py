@@ -10,12 +10,15 @@ at g. The design target is the centreline point c*(tau) whose wall glint lies
 on the sightline (found by fixed-point steps at the glint's own depth).
 
 The groove cannot simply follow c*: it must run along t = N x h, perpendicular
-to h within the host's tangent plane, or it would not glint. So it follows t,
-advancing by the component of the target's motion along t (a predictor-
-corrector step on the surface, projected back onto the host), and its offset u
-from the target across the groove drifts. Where |u| exceeds the band w the
-stripe ends and the next starts at the band's other edge (Brand's striping),
-so the error across the sightline never exceeds w. Each new stripe starts one
+to h within the host's tangent plane, or it would not glint. So it follows t
+(a predictor-corrector step on the surface, projected back onto the host) just
+far enough that the glint stays exactly on the sightline along the eyes'
+baseline v (the direction that sets the depth), and its offset u from the
+target along N x v drifts. Where |u| exceeds the band w the stripe ends and the
+next starts at the band's other edge (Brand's striping), so the error across
+the sightline stays within w (plus one state's drift at a hand-over). A groove
+running nearly across the baseline (|t . v| < MIN_ALONG) cannot do this and the
+state is lost (the flat plate's "light in the eyes' plane"). Each new stripe starts one
 state early and each old one ends one state late, so neighbouring stripes share
 the hand-over. Samples keep their exact tangents; the simulator interpolates
 between them as along a smooth curve.
