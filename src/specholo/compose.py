@@ -397,12 +397,16 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str]) -> dict[st
     """
     from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.surface_gcode import check_surface_gcode, write_surface_gcode
-    from specholo.pipeline import staged_output
+    from specholo.pipeline import FORMATS, RIDGED_STALE, staged_output
 
     comp = d.comp
     program = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, comp.axes)
     check = check_surface_gcode(program.text, comp.host, comp.tool, comp.machining, comp.axes)
-    with staged_output(out, stale=("verify.json",)) as tmp:
+    # A folder that held another design keeps none of its files.
+    stale = ("verify.json", "verify.png", "verify_cut.json", "model.ply", "preview.png",
+             "preview.gif", "run.json", "grooves.npz", *FORMATS.values(), *RIDGED_STALE,
+             *(f"scene_{k}.ply" for k in range(len(d.scenes), len(d.scenes) + 64)))
+    with staged_output(out, stale=stale) as tmp:
         tmp = Path(tmp)
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
             d.grooves.save(fh)

@@ -881,6 +881,9 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
         raise SpecholoError(f"{folder} holds no hologram.json: not a design folder")
     try:
         info = json.loads(meta.read_text())
+        if isinstance(info, dict) and info.get("design") == "conforming":
+            raise SpecholoError(f"{folder} holds a composed design (specholo compose): verify "
+                                "reads it, and its pictures are preview.png and preview.gif")
         config = DesignConfig.from_dict(info["settings"])
         if config.method == "ridged":
             raise SpecholoError(f"{folder} holds a ridged design (a height field, no "
