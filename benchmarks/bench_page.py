@@ -7,9 +7,10 @@ page is built, and Chromium (software WebGL2: SwiftShader) keeps changing the
 view every frame (the same sequence of views on every run) while
 requestAnimationFrame intervals are recorded. Prints the arc count, the HTML
 size, the load time, frames per second, the arcs the page drew per frame (the
-narrow arcs its culling kept, plus the wide ones) and the time per frame
-spent culling and drawing (synchronised with the GPU); pages too large for
-the browser to read are reported as such, not measured.
+narrow arcs its culling kept, plus the wide ones), the time per frame spent
+culling and drawing (synchronised with the GPU) and how the page drew the
+narrow glints ("splat" on a software rasterizer, else "sprites"); pages too
+large for the browser to read are reported as such, not measured.
 """
 
 from __future__ import annotations
@@ -31,8 +32,10 @@ ARGS = ["--headless=new", "--no-sandbox", "--disable-background-networking",
 MAX_LOADABLE_BYTES = 500_000_000
 
 
-def measure(html: Path, seconds: float, size: tuple[int, int]) -> dict[str, float]:
-    """Load the page and time frames while the view keeps changing."""
+def measure(html: Path, seconds: float,
+            size: tuple[int, int]) -> tuple[dict[str, float], str]:
+    """Load the page and time frames while the view keeps changing; also returns
+    how it drew the narrow glints."""
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as pw:
@@ -48,6 +51,7 @@ def measure(html: Path, seconds: float, size: tuple[int, int]) -> dict[str, floa
         if error:
             raise RuntimeError(error)
         out: dict[str, float] = {"load_s": load}
+        mode = str(page.evaluate("window.specholo.getView().mode"))
         for sync in (False, True):
             page.evaluate(f"window.specholo.spin(true, {str(sync).lower()})")
             page.wait_for_timeout(int(seconds * 1000))
@@ -64,7 +68,7 @@ def measure(html: Path, seconds: float, size: tuple[int, int]) -> dict[str, floa
                 out["fps"] = 1000.0 * len(frames) / sum(frames) if frames else 0.0
                 out["drawn"] = statistics.mean(drawn) if drawn else float("nan")
         browser.close()
-    return out
+    return out, mode
 
 
 def main() -> None:
@@ -97,7 +101,7 @@ def main() -> None:
                       flush=True)
                 continue
             try:
-                r = measure(html, args.seconds, (args.width, args.height))
+                r, mode = measure(html, args.seconds, (args.width, args.height))
             except Exception as exc:  # noqa: BLE001 - a benchmark reports, never hides, failures
                 print(f"{n:>9} {arcs:>10} {'-':>8} {mb:>8.1f} {build:>8.1f} {'-':>7} {'-':>6} "
                       f"{'-':>8} {'-':>8}  failed: {type(exc).__name__}: "
@@ -105,7 +109,7 @@ def main() -> None:
                 continue
         print(f"{n:>9} {arcs:>10} {r['drawn']:>8.0f} {mb:>8.1f} {build:>8.1f} "
               f"{r['load_s']:>7.1f} {r['fps']:>6.1f} {r['draw_ms']:>8.1f} {r['cull_ms']:>8.1f}"
-              f"  {int(r['frames'])} frames", flush=True)
+              f"  {int(r['frames'])} frames, {mode}", flush=True)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,10 @@
 // Interactive glints of a specular hologram, recomputed on the GPU every frame.
 // Physics and camera mirror specholo.simulation.glints.find_glints and
 // specholo.preview.render.Camera; the data format is specholo.preview.page.PageArcs.
+// On a GPU each narrow glint is a point sprite. A software rasterizer (SwiftShader,
+// llvmpipe) spends about a microsecond on every point it draws, whatever its size:
+// there the same shader solves the arcs with rasterization off, transform feedback
+// returns the sprites' centres, and the script adds up their spots (splatNarrow()).
 "use strict";
 (function () {
   const meta = JSON.parse(document.getElementById("meta").textContent);
@@ -15,6 +19,8 @@
   const SLACK = 1e-5;
   // ?cull=0 draws every narrow arc (to check that culling loses no glint).
   const culling = params.get("cull") !== "0";
+  // Whether the narrow glints' spots are added up in the script (set once WebGL is up).
+  let splatting = false;
 
   const state = {
     azimuth: 0, elevation: 0, light: meta.light.elevation,
@@ -33,7 +39,7 @@
         width: canvas.width, height: canvas.height, arcs: meta.counts.arcs,
         narrow: meta.counts.narrow, wide: meta.counts.wide,
         corners: meta.counts.corners, dots: meta.counts.dots,
-        drawn: state.lastDrawn, culling,
+        drawn: state.lastDrawn, culling, mode: splatting ? "splat" : "sprites",
       };
     },
     // Intervals between drawn frames (ms), CPU+GPU time of each draw when syncing,
@@ -95,6 +101,15 @@
          + "Try a current Chrome, Firefox or Safari with hardware acceleration on.");
     return;
   }
+  // Splat the narrow glints' spots in the script on a software rasterizer (?splat=1
+  // or ?splat=0 forces either way).
+  let rendererName = String(gl.getParameter(gl.RENDERER));
+  if (/^WebKit/.test(rendererName)) {  // masked (Chrome, Safari)
+    const info = gl.getExtension("WEBGL_debug_renderer_info");
+    if (info) rendererName = String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL));
+  }
+  const softwareGL = /SwiftShader|llvmpipe|softpipe|Software/i.test(rendererName);
+  splatting = params.has("splat") ? params.get("splat") === "1" : softwareGL;
 
   // The page's arrays: one base64 text of gzipped blocks (see page.py pack_blocks).
   async function loadBlocks() {
@@ -139,10 +154,11 @@
     return rows;
   }
 
-  const glintVS = (narrow, iterations) => `#version 300 es
+  const glintVS = (narrow, iterations, capture = false) => `#version 300 es
 precision highp float;
 precision highp int;
 #define NARROW ${narrow ? 1 : 0}
+#define CAPTURE ${capture ? 1 : 0}
 #define POINT_LIGHT ${meta.light.distance ? 1 : 0}
 #define ITERATIONS ${iterations}
 #if NARROW
@@ -163,6 +179,11 @@ uniform vec2 u_proj;                   // focal / half-size, x and y
 uniform float u_size;
 uniform float u_noCorner;
 uniform vec3 u_grid;                   // narrow rows: origin (mm) and mm per grid unit
+#if CAPTURE
+uniform vec2 u_viewport;               // canvas width and height, pixels
+uniform float u_subpixels;             // the rasterizer's steps per pixel
+out vec2 v_spot;                       // where the glint's sprite is centred, window pixels
+#endif
 
 const float STEP = 3.14159265358979 / ${STEPS}.0;  // radians per angle step
 
@@ -185,8 +206,16 @@ void emit(vec3 g) {
   vec3 q = g - u_eye;
   float z = dot(u_fwd, q);
   if (z <= 1e-6) return;
+#if CAPTURE
+  // The sprite's centre as the rasterizer places it: the viewport transform in its
+  // order (half-size + clip / w * half-size), rounded to its subpixel grid.
+  vec2 clip = vec2(dot(u_right, q) * u_proj.x, dot(u_up, q) * u_proj.y);
+  vec2 half_ = 0.5 * u_viewport * u_subpixels;
+  v_spot = roundEven(half_ + clip * (1.0 / z) * half_) / u_subpixels;
+#else
   gl_Position = vec4(dot(u_right, q) * u_proj.x, dot(u_up, q) * u_proj.y, 0.0, z);
   gl_PointSize = u_size;
+#endif
 }
 
 // The arc being solved: end points and unit tangents there.
@@ -245,6 +274,9 @@ void solveArc() {
 void main() {
   gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // off-screen unless a glint is emitted
   gl_PointSize = 1.0;
+#if CAPTURE
+  v_spot = vec2(-1e9);  // no glint
+#endif
 #if NARROW
   P0 = u_grid.xy + vec2(a_ends.xy) * u_grid.z;
   P1 = u_grid.xy + vec2(a_ends.zw) * u_grid.z;
@@ -309,8 +341,30 @@ void main() {
 precision mediump float;
 out vec4 color;
 void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
+  // The splatted spots: a rectangle of pixels u_rect (x0, y0, x1, y1 in clip space)
+  // from the texture of their sums.
+  const SPLAT_VS = `#version 300 es
+uniform vec4 u_rect;
+void main() {
+  vec2 c = vec2(gl_VertexID & 1, gl_VertexID >> 1);
+  gl_Position = vec4(mix(u_rect.xy, u_rect.zw, c), 0.0, 1.0);
+}`;
+  const SPLAT_FS = `#version 300 es
+precision highp float;
+uniform highp sampler2D u_spots;
+out vec4 color;
+void main() { color = vec4(texelFetch(u_spots, ivec2(gl_FragCoord.xy), 0).rgb, 1.0); }`;
+  // Lone sprites at window positions a_w (pixels) on a framebuffer u_fb pixels square.
+  const CALIBRATE_VS = `#version 300 es
+layout(location = 0) in vec2 a_w;
+uniform float u_fb;
+uniform float u_size;
+void main() {
+  gl_Position = vec4(a_w / u_fb * 2.0 - 1.0, 0.0, 1.0);
+  gl_PointSize = u_size;
+}`;
 
-  function program(vsText, fsText) {
+  function program(vsText, fsText, varyings = null) {
     const prog = gl.createProgram();
     for (const [type, text] of [[gl.VERTEX_SHADER, vsText], [gl.FRAGMENT_SHADER, fsText]]) {
       const sh = gl.createShader(type);
@@ -321,6 +375,7 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
       }
       gl.attachShader(prog, sh);
     }
+    if (varyings) gl.transformFeedbackVaryings(prog, varyings, gl.SEPARATE_ATTRIBS);
     gl.linkProgram(prog);
     if (!gl.getProgramParameter(prog, gl.LINK_STATUS)) {
       throw new Error("program: " + gl.getProgramInfoLog(prog));
@@ -336,6 +391,12 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
 
   const counts = meta.counts;
   let floatProg, narrowProg, plate, narrowVao, wideVao, cornerVao, dotVao, plateVao;
+  let captureProg, splatProg, calibrateProg, emptyVao;
+  // Splatting: the narrow rows as 3 words each (rows32), the kept ones (batch) and
+  // their vertex array, the sprite centres transform feedback writes (spotBuffer)
+  // and those read back (spots).
+  let rows32, batch = new Uint32Array(3 << 16), rowsVao, rowsBuffer, feedback;
+  let spotBuffer, spotCapacity = 0, spots = new Float32Array(2 << 16);
   let indexBuffer, indexCapacity = 0, indices = new Uint32Array(1 << 16);
   let rows, cellStart, cells, buckets;
   const BUCKET_SHIFT = 10, BUCKETS = STEPS >> BUCKET_SHIFT;
@@ -346,10 +407,32 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
     floatProg = program(glintVS(false, meta.wideIterations), SPRITE_FS);
     narrowProg = program(glintVS(true, meta.iterations), SPRITE_FS);
     plate = program(PLATE_VS, PLATE_FS);
+    if (splatting) {
+      captureProg = program(glintVS(true, meta.iterations, true), SPRITE_FS, ["v_spot"]);
+      splatProg = program(SPLAT_VS, SPLAT_FS);
+      calibrateProg = program(CALIBRATE_VS, SPRITE_FS);
+      emptyVao = gl.createVertexArray();
+    }
   } catch (err) {
     fail("Could not set up WebGL2: " + err.message);
     console.error(err);
     return;
+  }
+
+  // A vertex array of narrow rows (uint16 x0, y0, x1, y1, q0, q1) in a new buffer
+  // (holding data if given): [vertex array, buffer].
+  function rowVao(data, usage) {
+    const vao = gl.createVertexArray(), buffer = gl.createBuffer();
+    gl.bindVertexArray(vao);
+    gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
+    if (data) gl.bufferData(gl.ARRAY_BUFFER, data, usage);
+    gl.enableVertexAttribArray(2);
+    gl.vertexAttribIPointer(2, 4, gl.UNSIGNED_SHORT, 12, 0);
+    gl.enableVertexAttribArray(3);
+    gl.vertexAttribIPointer(3, 2, gl.UNSIGNED_SHORT, 12, 8);
+    indexBuffer = indexBuffer || gl.createBuffer();  // for culled sprites
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
+    return [vao, buffer];
   }
 
   function upload(blocks) {
@@ -368,16 +451,15 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
       }
     }
     cells = floats(blocks.cells);
-    narrowVao = gl.createVertexArray();
-    gl.bindVertexArray(narrowVao);
-    gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
-    gl.bufferData(gl.ARRAY_BUFFER, rows, gl.STATIC_DRAW);
-    gl.enableVertexAttribArray(2);
-    gl.vertexAttribIPointer(2, 4, gl.UNSIGNED_SHORT, 12, 0);
-    gl.enableVertexAttribArray(3);
-    gl.vertexAttribIPointer(3, 2, gl.UNSIGNED_SHORT, 12, 8);
-    indexBuffer = gl.createBuffer();
-    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
+    // Splatting with culling sends the kept rows each frame (transform feedback
+    // draws no indices): the table itself need not go to the GPU.
+    if (!splatting || !culling) [narrowVao] = rowVao(rows, gl.STATIC_DRAW);
+    if (splatting) {
+      rows32 = new Uint32Array(rows.buffer, rows.byteOffset, rows.length >> 1);
+      [rowsVao, rowsBuffer] = rowVao(null, gl.STREAM_DRAW);
+      spotBuffer = gl.createBuffer();
+      feedback = gl.createTransformFeedback();
+    }
     const floatVao = (data) => {
       const vao = gl.createVertexArray();
       gl.bindVertexArray(vao);
@@ -506,6 +588,7 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
     return lo;
   }
 
+  // The narrow rows that may glint, into indices; returns their number.
   function cull(eye, light) {
     const { nx, ny, cell: size } = meta.grid;
     const [ox, oy] = meta.grid.origin;
@@ -583,6 +666,15 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
     gl.uniform2fv(loc.u_proj, cam.proj);
   }
 
+  // A glint's spot: a Gaussian of SIGMA CSS px on a square of spotSize() pixels,
+  // cut where it falls below ~4% of its peak.
+  function spotSize() { return 2 * Math.ceil(2 * dpr()) + 1; }
+  function setSpot(L) {
+    const sigma = SIGMA * dpr();
+    gl.uniform1f(L.u_size, spotSize());
+    gl.uniform1f(L.u_gauss, -1 / (2 * sigma * sigma * Math.LN2));
+  }
+
   function setGlint(p, cam, light) {
     const L = p.loc;
     gl.useProgram(p.prog);
@@ -591,10 +683,7 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
     gl.uniform1f(L.u_R, meta.tool.radius);
     gl.uniform1f(L.u_cz, meta.tool.radius - meta.tool.depth);
     gl.uniform1f(L.u_cosTilt, Math.cos(meta.tool.maxTilt));
-    // A Gaussian spot of SIGMA CSS px, cut where it falls below ~4% of its peak.
-    const sigma = SIGMA * dpr();
-    gl.uniform1f(L.u_size, 2 * Math.ceil(2 * dpr()) + 1);
-    gl.uniform1f(L.u_gauss, -1 / (2 * sigma * sigma * Math.LN2));
+    setSpot(L);
     if (L.u_noCorner) gl.uniform1f(L.u_noCorner, meta.noCorner);
     if (L.u_grid) {
       gl.uniform3f(L.u_grid, meta.grid.origin[0], meta.grid.origin[1], meta.grid.scale);
@@ -602,6 +691,7 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
   }
 
   function drawPlate(cam) {
+    gl.disable(gl.BLEND);
     gl.clearColor(0.02, 0.022, 0.027, 1);
     gl.clear(gl.COLOR_BUFFER_BIT);
     gl.useProgram(plate.prog);
@@ -611,13 +701,256 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
     gl.bindVertexArray(null);
   }
 
-  function drawGlints(cam, light) {
-    let drawn = counts.wide;
+  // --- Splatting (software rasterizers) -------------------------------------------
+  // A lone glint's spot depends only on where its sprite's centre falls within a pixel,
+  // on the rasterizer's grid of SUB steps a pixel (the capture shader rounds it so).
+  // spotTable holds the spot for each of those places as the GPU itself draws a sprite
+  // there (drawn once and read back), so that adding them up here gives what additive
+  // blending of the sprites gives, to the bit: 8-bit values, clamped when drawn.
+  const SUB = 2 ** clamp(gl.getParameter(gl.SUBPIXEL_BITS), 0, 4);
+  // { size, ox, oy (per place: first pixel from the centre's), rgba (size^2 per place) }
+  let spotTable = null;
+
+  // The table for sprites of the current size, or null if a sprite covers more than
+  // size x size pixels (then the page draws sprites instead).
+  function calibrate() {
+    const size = spotSize(), cell = size + 4, lead = 2 + Math.ceil(size / 2);
+    let fb = 1;
+    while (fb < SUB * cell) fb *= 2;  // a power of two: exact window positions
+    const tex = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, tex);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA8, fb, fb);
+    const frame = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, frame);
+    gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, tex, 0);
+    const at = new Float32Array(2 * SUB * SUB);
+    for (let ky = 0; ky < SUB; ky++) {
+      for (let kx = 0; kx < SUB; kx++) {
+        at[2 * (ky * SUB + kx)] = kx * cell + lead + kx / SUB;
+        at[2 * (ky * SUB + kx) + 1] = ky * cell + lead + ky / SUB;
+      }
+    }
+    const vao = gl.createVertexArray(), buffer = gl.createBuffer();
+    gl.bindVertexArray(vao);
+    gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
+    gl.bufferData(gl.ARRAY_BUFFER, at, gl.STATIC_DRAW);
+    gl.enableVertexAttribArray(0);
+    gl.vertexAttribPointer(0, 2, gl.FLOAT, false, 8, 0);
+    gl.viewport(0, 0, fb, fb);
+    gl.clearColor(0, 0, 0, 0);
+    gl.clear(gl.COLOR_BUFFER_BIT);
+    gl.enable(gl.BLEND);
+    gl.blendFunc(gl.ONE, gl.ONE);
+    const L = calibrateProg.loc;
+    gl.useProgram(calibrateProg.prog);
+    gl.uniform1f(L.u_fb, fb);
+    setSpot(L);
+    gl.drawArrays(gl.POINTS, 0, SUB * SUB);
+    const px = new Uint8Array(4 * fb * fb);
+    gl.readPixels(0, 0, fb, fb, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    gl.viewport(0, 0, canvas.width, canvas.height);
+    gl.bindVertexArray(null);
+    gl.deleteVertexArray(vao);
+    gl.deleteBuffer(buffer);
+    gl.deleteFramebuffer(frame);
+    gl.deleteTexture(tex);
+    const places = SUB * SUB;
+    const ox = new Int32Array(places), oy = new Int32Array(places);
+    const rgba = new Uint32Array(size * size * places);  // RGBA bytes, alpha 0
+    const bytes = new Uint8Array(rgba.buffer);
+    for (let ky = 0; ky < SUB; ky++) {
+      for (let kx = 0; kx < SUB; kx++) {
+        // The covered pixels of this cell, from the centre's pixel (lead, lead).
+        let x0 = cell, x1 = -1, y0 = cell, y1 = -1;
+        for (let y = 0; y < cell; y++) {
+          for (let x = 0; x < cell; x++) {
+            const a = 4 * ((ky * cell + y) * fb + kx * cell + x);
+            if (px[a] | px[a + 1] | px[a + 2]) {
+              x0 = Math.min(x0, x); x1 = Math.max(x1, x);
+              y0 = Math.min(y0, y); y1 = Math.max(y1, y);
+            }
+          }
+        }
+        if (x1 < 0 || x1 - x0 >= size || y1 - y0 >= size) return null;
+        // Start the size x size window at the covered pixels (ends rounding to 0 are
+        // all the same as uncovered ones).
+        x0 = Math.min(x0, cell - size); y0 = Math.min(y0, cell - size);
+        const k = ky * SUB + kx;
+        ox[k] = x0 - lead;
+        oy[k] = y0 - lead;
+        for (let y = 0, t = 4 * size * size * k; y < size; y++) {
+          for (let x = 0; x < size; x++, t += 4) {
+            const a = 4 * ((ky * cell + y0 + y) * fb + kx * cell + x0 + x);
+            bytes[t] = px[a]; bytes[t + 1] = px[a + 1]; bytes[t + 2] = px[a + 2];
+          }
+        }
+      }
+    }
+    return { size, ox, oy, rgba };
+  }
+
+  // The sums of the spots (RGBA bytes, saturating; words: the same as one word a
+  // pixel), the rectangle they touch (x0, y0, x1, y1, inclusive; x1 < x0 when
+  // empty) and the texture they go to.
+  const splat = {
+    sums: null, words: null, width: 0, height: 0, box: [0, 0, -1, -1], tex: null,
+  };
+
+  function startSplat() {
+    const W = canvas.width, H = canvas.height;
+    if (!spotTable || spotTable.size !== spotSize()) {
+      spotTable = calibrate();
+      if (!spotTable) {
+        splatting = false;  // for good: draw sprites
+        return false;
+      }
+    }
+    if (splat.width !== W || splat.height !== H) {
+      splat.sums = new Uint8Array(4 * W * H);
+      splat.words = new Uint32Array(splat.sums.buffer);
+      if (splat.tex) gl.deleteTexture(splat.tex);
+      splat.tex = gl.createTexture();
+      gl.bindTexture(gl.TEXTURE_2D, splat.tex);
+      gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA8, W, H);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+      splat.width = W;
+      splat.height = H;
+    }
+    splat.box = [W, H, -1, -1];
+    return true;
+  }
+
+  // The sprite centres (window pixels, or far off for no glint) of count narrow rows
+  // of vao from first, solved by the capture shader (in use, its uniforms set) with
+  // rasterization off, into spots.
+  function solveSpots(vao, first, count) {
+    if (!count) return;
+    if (count > spotCapacity) {
+      spotCapacity = Math.max(count, 2 * spotCapacity);
+      gl.bindBuffer(gl.TRANSFORM_FEEDBACK_BUFFER, spotBuffer);
+      gl.bufferData(gl.TRANSFORM_FEEDBACK_BUFFER, 8 * spotCapacity, gl.DYNAMIC_READ);
+      gl.bindBuffer(gl.TRANSFORM_FEEDBACK_BUFFER, null);
+      spots = new Float32Array(2 * spotCapacity);
+    }
+    gl.bindVertexArray(vao);
+    gl.enable(gl.RASTERIZER_DISCARD);
+    gl.bindTransformFeedback(gl.TRANSFORM_FEEDBACK, feedback);
+    gl.bindBufferBase(gl.TRANSFORM_FEEDBACK_BUFFER, 0, spotBuffer);
+    gl.beginTransformFeedback(gl.POINTS);
+    gl.drawArrays(gl.POINTS, first, count);
+    gl.endTransformFeedback();
+    gl.bindBufferBase(gl.TRANSFORM_FEEDBACK_BUFFER, 0, null);
+    gl.bindTransformFeedback(gl.TRANSFORM_FEEDBACK, null);
+    gl.disable(gl.RASTERIZER_DISCARD);
+    gl.bindBuffer(gl.COPY_READ_BUFFER, spotBuffer);
+    gl.getBufferSubData(gl.COPY_READ_BUFFER, 0, spots, 0, 2 * count);
+    gl.bindBuffer(gl.COPY_READ_BUFFER, null);
+  }
+
+  // Add the spots centred at spots[0 .. 2 count) (window pixels; far off for none).
+  // Pixels are RGBA words; each byte adds up saturating at 255, as blending does:
+  // the low 7 bits of each byte add without carrying into the next byte, and a byte
+  // overflows where both high bits are set, or either is and the low bits carried.
+  function addSpots(count) {
+    const W = splat.width, H = splat.height, sums = splat.words, box = splat.box;
+    const { size, ox, oy, rgba } = spotTable;
+    const span = size * size;
+    let bx0 = box[0], by0 = box[1], bx1 = box[2], by1 = box[3];
+    for (let i = 0; i < count; i++) {
+      const sx = spots[2 * i], sy = spots[2 * i + 1];
+      if (!(Math.abs(sx) < 1e6 && Math.abs(sy) < 1e6)) continue;  // no glint, or far off
+      const fx = Math.floor(sx), fy = Math.floor(sy);
+      const k = ((sy - fy) * SUB | 0) * SUB + ((sx - fx) * SUB | 0);
+      const x0 = fx + ox[k], y0 = fy + oy[k];
+      // The part on the canvas (a sprite is clipped to it).
+      const i0 = x0 < 0 ? -x0 : 0, i1 = x0 + size > W ? W - x0 : size;
+      const j0 = y0 < 0 ? -y0 : 0, j1 = y0 + size > H ? H - y0 : size;
+      if (i0 >= i1 || j0 >= j1) continue;
+      if (x0 + i0 < bx0) bx0 = x0 + i0;
+      if (x0 + i1 - 1 > bx1) bx1 = x0 + i1 - 1;
+      if (y0 + j0 < by0) by0 = y0 + j0;
+      if (y0 + j1 - 1 > by1) by1 = y0 + j1 - 1;
+      for (let j = j0, t0 = span * k + j0 * size, a0 = (y0 + j0) * W + x0; j < j1;
+        j++, t0 += size, a0 += W) {
+        for (let c = i0; c < i1; c++) {
+          const u = sums[a0 + c], v = rgba[t0 + c];
+          const low = (u & 0x7f7f7f7f) + (v & 0x7f7f7f7f), high = (u | v) & 0x80808080;
+          const over = ((u & v) | (low & high)) & 0x80808080;
+          sums[a0 + c] = (low ^ high) | ((over >>> 7) * 0xff);
+        }
+      }
+    }
+    box[0] = bx0; box[1] = by0; box[2] = bx1; box[3] = by1;
+  }
+
+  // Draw the sums (additively, blending on) and clear them for the next frame.
+  function finishSplat() {
+    const [x0, y0, x1, y1] = splat.box;
+    if (x1 < x0) return;
+    const W = splat.width, H = splat.height;
+    gl.bindTexture(gl.TEXTURE_2D, splat.tex);
+    gl.pixelStorei(gl.UNPACK_ROW_LENGTH, W);
+    gl.pixelStorei(gl.UNPACK_SKIP_PIXELS, x0);
+    gl.pixelStorei(gl.UNPACK_SKIP_ROWS, y0);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, x0, y0, x1 - x0 + 1, y1 - y0 + 1, gl.RGBA,
+                     gl.UNSIGNED_BYTE, splat.sums);
+    gl.pixelStorei(gl.UNPACK_ROW_LENGTH, 0);
+    gl.pixelStorei(gl.UNPACK_SKIP_PIXELS, 0);
+    gl.pixelStorei(gl.UNPACK_SKIP_ROWS, 0);
+    for (let y = y0; y <= y1; y++) splat.words.fill(0, y * W + x0, y * W + x1 + 1);
+    gl.useProgram(splatProg.prog);
+    gl.uniform4f(splatProg.loc.u_rect, 2 * x0 / W - 1, 2 * y0 / H - 1,
+                 2 * (x1 + 1) / W - 1, 2 * (y1 + 1) / H - 1);
+    gl.bindVertexArray(emptyVao);
+    gl.drawArrays(gl.TRIANGLE_STRIP, 0, 4);
+  }
+
+  // Solve the narrow glints and add up their spots (finishSplat() draws them); false
+  // if this sprite size cannot be splatted.
+  function splatNarrow(cam, light) {
+    if (!startSplat()) return false;
+    const L = captureProg.loc;
+    setGlint(captureProg, cam, light);
+    gl.uniform2f(L.u_viewport, canvas.width, canvas.height);
+    gl.uniform1f(L.u_subpixels, SUB);
+    if (!culling) {
+      for (let i = 0; i < counts.narrow; i += 1 << 20) {
+        const n = Math.min(1 << 20, counts.narrow - i);
+        solveSpots(narrowVao, i, n);
+        addSpots(n);
+      }
+      state.lastDrawn += counts.narrow;
+      return true;
+    }
+    const t0 = performance.now();
+    const n = cull(cam.eye, light);
+    state.lastCullMs = performance.now() - t0;
+    // The kept rows themselves: transform feedback draws no indices.
+    if (3 * n > batch.length) batch = new Uint32Array(Math.max(3 * n, 2 * batch.length));
+    for (let j = 0; j < n; j++) {
+      const a = 3 * indices[j], b = 3 * j;
+      batch[b] = rows32[a];
+      batch[b + 1] = rows32[a + 1];
+      batch[b + 2] = rows32[a + 2];
+    }
+    gl.bindBuffer(gl.ARRAY_BUFFER, rowsBuffer);
+    gl.bufferData(gl.ARRAY_BUFFER, batch, gl.STREAM_DRAW, 0, 3 * n);
+    solveSpots(rowsVao, 0, n);
+    addSpots(n);
+    state.lastDrawn += n;
+    return true;
+  }
+
+  // The narrow glints as point sprites.
+  function drawSprites(cam, light) {
+    if (!narrowVao) [narrowVao] = rowVao(rows, gl.STATIC_DRAW);  // splatting gave up
     setGlint(narrowProg, cam, light);
     gl.bindVertexArray(narrowVao);
     if (!culling) {
       if (counts.narrow) gl.drawArrays(gl.POINTS, 0, counts.narrow);
-      drawn += counts.narrow;
+      state.lastDrawn += counts.narrow;
     } else {
       const t0 = performance.now();
       const n = cull(cam.eye, light);
@@ -630,9 +963,16 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
         gl.bufferSubData(gl.ELEMENT_ARRAY_BUFFER, 0, indices, 0, n);
         gl.drawElements(gl.POINTS, n, gl.UNSIGNED_INT, 0);
       }
-      drawn += n;
+      state.lastDrawn += n;
     }
-    state.lastDrawn = drawn;
+  }
+
+  // The glints, additively over the plate; splatted: whether splatNarrow() has
+  // added up the narrow ones.
+  function drawGlints(cam, light, splatted) {
+    gl.enable(gl.BLEND);
+    gl.blendFunc(gl.ONE, gl.ONE);  // overlapping glints add up, like light
+    if (splatted) finishSplat(); else drawSprites(cam, light);
 
     const L = floatProg.loc;
     setGlint(floatProg, cam, light);
@@ -654,13 +994,13 @@ void main() { color = vec4(0.06, 0.065, 0.075, 1.0); }`;
     const dist = meta.light.distance;
     const dir = [0, Math.cos(a), Math.sin(a)];
     const light = dist ? dir.map((v) => v * dist) : dir;
+    state.lastDrawn = counts.wide;
+    // Splatting solves the narrow glints before the plate is drawn.
+    const splatted = splatting && splatNarrow(cam, light);
     gl.viewport(0, 0, canvas.width, canvas.height);
     gl.disable(gl.DEPTH_TEST);
-    gl.disable(gl.BLEND);
     drawPlate(cam);
-    gl.enable(gl.BLEND);
-    gl.blendFunc(gl.ONE, gl.ONE);  // overlapping glints add up, like light
-    drawGlints(cam, light);
+    drawGlints(cam, light, splatted);
 
     const sign = (v) => (v >= 0 ? "+" : "\u2212") + Math.abs(v).toFixed(1) + "\u00b0";
     anglesEl.textContent = `azimuth ${sign(state.azimuth)}   elevation ${sign(state.elevation)}`

@@ -17,6 +17,14 @@ arcs, the arcs at corners, the corners and the dimples are shipped in float32
 in the plate frame and always drawn. The arrays are gzipped and base64 encoded
 into the page, which inflates them before its first frame.
 
+A software rasterizer (SwiftShader, llvmpipe: WebGL without a GPU) spends about
+a microsecond on every point it draws, far more than the arithmetic. There the
+page solves the kept narrow arcs with the same shader but rasterization off,
+reads the sprites' centres back through transform feedback and adds up their
+spots in its script, from a table of lone sprites the GPU drew once, so the
+picture is the same to the bit; then it draws the sum as one texture. ``?splat=0``
+or ``?splat=1`` in the page's URL forces either way.
+
 A plate given as a height field (a ridged design) has no arcs: its page holds
 the glints one eye sees from a grid of views, found beforehand with the
 physics of ``verify`` (:class:`FieldViews`), and ``page_field.js`` draws the
