@@ -189,3 +189,23 @@ def test_cut_plate_keeps_about_exp_minus_coverage_of_the_glints():
         cut = len(find_cut_glints(field, eye, setup.light).designed().path)
         kept.append(cut / ideal)
     assert np.mean(kept) == pytest.approx(d.overlaps.surviving, abs=0.15)
+
+
+def test_large_design_overlaps_estimated_in_windows_agree_with_the_full_count(monkeypatch):
+    # Past MAX_SAMPLES the crossings are counted in random windows and scaled:
+    # on a design small enough to count in full the two must agree.
+    import specholo.toolpaths.overlap as overlap
+    from specholo.pipeline import DesignConfig, design
+
+    d = design(BUNNY, DesignConfig(stipples=400, size=30.0), check_overlaps=False)
+    width = d.config.cutter().section(d.config.depth_mm).width
+    full = groove_overlaps(d.grooves, width, sample=None)
+    monkeypatch.setattr(overlap, "MAX_SAMPLES", 1000)
+    monkeypatch.setattr(overlap, "MIN_WINDOWS", 400)
+    est = [groove_overlaps(d.grooves, width, rng=np.random.default_rng(s)) for s in range(3)]
+    assert full.crossings > 1000
+    for e in est:
+        assert e.total_length == pytest.approx(full.total_length, rel=1e-9)
+        assert e.neighbours == full.neighbours
+        assert e.crossings == pytest.approx(full.crossings, rel=0.05)
+        assert e.crossed_length == pytest.approx(full.crossed_length, rel=0.05)

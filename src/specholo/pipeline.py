@@ -398,16 +398,7 @@ PLATE_MARGIN = 5.0
 def groove_extent(grooves: Grooves) -> np.ndarray:
     """(2, 2) corners of the grooves' centrelines, arcs included where they bulge
     past their end points (the tool follows the arc, not its chord)."""
-    from specholo.fabrication.svg import arc_bounds
-
-    if not grooves.n_paths:
-        return np.zeros((2, 2))
-    box = grooves.bounds()
-    segs = grooves.segments()
-    if len(segs):
-        arcs = arc_bounds(segs)
-        box = np.stack([np.minimum(box[0], arcs[0]), np.maximum(box[1], arcs[1])])
-    return box
+    return grooves.extent()
 
 
 def plate_rect(grooves: Grooves, width: float, config: DesignConfig) -> np.ndarray:
@@ -442,12 +433,15 @@ def check_points(points: np.ndarray, setup: Setup) -> None:
             f"(nearest eye depth {nearest_eye:.1f} mm); move it back with --center-z")
 
 
-def auto_depth(cutter: Cutter, config: DesignConfig, points: np.ndarray, runs: Runs) -> float:
+def auto_depth(cutter: Cutter, config: DesignConfig, points: np.ndarray, runs: Runs,
+               tilts: np.ndarray | None = None) -> float:
     """Shallowest depth, to the micrometre above, whose walls serve every view, plus
-    :data:`TILT_MARGIN`; the tool's fallback depth when no depth can (a V-bit)."""
-    setup = config.setup()
-    tilts, _ = needed_tilts(points, runs.stipple, runs.start, runs.end, setup.light,
-                            setup.viewer)
+    :data:`TILT_MARGIN`; the tool's fallback depth when no depth can (a V-bit).
+    ``tilts`` are the runs' :func:`needed_tilts`, if already known."""
+    if tilts is None:
+        setup = config.setup()
+        tilts, _ = needed_tilts(points, runs.stipple, runs.start, runs.end, setup.light,
+                                setup.viewer)
     need = float(tilts.max()) + TILT_MARGIN if tilts.size else TILT_MARGIN
     depth = depth_for(cutter, min(need, 0.5 * math.pi - 1e-6))
     if depth is None:
@@ -537,11 +531,15 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     timings["occlusion"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     cutter = config.cutter()
+    # The tilts depend on the views and the light, not on the depth: found once.
+    needed = needed_tilts(points, runs.stipple, runs.start, runs.end, setup.light,
+                          setup.viewer)
     if config.depth is None:
-        config = dataclasses.replace(config, depth=auto_depth(cutter, config, points, runs))
+        config = dataclasses.replace(
+            config, depth=auto_depth(cutter, config, points, runs, tilts=needed[0]))
         setup = config.setup()
     views = check_views(cutter, config.depth_mm, points, runs.stipple, runs.start, runs.end,
-                        setup.light, setup.viewer)
+                        setup.light, setup.viewer, needed=needed)
     if config.strict and views.lost > 0:
         raise SpecholoError(
             f"the {cutter.describe()} at {config.depth_mm:g} mm loses {100 * views.lost:.1f}% "

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
@@ -327,6 +328,39 @@ class ViewCheck:
         }
 
 
+@nb.njit(cache=True, parallel=True)
+def _sampled_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray,
+                   end: np.ndarray, count: np.ndarray, first: np.ndarray, light: np.ndarray,
+                   point_light: bool, radius: float, height: float) -> np.ndarray:
+    """Tilt of h at each run's samples (run i's at first[i] .. first[i] + count[i] - 1).
+
+    One pass, nothing of size (samples, 3) in memory: a million stipples take
+    ~10^8 samples.
+    """
+    out = np.empty(first[-1])
+    for i in nb.prange(start.size):
+        p = stipple[i]
+        px, py, pz = points[p, 0], points[p, 1], points[p, 2]
+        last = max(count[i] - 1, 1)
+        for k in range(count[i]):
+            theta = start[i] + (k / last) * (end[i] - start[i])
+            ex, ey, ez = radius * math.sin(theta), height, radius * math.cos(theta)
+            # The sightline from the eye through the point, where it meets z = 0.
+            t = ez / (ez - pz)
+            gx, gy = ex + t * (px - ex), ey + t * (py - ey)
+            ux, uy, uz = ex - gx, ey - gy, ez
+            inv = 1.0 / math.sqrt(ux * ux + uy * uy + uz * uz)
+            lx, ly, lz = light[0], light[1], light[2]
+            if point_light:
+                lx, ly = lx - gx, ly - gy
+                linv = 1.0 / math.sqrt(lx * lx + ly * ly + lz * lz)
+                lx, ly, lz = lx * linv, ly * linv, lz * linv
+            hx, hy, hz = lx + ux * inv, ly + uy * inv, lz + uz * inv
+            c = hz / math.sqrt(hx * hx + hy * hy + hz * hz)
+            out[first[i] + k] = math.acos(min(max(c, -1.0), 1.0))
+    return out
+
+
 def needed_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray, end: np.ndarray,
                  light: Light, viewer: Viewer,
                  step: float = math.radians(1.0)) -> tuple[np.ndarray, np.ndarray]:
@@ -342,35 +376,36 @@ def needed_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray, end
     Returns:
         tilts (s,) in radians and the stipple of each sample (s,).
     """
-    from specholo.hosts.flat import sightline_crossing
-    from specholo.optics.normality import normality, tilt
-
+    start = np.ascontiguousarray(start, dtype=float)
+    end = np.ascontiguousarray(end, dtype=float)
+    stipple = np.ascontiguousarray(stipple, dtype=np.int64)
     count = np.maximum(np.ceil((end - start) / step).astype(np.int64), 0) + 1
-    idx = np.repeat(np.arange(len(start)), count)
-    k = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-    frac = k / np.maximum(np.repeat(count - 1, count), 1)
-    theta = start[idx] + frac * (end - start)[idx]
-    eyes = viewer.eye(theta)
-    p = points[stipple[idx]]
-    g = sightline_crossing(eyes, p)
-    return tilt(normality(g, light, eyes)), stipple[idx]
+    first = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+    point_light = light.distance is not None
+    where = light.position if point_light else light.direction
+    tilts = _sampled_tilts(np.ascontiguousarray(points, dtype=float), stipple, start, end,
+                           count, first, np.asarray(where, dtype=float), point_light,
+                           viewer.eye_radius, float(viewer.height))
+    return tilts, np.repeat(stipple, count)
 
 
 def check_views(cutter: Cutter, depth: float, points: np.ndarray, stipple: np.ndarray,
-                start: np.ndarray, end: np.ndarray, light: Light,
-                viewer: Viewer) -> ViewCheck:
+                start: np.ndarray, end: np.ndarray, light: Light, viewer: Viewer,
+                needed: tuple[np.ndarray, np.ndarray] | None = None) -> ViewCheck:
     """Check that the tool's walls offer every tilt the served views need.
 
     Args:
         cutter: the tool.
         depth: groove depth, mm.
         points, stipple, start, end, light, viewer: as :func:`needed_tilts`.
+        needed: what :func:`needed_tilts` returns for them, if already known.
 
     Returns:
         The check, with a suggestion when views are lost.
     """
     section = cutter.section(depth)
-    tilts, owner = needed_tilts(points, stipple, start, end, light, viewer)
+    tilts, owner = needed if needed is not None else needed_tilts(
+        points, stipple, start, end, light, viewer)
     if tilts.size == 0:
         return ViewCheck((0.0, 0.0), section, 0.0, 0, "")
     ok = section.covers(tilts)

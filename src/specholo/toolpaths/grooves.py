@@ -44,6 +44,50 @@ def _arc_geometry(start: np.ndarray, end: np.ndarray,
     return centre, radius, start_angle, sweep
 
 
+@nb.njit(cache=True, parallel=True)
+def _extent(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
+            chunks: int) -> np.ndarray:
+    """(2, 2) corners of the centrelines, arcs counted where they bulge past their ends.
+
+    One pass over the vertices in a few parallel chunks: a circle's extreme point
+    in each axis direction counts where the arc passes it.
+    """
+    n_paths = offsets.size - 1
+    box = np.empty((chunks, 4))
+    for c in nb.prange(chunks):
+        lo_x = lo_y = math.inf
+        hi_x = hi_y = -math.inf
+        for j in range(c * n_paths // chunks, (c + 1) * n_paths // chunks):
+            a, b = offsets[j], offsets[j + 1]
+            for i in range(a, b):
+                x, y = vertices[i, 0], vertices[i, 1]
+                lo_x, hi_x = min(lo_x, x), max(hi_x, x)
+                lo_y, hi_y = min(lo_y, y), max(hi_y, y)
+                bulge = bulges[i]
+                if i + 1 >= b or bulge == 0.0:
+                    continue
+                cx, cy = vertices[i + 1, 0] - x, vertices[i + 1, 1] - y
+                offset = (1.0 - bulge * bulge) / (4.0 * bulge)
+                ox = x + 0.5 * cx - cy * offset
+                oy = y + 0.5 * cy + cx * offset
+                radius = math.hypot(cx, cy) * (1.0 + bulge * bulge) / (4.0 * abs(bulge))
+                # A point of the circle is on the arc iff it lies on the bulge's side
+                # of the chord (minor and major arcs alike): no angles needed.
+                if (cx * (oy - y) - cy * (ox + radius - x)) * bulge < 0.0:
+                    hi_x = max(hi_x, ox + radius)
+                if (cx * (oy - y) - cy * (ox - radius - x)) * bulge < 0.0:
+                    lo_x = min(lo_x, ox - radius)
+                if (cx * (oy + radius - y) - cy * (ox - x)) * bulge < 0.0:
+                    hi_y = max(hi_y, oy + radius)
+                if (cx * (oy - radius - y) - cy * (ox - x)) * bulge < 0.0:
+                    lo_y = min(lo_y, oy - radius)
+        box[c, 0], box[c, 1], box[c, 2], box[c, 3] = lo_x, lo_y, hi_x, hi_y
+    out = np.empty((2, 2))
+    out[0, 0], out[0, 1] = box[:, 0].min(), box[:, 1].min()
+    out[1, 0], out[1, 1] = box[:, 2].max(), box[:, 3].max()
+    return out
+
+
 @dataclass(frozen=True)
 class Segments:
     """The arcs of a set of grooves as flat arrays (one row per arc).
@@ -169,6 +213,16 @@ class Grooves:
             return np.zeros((2, 2))
         return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
 
+    def extent(self) -> np.ndarray:
+        """(2, 2) corners of the centrelines, arcs included where they bulge past
+        their end points (the tool follows the arc, not its chord); zeros if empty."""
+        if len(self.vertices) == 0:
+            return np.zeros((2, 2))
+        f = np.ascontiguousarray
+        chunks = max(1, min(4 * nb.get_num_threads(), self.n_paths))
+        return _extent(f(self.vertices, dtype=float), f(self.bulges, dtype=float),
+                       f(self.offsets, dtype=np.int64), chunks)
+
     def save(self, path: str) -> None:
         """Write to an ``.npz`` file (the caller makes the write atomic)."""
         with open(path, "wb") as fh:
@@ -180,3 +234,42 @@ class Grooves:
         """Read grooves written by :meth:`save`."""
         with np.load(path) as data:
             return cls(data["vertices"], data["bulges"], data["offsets"], data["stipple"])
+
+
+class GroovesBuilder:
+    """Grooves assembled part by part without holding the parts and the whole at once.
+
+    The arrays grow in place (``ndarray.resize``: on Linux a large block is moved
+    by remapping its pages, not copied), so a design built in chunks peaks at
+    about its final size rather than twice it.
+    """
+
+    def __init__(self) -> None:
+        self._vertices = np.zeros((0, 2))
+        self._bulges = np.zeros(0)
+        self._offsets = np.zeros(1, dtype=np.int64)
+        self._stipple = np.zeros(0, dtype=np.int64)
+
+    @staticmethod
+    def _grow(a: np.ndarray, extra: np.ndarray) -> np.ndarray:
+        n = len(a)
+        a.resize((n + len(extra),) + a.shape[1:], refcheck=False)
+        a[n:] = extra
+        return a
+
+    def add(self, part: Grooves) -> None:
+        """Append a part's paths after those already added."""
+        if not part.n_paths:
+            return
+        base = len(self._vertices)
+        self._vertices = self._grow(self._vertices, part.vertices)
+        self._bulges = self._grow(self._bulges, part.bulges)
+        self._offsets = self._grow(self._offsets, part.offsets[1:] + base)
+        self._stipple = self._grow(self._stipple, part.stipple)
+
+    def build(self) -> Grooves:
+        """The grooves added so far (the builder must not be used afterwards)."""
+        out = Grooves(self._vertices, self._bulges, self._offsets, self._stipple)
+        self.__init__()  # type: ignore[misc]
+        return out
+

@@ -31,6 +31,14 @@ MAX_SAMPLES = 10_000_000
 #: distance is found on every few samples).
 MAX_PAIRS = 200_000_000
 MIN_PAIRS = 10_000
+#: Side of the square windows a large design's crossings are counted in, mm.
+WINDOW = 0.5
+#: Centreline samples (at a quarter width) a large design's windows may hold
+#: in all; and the fewest windows taken.
+WINDOW_SAMPLES = 4_000_000
+MIN_WINDOWS = 50
+#: Most samples in the windows whose crossings are counted.
+MAX_QUERIES = 200_000
 
 
 @dataclass(frozen=True)
@@ -207,7 +215,8 @@ def _crossed(pts: np.ndarray, stipple: np.ndarray, width: float,
 
 
 @nb.njit(cache=True, parallel=True)
-def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray) -> np.ndarray:
+def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray,
+                    min_pairs: int = MIN_PAIRS) -> np.ndarray:
     """Closest distance between each path's points and the next path's, when
     both draw the same stipple (inf otherwise)."""
     n_paths = first.size - 1
@@ -217,7 +226,7 @@ def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray) -> 
     for p in range(n_paths - 1):
         if stipple[p] == stipple[p + 1]:
             pairs_of += 1
-    budget = max(MIN_PAIRS, MAX_PAIRS // max(pairs_of, 1))
+    budget = max(min_pairs, MAX_PAIRS // max(pairs_of, 1))
     for p in nb.prange(n_paths - 1):
         if stipple[p] != stipple[p + 1]:
             continue
@@ -273,6 +282,105 @@ def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
     return out
 
 
+@nb.njit(cache=True, parallel=True)
+def _arc_lengths(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray) -> float:
+    """Total length of all arcs, mm, from the vertex arrays (no per-arc copies)."""
+    n_paths = offsets.size - 1
+    total = 0.0
+    for j in nb.prange(n_paths):
+        part = 0.0
+        for i in range(offsets[j], offsets[j + 1] - 1):
+            chord = math.hypot(vertices[i + 1, 0] - vertices[i, 0],
+                               vertices[i + 1, 1] - vertices[i, 1])
+            sweep = 4.0 * math.atan(abs(bulges[i]))
+            part += chord * sweep / (2.0 * math.sin(0.5 * sweep)) if sweep > 1e-12 else chord
+        total += part
+    return total
+
+
+@nb.njit(cache=True, parallel=True)
+def _in_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
+                chosen: np.ndarray, x0: float, y0: float, side: float,
+                reach: float) -> np.ndarray:
+    """(m,) True for vertices starting an arc (or a dot) that comes within
+    ``reach`` of a chosen window (chosen[i, j]: the window at x0 + i side, y0 + j side)."""
+    nx, ny = chosen.shape
+    out = np.zeros(vertices.shape[0], np.bool_)
+    for j in nb.prange(offsets.size - 1):
+        a, b = offsets[j], offsets[j + 1]
+        for i in range(a, max(b - 1, a + 1)):
+            x1, y1 = vertices[i, 0], vertices[i, 1]
+            x2, y2 = x1, y1
+            if i + 1 < b:
+                x2, y2 = vertices[i + 1, 0], vertices[i + 1, 1]
+            # The arc stays within its sagitta of the chord.
+            sag = 0.5 * abs(bulges[i]) * math.hypot(x2 - x1, y2 - y1) if i + 1 < b else 0.0
+            pad = reach + sag
+            lo_i = int(math.floor((min(x1, x2) - pad - x0) / side))
+            hi_i = int(math.floor((max(x1, x2) + pad - x0) / side))
+            lo_j = int(math.floor((min(y1, y2) - pad - y0) / side))
+            hi_j = int(math.floor((max(y1, y2) + pad - y0) / side))
+            hit = False
+            for gi in range(max(lo_i, 0), min(hi_i, nx - 1) + 1):
+                for gj in range(max(lo_j, 0), min(hi_j, ny - 1) + 1):
+                    if chosen[gi, gj]:
+                        hit = True
+            out[i] = hit
+    return out
+
+
+def _windowed(grooves: Grooves, width: float, step: float, total: float, lo: np.ndarray,
+              hi: np.ndarray, rng: np.random.Generator) -> tuple[int, float]:
+    """Crossings and crossed length of a large design, counted in random windows.
+
+    Square windows of side :data:`WINDOW` are drawn at random from a grid over
+    the grooves; every groove passing near one is sampled at ``step`` and
+    checked in full there, and the counts are scaled by all windows over those
+    drawn (an unbiased estimate, whatever the design's size). ``lo``, ``hi``:
+    the grooves' extent.
+    """
+    nx, ny = (int(v) for v in np.ceil((hi - lo) / WINDOW).clip(1))
+    area = (hi[0] - lo[0] + width) * (hi[1] - lo[1] + width)
+    # Samples a window holds (with its margins), from the grooves' mean density.
+    per_window = total / step / area * (WINDOW + 2.0 * width + step) ** 2
+    k = int(min(nx * ny, max(MIN_WINDOWS, WINDOW_SAMPLES // max(per_window, 1.0))))
+    chosen = np.zeros(nx * ny, dtype=np.bool_)
+    chosen[rng.choice(nx * ny, k, replace=False)] = True
+    chosen = chosen.reshape(nx, ny)
+    f = np.ascontiguousarray
+    verts, bulges = f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float)
+    offsets = f(grooves.offsets, dtype=np.int64)
+    near = np.flatnonzero(_in_windows(verts, bulges, offsets, chosen, float(lo[0]),
+                                      float(lo[1]), WINDOW, width + 2.0 * step))
+    path = np.searchsorted(offsets, near, side="right") - 1
+    single = offsets[path + 1] - offsets[path] == 1
+    arcs, dots = near[~single], near[single]
+    # Pieces: runs of consecutive arcs of one path (a path may pass two windows).
+    piece = np.cumsum(np.concatenate([[True], (np.diff(arcs) != 1)
+                                      | (np.diff(path[~single]) != 0)])) - 1
+    owner = np.concatenate([np.asarray(grooves.stipple)[path[~single]][
+        np.flatnonzero(np.diff(np.concatenate([[-1], piece])))], grooves.stipple[path[single]]])
+    pts, piece_of, share = _sample_arcs(verts[arcs], verts[arcs + 1], bulges[arcs],
+                                        piece.astype(np.int64), step)
+    pts = np.concatenate([pts, verts[dots]])
+    piece_of = np.concatenate([piece_of, piece.max(initial=-1) + 1 + np.arange(len(dots))])
+    share = np.concatenate([share, np.zeros(len(dots))])
+    if len(pts) == 0:
+        return 0, 0.0
+    cell = np.floor((pts - lo) / WINDOW).astype(np.int64)
+    inside = (cell[:, 0] >= 0) & (cell[:, 0] < nx) & (cell[:, 1] >= 0) & (cell[:, 1] < ny)
+    query = np.flatnonzero(inside)
+    query = query[chosen[cell[query, 0], cell[query, 1]]]
+    scale = nx * ny / k
+    if len(query) > MAX_QUERIES:
+        scale *= len(query) / MAX_QUERIES
+        query = np.sort(rng.choice(query, MAX_QUERIES, replace=False))
+    stipple = owner.astype(np.int64)
+    crossed = _crossed(pts, stipple[piece_of], width, query)
+    hits = _intersections(pts, piece_of.astype(np.int64), stipple, 2.0 * step, query)
+    return int(round(0.5 * scale * hits.sum())), float(scale * share[query][crossed].sum())
+
+
 def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
                     sample: int | None = 20_000,
                     rng: np.random.Generator | None = None) -> Overlaps:
@@ -297,10 +405,13 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
     if not (math.isfinite(width) and width > 0):
         raise ValueError(f"groove width must be positive, got {width}")
     tolerance = min(tolerance, 0.25 * width)  # a groove finer than the slack itself
-    total = float(grooves.segments().lengths().sum()) if grooves.n_paths else 0.0
-    # A fine groove on long paths is sampled more coarsely than a quarter width,
-    # so the work stays bounded (the figures are estimates past that).
-    step = max(width / SAMPLES_PER_WIDTH, total / MAX_SAMPLES)
+    f = np.ascontiguousarray
+    total = _arc_lengths(f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float),
+                         f(grooves.offsets, dtype=np.int64)) if grooves.n_paths else 0.0
+    fine = width / SAMPLES_PER_WIDTH
+    if total / fine + len(grooves.vertices) > MAX_SAMPLES:
+        return _large_overlaps(grooves, width, tolerance, total, fine, rng)
+    step = fine
     pts, path, share = sample_centrelines(grooves, step)
     if len(pts) == 0:
         return Overlaps(width, 0, math.inf, 0, 0.0, total)
@@ -329,3 +440,27 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
         total_length=total,
         coverage=total * width / area,
     )
+
+
+def _large_overlaps(grooves: Grooves, width: float, tolerance: float, total: float,
+                    step: float, rng: np.random.Generator | None) -> Overlaps:
+    """:func:`groove_overlaps` for a design too large to sample whole.
+
+    A stipple's neighbouring stripes are compared vertex to vertex (the
+    vertices are a fraction of a width apart along the paths); crossings and
+    crossed length are counted in random windows (:func:`_windowed`).
+    """
+    f = np.ascontiguousarray
+    stipple = f(grooves.stipple, dtype=np.int64)
+    # The pairs' budget is shared out with no floor: the work stays bounded.
+    gaps = _neighbour_gaps(f(grooves.vertices, dtype=float), f(grooves.offsets, dtype=np.int64),
+                           stipple, 1)
+    near = (gaps < width - tolerance) & (gaps > RETRACE)
+    lo, hi = grooves.extent()
+    area = float((hi[0] - lo[0] + width) * (hi[1] - lo[1] + width))
+    crossings, crossed = _windowed(grooves, width - tolerance, step, total, lo, hi,
+                                   rng if rng is not None else np.random.default_rng(0))
+    return Overlaps(width=width, neighbours=int(near.sum()),
+                    closest_neighbours=float(gaps[gaps > RETRACE].min(initial=math.inf)),
+                    crossings=crossings, crossed_length=crossed, total_length=total,
+                    coverage=total * width / area)

@@ -24,19 +24,22 @@ from specholo.setup import Setup
 from specholo.toolpaths import _stripe_kernel as kernel
 from specholo.toolpaths.arcs import arc_chain
 from specholo.toolpaths.common import Runs, dots_for, split_near_plate
-from specholo.toolpaths.grooves import Grooves
+from specholo.toolpaths.grooves import Grooves, GroovesBuilder
 
 #: Closest two samples of one stripe may be, mm.
 MIN_SPACING = 0.02
 #: Extra stripe spacing over the groove width, as a fraction: the spacing is set
 #: where stripes hand over, and the paths' curvature brings them a little closer.
 SPACING_CLEARANCE = 0.02
-#: Memory per sample of the walk, through the arcs and the files written, bytes
-#: (measured on the bunny: about 250 bytes per sample, the bound is about twice
-#: the samples taken).
-BYTES_PER_SAMPLE = 125
-#: Most samples of one design's walk (about 20 times a 100,000-stipple design).
-MAX_SAMPLES = 500_000_000
+#: Memory per sample of the walk's bound, bytes: the walk goes chunk by chunk,
+#: so what stays is the grooves (two vertices of 24 bytes per sample taken,
+#: about half the bound) and the files written from them.
+BYTES_PER_SAMPLE = 40
+#: Most samples of one design's walk (about 4 times a 1,000,000-stipple design).
+MAX_SAMPLES = 2_000_000_000
+#: Samples (by the runs' bounds) walked at a time: the walk's own arrays stay
+#: a few hundred MB however large the design.
+CHUNK_SAMPLES = 4_000_000
 #: Most times a run's sample bound may grow (by 4 each time) before it is
 #: refused, over the coarse pass's bound or MIN_BOUND, whichever is larger.
 MAX_GROWTH = 4**4
@@ -199,9 +202,18 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
         return dots_for(near, setup), dropped
     check_work(cap, setup, w)
     spacing = setup.tool.width * (1 + SPACING_CLEARANCE) if opts.spacing is None else opts.spacing
-    run, stripe, pts, tangent = _integrate(far, params, u0, cap, w, spacing)
-    keep, breaks = kernel.tidy(run, stripe, pts, MIN_SPACING)
-    pts, tangent, breaks, run = pts[keep], tangent[keep], breaks[keep], run[keep]
-    vertices, bulges, offsets = arc_chain(pts, tangent, breaks)
-    grooves = Grooves(vertices, bulges, offsets, far.stipple[run[breaks]])
-    return Grooves.concatenate([grooves, dots_for(near, setup)]), dropped
+    out = GroovesBuilder()
+    # Chunks end at run boundaries and keep run order: the same grooves as one walk.
+    bounds = np.searchsorted(np.cumsum(cap), np.arange(CHUNK_SAMPLES, int(cap.sum()),
+                                                       CHUNK_SAMPLES))
+    for idx in np.split(np.arange(len(far)), np.unique(bounds)):
+        if len(idx) == 0:
+            continue
+        run, stripe, pts, tangent = _integrate(far.take(idx), params, u0[idx], cap[idx], w,
+                                               spacing)
+        keep, breaks = kernel.tidy(run, stripe, pts, MIN_SPACING)
+        pts, tangent, breaks, run = pts[keep], tangent[keep], breaks[keep], run[keep]
+        vertices, bulges, offsets = arc_chain(pts, tangent, breaks)
+        out.add(Grooves(vertices, bulges, offsets, far.stipple[idx][run[breaks]]))
+    out.add(dots_for(near, setup))
+    return out.build(), dropped
