@@ -539,7 +539,7 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
             config, depth=auto_depth(cutter, config, points, runs, tilts=needed[0]))
         setup = config.setup()
     views = check_views(cutter, config.depth_mm, points, runs.stipple, runs.start, runs.end,
-                        setup.light, setup.viewer, needed=needed)
+                        setup.light, setup.viewer, known=needed)
     if config.strict and views.lost > 0:
         raise SpecholoError(
             f"the {cutter.describe()} at {config.depth_mm:g} mm loses {100 * views.lost:.1f}% "

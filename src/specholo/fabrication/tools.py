@@ -391,20 +391,20 @@ def needed_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray, end
 
 def check_views(cutter: Cutter, depth: float, points: np.ndarray, stipple: np.ndarray,
                 start: np.ndarray, end: np.ndarray, light: Light, viewer: Viewer,
-                needed: tuple[np.ndarray, np.ndarray] | None = None) -> ViewCheck:
+                known: tuple[np.ndarray, np.ndarray] | None = None) -> ViewCheck:
     """Check that the tool's walls offer every tilt the served views need.
 
     Args:
         cutter: the tool.
         depth: groove depth, mm.
         points, stipple, start, end, light, viewer: as :func:`needed_tilts`.
-        needed: what :func:`needed_tilts` returns for them, if already known.
+        known: what :func:`needed_tilts` returns for them, if already found.
 
     Returns:
         The check, with a suggestion when views are lost.
     """
     section = cutter.section(depth)
-    tilts, owner = needed if needed is not None else needed_tilts(
+    tilts, owner = known if known is not None else needed_tilts(
         points, stipple, start, end, light, viewer)
     if tilts.size == 0:
         return ViewCheck((0.0, 0.0), section, 0.0, 0, "")

@@ -344,9 +344,9 @@ def _windowed(grooves: Grooves, width: float, step: float, total: float, lo: np.
     # Samples a window holds (with its margins), from the grooves' mean density.
     per_window = total / step / area * (WINDOW + 2.0 * width + step) ** 2
     k = int(min(nx * ny, max(MIN_WINDOWS, WINDOW_SAMPLES // max(per_window, 1.0))))
-    chosen = np.zeros(nx * ny, dtype=np.bool_)
-    chosen[rng.choice(nx * ny, k, replace=False)] = True
-    chosen = chosen.reshape(nx, ny)
+    flat = np.zeros(nx * ny, dtype=np.bool_)
+    flat[rng.choice(nx * ny, k, replace=False)] = True
+    chosen = flat.reshape(nx, ny)
     f = np.ascontiguousarray
     verts, bulges = f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float)
     offsets = f(grooves.offsets, dtype=np.int64)
