@@ -374,7 +374,8 @@ def needed_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray, end
         step: azimuth sampling, radians (each interval's ends are always sampled).
 
     Returns:
-        tilts (s,) in radians and the stipple of each sample (s,).
+        tilts (s,) in radians, and (r + 1,) where each interval's samples start
+        (interval i's are tilts[first[i]:first[i + 1]]).
     """
     start = np.ascontiguousarray(start, dtype=float)
     end = np.ascontiguousarray(end, dtype=float)
@@ -386,7 +387,7 @@ def needed_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray, end
     tilts = _sampled_tilts(np.ascontiguousarray(points, dtype=float), stipple, start, end,
                            count, first, np.asarray(where, dtype=float), point_light,
                            viewer.eye_radius, float(viewer.height))
-    return tilts, np.repeat(stipple, count)
+    return tilts, first
 
 
 def check_views(cutter: Cutter, depth: float, points: np.ndarray, stipple: np.ndarray,
@@ -404,13 +405,14 @@ def check_views(cutter: Cutter, depth: float, points: np.ndarray, stipple: np.nd
         The check, with a suggestion when views are lost.
     """
     section = cutter.section(depth)
-    tilts, owner = known if known is not None else needed_tilts(
+    tilts, first = known if known is not None else needed_tilts(
         points, stipple, start, end, light, viewer)
     if tilts.size == 0:
         return ViewCheck((0.0, 0.0), section, 0.0, 0, "")
     ok = section.covers(tilts)
     lost = float(1.0 - ok.mean())
-    losing = int(np.unique(owner[~ok]).size)
+    owner = np.asarray(stipple)[np.searchsorted(first, np.flatnonzero(~ok), side="right") - 1]
+    losing = int(np.unique(owner).size)
     needed = (float(tilts.min()), float(tilts.max()))
     return ViewCheck(needed, section, lost, losing,
                      "" if lost == 0 else suggest(cutter, depth, needed[1]))

@@ -38,7 +38,7 @@ WINDOW = 0.5
 WINDOW_SAMPLES = 4_000_000
 MIN_WINDOWS = 50
 #: Most samples in the windows whose crossings are counted.
-MAX_QUERIES = 200_000
+MAX_QUERIES = 50_000
 
 
 @dataclass(frozen=True)
