@@ -202,6 +202,7 @@ def test_large_design_overlaps_estimated_in_windows_agree_with_the_full_count(mo
     full = groove_overlaps(d.grooves, width, sample=None)
     monkeypatch.setattr(overlap, "MAX_SAMPLES", 1000)
     monkeypatch.setattr(overlap, "MIN_WINDOWS", 400)
+    monkeypatch.setattr(overlap, "MAX_QUERIES", 10**6)
     est = [groove_overlaps(d.grooves, width, rng=np.random.default_rng(s)) for s in range(3)]
     assert full.crossings > 1000
     for e in est:
