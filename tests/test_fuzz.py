@@ -35,7 +35,7 @@ from specholo.errors import SpecholoError
 from specholo.scene import loading, stippling
 from specholo.scene.loading import load_model
 from specholo.scene.placement import place
-from specholo.scene.stippling import check_memory, estimate_memory, stipple
+from specholo.scene.stippling import BASE_BYTES, check_memory, estimate_memory, stipple
 from specholo_cli.cli import _DESIGN_OPTIONS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -460,10 +460,11 @@ def test_clumped_cloud_stipples_quickly(spacing: float | None) -> None:
 
 
 def test_estimate_memory_matches_the_measurement() -> None:
-    # Designing 10^5 stipples peaks near 5.8 GB.
-    assert 5e9 < estimate_memory(10**5) < 7e9
+    # Designing 10^5 stipples of the bunny peaks near 1.6 GB, 10^6 near 7.8 GB.
+    assert 1.6e9 < estimate_memory(10**5) < 2.5e9
+    assert 7.8e9 < estimate_memory(10**6) < 1e10
     assert estimate_memory(10**5, n_faces=10**6, n_vertices=5 * 10**5) > estimate_memory(10**5)
-    assert estimate_memory(10**12) > 10**16  # exact Python ints, no overflow
+    assert estimate_memory(10**12) == 9 * 10**15 + BASE_BYTES  # exact Python ints, no overflow
 
 
 def test_check_memory_refuses_with_the_estimate(monkeypatch) -> None:
@@ -472,7 +473,7 @@ def test_check_memory_refuses_with_the_estimate(monkeypatch) -> None:
     with pytest.raises(SpecholoError) as info:
         check_memory(10**9)
     msg = str(info.value)
-    assert msg == ("stipples = 1000000000 would need ~60 TB of memory; "
+    assert msg == ("stipples = 1000000000 would need ~9 TB of memory; "
                    "this machine has 16 GB available")
     with pytest.raises(SpecholoError, match=r"^spacing = 0.01 mm \(10000000 stipples\) would"):
         check_memory(10**7, request="spacing = 0.01 mm (10000000 stipples)")

@@ -540,6 +540,7 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
         setup = config.setup()
     views = check_views(cutter, config.depth_mm, points, runs.stipple, runs.start, runs.end,
                         setup.light, setup.viewer, known=needed)
+    del needed  # ~10^8 samples at a million stipples: not kept through the walk
     if config.strict and views.lost > 0:
         raise SpecholoError(
             f"the {cutter.describe()} at {config.depth_mm:g} mm loses {100 * views.lost:.1f}% "

@@ -48,12 +48,12 @@ _PAIRS_PER_POINT = 16
 _PAIRS_BASE = 1_000_000
 
 #: Peak memory of a whole design per stipple, bytes: stippling, occlusion, the
-#: tool check, the grooves, overlaps and the written files. Measured: 10^5
-#: stipples of the bunny peak near 5.8 GB (8,000 near 1.1 GB, of which ~0.26 GB
-#: is fixed) and write ~29 KB of files per stipple.
-BYTES_PER_STIPPLE = 60_000
-#: Memory a design takes whatever its size (compiled kernels, ray tracer), bytes.
-BASE_BYTES = 256_000_000
+#: tool check, the grooves (built in place, ~5.7 KB per stipple) and overlaps.
+#: Measured on the bunny: 10^5 stipples peak near 1.6 GB, 10^6 near 7.8 GB.
+BYTES_PER_STIPPLE = 9_000
+#: Memory a design takes whatever its size (compiled kernels, ray tracer, the
+#: walk's chunk), bytes.
+BASE_BYTES = 800_000_000
 #: Output written per stipple (G-code, SVG, grooves, JSON), bytes.
 OUTPUT_BYTES_PER_STIPPLE = 30_000
 
