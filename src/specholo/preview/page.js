@@ -1291,7 +1291,13 @@ onmessage = (ev) => {
     return dist ? dir.map((v) => v * dist) : dir;
   }
 
+  // While the view keeps moving the angles are shown ten times a second: new text
+  // every frame costs the browser a style, layout and paint pass of the page.
+  let anglesShown = -Infinity;
   function showAngles(azimuth, elevation, light) {
+    const now = performance.now();
+    if ((state.dirty || state.spin || pool.pending) && now - anglesShown < 100) return;
+    anglesShown = now;
     const sign = (v) => (v >= 0 ? "+" : "\u2212") + Math.abs(v).toFixed(1) + "\u00b0";
     anglesEl.textContent = `azimuth ${sign(azimuth)}   elevation ${sign(elevation)}`
       + `   light ${light.toFixed(1)}\u00b0`;
