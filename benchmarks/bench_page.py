@@ -8,9 +8,11 @@ view every frame (the same sequence of views on every run) while
 requestAnimationFrame intervals are recorded. Prints the arc count, the HTML
 size, the load time, frames per second, the arcs the page drew per frame (the
 narrow arcs its culling kept, plus the wide ones), the time per frame spent
-culling and drawing (synchronised with the GPU) and how the page drew the
-narrow glints ("splat" on a software rasterizer, else "sprites"); pages too
-large for the browser to read are reported as such, not measured.
+culling and drawing (synchronised with the GPU; when splatting, from handing
+the view to the page's workers to their last result, and the culling of the
+slowest) and how the page drew the narrow glints ("splat" on a software
+rasterizer, else "sprites"); pages too large for the browser to read are
+reported as such, not measured.
 """
 
 from __future__ import annotations

@@ -18,12 +18,13 @@ in the plate frame and always drawn. The arrays are gzipped and base64 encoded
 into the page, which inflates them before its first frame.
 
 A software rasterizer (SwiftShader, llvmpipe: WebGL without a GPU) spends about
-a microsecond on every point it draws, far more than the arithmetic. There the
-page solves the kept narrow arcs with the same shader but rasterization off,
-reads the sprites' centres back through transform feedback and adds up their
-spots in its script, from a table of lone sprites the GPU drew once, so the
-picture is the same to the bit; then it draws the sum as one texture. ``?splat=0``
-or ``?splat=1`` in the page's URL forces either way.
+a microsecond on every point it draws, far more than the arithmetic, and more
+compositing a WebGL canvas than a 2D one. There the page's workers (one per core,
+each on every other row of cells) cull and solve the arcs with the shader's steps
+in float64 and add up the sprites' spots from a table of lone sprites the GPU drew
+once; the page draws plate and sums on a 2D canvas, while the workers go on to
+the next frame. ``?splat=0`` or ``?splat=1`` in the page's URL forces either way,
+``?workers=N`` sets the number of workers (0: none, the page's own thread).
 
 A plate given as a height field (a ridged design) has no arcs: its page holds
 the glints one eye sees from a grid of views, found beforehand with the
