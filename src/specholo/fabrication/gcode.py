@@ -38,10 +38,12 @@ offset from the arc starts, so the interpreter sees exactly the rounded centre:
 the two radii of an arc then differ by less than 3e-5 mm, far inside the
 tolerance of LinuxCNC (and GRBL's 5 um).
 
-Writing is vectorised: each vertex becomes one row of a byte table (its
-``(stipple N)``/rapid/plunge lines if it starts a path, its move line otherwise,
-and the retract if it ends one). Absent parts are NUL bytes, which are squeezed
-out in one pass, so no Python code runs per line.
+Writing streams: paths are taken a chunk at a time (at most ``_CHUNK_ROWS``
+vertices), so memory does not grow with the program. In a chunk each vertex
+becomes one row of text (its ``(stipple N)``/rapid/plunge lines if it starts a
+path, its move line otherwise, and the retract if it ends one), described by
+columns of numbers and masks (:class:`TextRows`) and written by one compiled
+loop, so no Python code runs per line.
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ from dataclasses import dataclass
 from operator import itemgetter
 from typing import Literal
 
+import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
@@ -225,69 +228,157 @@ def format_number(value: float, decimals: int = DECIMALS) -> str:
 class TextRows:
     """Builds n rows of ASCII text side by side, one column block at a time.
 
-    Each block is an (n, w) uint8 array; NUL bytes are padding and are removed
-    when the rows are joined, so a block can be left out of some rows by zeroing it.
+    Blocks are recorded as they are added (a text, a choice of texts, or a
+    column of fixed-point numbers, each optionally left out of some rows) and
+    written out row by row by one compiled loop in :meth:`tobytes`, so no Python
+    code runs per row.
     """
 
     def __init__(self, n: int) -> None:
         self.n = n
-        self._blocks: list[np.ndarray] = []
+        self._ops: list[tuple[int, int, int, int]] = []  # kind, a, b, mask column (-1: none)
+        self._pool = bytearray()  # the texts of all blocks, back to back
+        self._options: list[tuple[int, int]] = []  # (pool start, length) of each choice option
+        self._masks: list[np.ndarray] = []
+        self._columns: list[np.ndarray] = []  # choice indices and numbers, (n,) int64 each
+        self._width = 0  # most bytes one row can take
 
-    def _add(self, block: np.ndarray, mask: np.ndarray | None) -> None:
-        if mask is not None:
-            block = block * mask[:, None].astype(np.uint8)
-        self._blocks.append(block)
+    def _mask(self, mask: np.ndarray | None) -> int:
+        if mask is None:
+            return -1
+        self._masks.append(np.asarray(mask, dtype=bool).reshape(self.n))
+        return len(self._masks) - 1
+
+    def _column(self, values: np.ndarray) -> int:
+        self._columns.append(np.asarray(values, dtype=np.int64).reshape(self.n))
+        return len(self._columns) - 1
 
     def text(self, text: str, mask: np.ndarray | None = None) -> None:
         """The same text in every row (or in the rows where ``mask`` (n,) is True)."""
-        row = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
-        self._add(np.broadcast_to(row, (self.n, len(row))), mask)
+        data = text.encode("ascii")
+        self._ops.append((_OP_TEXT, len(self._pool), len(data), self._mask(mask)))
+        self._pool += data
+        self._width += len(data)
 
     def choice(self, options: Sequence[str], index: np.ndarray) -> None:
         """``options[index[i]]`` in row i; index (n,) ints."""
-        width = max(len(o) for o in options)
-        table = np.zeros((len(options), width), dtype=np.uint8)
-        for k, option in enumerate(options):
-            table[k, : len(option)] = np.frombuffer(option.encode("ascii"), dtype=np.uint8)
-        self._blocks.append(table[index])
+        index = np.asarray(index, dtype=np.int64)
+        if self.n and not (0 <= index.min() and index.max() < len(options)):
+            raise ValueError(f"choice index must be in [0, {len(options)}), got "
+                             f"{index.min()} to {index.max()}")
+        first = len(self._options)
+        for option in options:
+            data = option.encode("ascii")
+            self._options.append((len(self._pool), len(data)))
+            self._pool += data
+        self._ops.append((_OP_CHOICE, first, self._column(index), -1))
+        self._width += max(len(o) for o in options)
 
-    def number(self, q: np.ndarray, decimals: int, mask: np.ndarray | None = None) -> None:
-        """Fixed-point numbers given as integers q (n,) in units of 10**-decimals."""
-        self._add(fixed_point_bytes(q, decimals), mask)
+    def number(self, q: np.ndarray, decimals: int, mask: np.ndarray | None = None,
+               trim: bool = False) -> None:
+        """Fixed-point numbers given as integers q (n,) in units of 10**-decimals.
+
+        With ``trim``, trailing zeros of the decimals are left out but for one
+        (``10.0``, ``0.25``), as Python writes floats.
+        """
+        if not 0 <= decimals <= 18:
+            raise ValueError(f"decimals must be in [0, 18], got {decimals}")
+        kind = _OP_TRIMMED if trim and decimals else _OP_NUMBER
+        self._ops.append((kind, decimals, self._column(q), self._mask(mask)))
+        self._width += _MAX_NUMBER_BYTES
+
+    def hex(self, q: np.ndarray, mask: np.ndarray | None = None) -> None:
+        """Integers q (n,) >= 0 in upper-case hexadecimal (DXF handles)."""
+        q = np.asarray(q, dtype=np.int64)
+        if self.n and q.min() < 0:
+            raise ValueError(f"hexadecimal numbers must be >= 0, got {q.min()}")
+        self._ops.append((_OP_HEX, 0, self._column(q), self._mask(mask)))
+        self._width += _MAX_NUMBER_BYTES
 
     def tobytes(self) -> bytes:
-        """All rows, concatenated without the padding."""
-        if not self._blocks or self.n == 0:
+        """All rows, concatenated."""
+        if not self._ops or self.n == 0:
             return b""
-        table = np.concatenate(self._blocks, axis=1)
-        return table[table != 0].tobytes()
+        n = self.n
+
+        def stack(arrays: list[np.ndarray], dtype: type) -> np.ndarray:
+            return np.stack(arrays).astype(dtype, copy=False) if arrays \
+                else np.zeros((0, n), dtype=dtype)
+
+        options = np.asarray(self._options, dtype=np.int64).reshape(-1, 2)
+        out = np.empty(n * self._width, dtype=np.uint8)
+        size = _write_rows(n, np.asarray(self._ops, dtype=np.int64),
+                           np.frombuffer(bytes(self._pool), dtype=np.uint8), options,
+                           stack(self._masks, np.bool_), stack(self._columns, np.int64), out)
+        return out[:size].tobytes()
 
 
-def fixed_point_bytes(q: np.ndarray, decimals: int) -> np.ndarray:
-    """ASCII digits of scaled integers, NUL-padded.
+_OP_TEXT, _OP_CHOICE, _OP_NUMBER, _OP_TRIMMED, _OP_HEX = 0, 1, 2, 3, 4
+#: Digits of the largest int64, plus a sign and a point.
+_MAX_NUMBER_BYTES = 21
 
-    Args:
-        q: (n,) integers, the numbers in units of 10**-decimals.
-        decimals: digits after the decimal point (0 for integers).
 
-    Returns:
-        (n, w) uint8: a '-' (or NUL) in column 0, then the digits right-aligned
-        with NUL in place of leading zeros, with the point before the last
-        ``decimals`` digits. Removing the NULs gives e.g. ``-12.0400``.
+@nb.njit(cache=True)
+def _write_rows(n: int, ops: np.ndarray, pool: np.ndarray, options: np.ndarray, masks: np.ndarray,
+                columns: np.ndarray, out: np.ndarray) -> int:
+    """Write the rows of a :class:`TextRows` into ``out``; returns the bytes written.
+
+    A number q with d decimals is written like ``-12.0400``: a '-' if q < 0, the
+    digits of |q| (at least d + 1 of them, so ``0.05``, never ``.05``) with the
+    point before the last d; trimmed, without the trailing zeros but one
+    (``-12.04``).
     """
-    q = np.asarray(q, dtype=np.int64)
-    a = np.abs(q)
-    ndig = max(len(str(int(a.max(initial=0)))), decimals + 1)
-    pow10 = 10 ** np.arange(ndig - 1, -1, -1, dtype=np.int64)
-    digits = (a[:, None] // pow10) % 10
-    shown = a[:, None] >= pow10
-    shown[:, ndig - decimals - 1 :] = True  # the units digit and the decimals always show
-    chars = np.where(shown, digits + ord("0"), 0).astype(np.uint8)
-    sign = np.where(q < 0, ord("-"), 0).astype(np.uint8)[:, None]
-    if decimals == 0:
-        return np.concatenate([sign, chars], axis=1)
-    point = np.full((len(q), 1), ord("."), dtype=np.uint8)
-    return np.concatenate([sign, chars[:, :-decimals], point, chars[:, -decimals:]], axis=1)
+    digits = np.empty(20, dtype=np.uint8)
+    pos = 0
+    for row in range(n):
+        for k in range(ops.shape[0]):
+            kind, a, b, m = ops[k, 0], ops[k, 1], ops[k, 2], ops[k, 3]
+            if m >= 0 and not masks[m, row]:
+                continue
+            if kind == 0:
+                out[pos:pos + b] = pool[a:a + b]
+                pos += b
+            elif kind == 1:
+                start, length = options[a + columns[b, row], 0], options[a + columns[b, row], 1]
+                out[pos:pos + length] = pool[start:start + length]
+                pos += length
+            elif kind == 4:
+                q = columns[b, row]
+                nd = 0
+                while True:
+                    digit = q & 15
+                    digits[nd] = 48 + digit if digit < 10 else 55 + digit
+                    q >>= 4
+                    nd += 1
+                    if q == 0:
+                        break
+                for i in range(nd - 1, -1, -1):
+                    out[pos] = digits[i]
+                    pos += 1
+            else:
+                q = columns[b, row]
+                if q < 0:
+                    out[pos] = 45  # '-'
+                    pos += 1
+                    q = -q
+                nd = 0
+                while True:
+                    digits[nd] = 48 + q % 10
+                    q //= 10
+                    nd += 1
+                    if q == 0 and nd > a:
+                        break
+                skip = 0  # trailing zeros left out
+                if kind == 3:
+                    while skip < a - 1 and digits[skip] == 48:
+                        skip += 1
+                for i in range(nd - 1, skip - 1, -1):
+                    out[pos] = digits[i]
+                    pos += 1
+                    if i == a and a > 0:
+                        out[pos] = 46  # '.'
+                        pos += 1
+    return pos
 
 
 def _comment(text: str, semicolon: bool = False) -> str:
@@ -313,6 +404,36 @@ def check_grooves(grooves: Grooves) -> None:
         raise SpecholoError("grooves contain non-finite vertices or bulges")
     if len(grooves.vertices) and np.abs(grooves.vertices).max() > _MAX_COORD_MM:
         raise SpecholoError(f"groove vertices exceed {_MAX_COORD_MM:g} mm")
+
+
+def chunk_bounds(sizes: np.ndarray, rows: int) -> np.ndarray:
+    """Split consecutive paths into chunks of at most ``rows`` vertices.
+
+    Args:
+        sizes: (k,) vertices of each path.
+        rows: most vertices per chunk; a longer path is a chunk of its own.
+
+    Returns:
+        (c + 1,) ascending path indices from 0 to k: chunk i holds paths
+        ``bounds[i]:bounds[i + 1]``.
+    """
+    if rows < 1:
+        raise ValueError(f"rows per chunk must be at least 1, got {rows}")
+    ends = np.cumsum(np.asarray(sizes, dtype=np.int64))
+    bounds = [0]
+    while bounds[-1] < len(ends):
+        lo = bounds[-1]
+        before = int(ends[lo - 1]) if lo else 0
+        bounds.append(max(int(np.searchsorted(ends, before + rows, side="right")), lo + 1))
+    return np.asarray(bounds, dtype=np.int64)
+
+
+def slice_paths(grooves: Grooves, lo: int, hi: int) -> Grooves:
+    """Paths ``lo:hi`` of the grooves as grooves of their own (views, not copies)."""
+    a, b = int(grooves.offsets[lo]), int(grooves.offsets[hi])
+    return Grooves(grooves.vertices[a:b], grooves.bulges[a:b],
+                   np.asarray(grooves.offsets[lo:hi + 1], dtype=np.int64) - a,
+                   grooves.stipple[lo:hi])
 
 
 def wide_arcs(segments: Segments, max_offset: float = MAX_ARC_OFFSET_MM) -> np.ndarray:
