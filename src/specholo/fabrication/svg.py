@@ -162,6 +162,16 @@ def path_rows(offsets: np.ndarray, paths: np.ndarray) -> np.ndarray:
     return np.repeat(starts - first, sizes) + np.arange(int(sizes.sum()), dtype=np.int64)
 
 
+def take_paths(grooves: Grooves, paths: np.ndarray) -> Grooves:
+    """The given paths (k,) of the grooves, in that order, as grooves of their own."""
+    offsets = np.asarray(grooves.offsets, dtype=np.int64)
+    idx = path_rows(offsets, paths)
+    sizes = offsets[paths + 1] - offsets[paths]
+    return Grooves(grooves.vertices[idx], grooves.bulges[idx],
+                   np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                   grooves.stipple[paths])
+
+
 def arc_bounds(segments: Segments) -> np.ndarray:
     """Bounding box of arcs, counting where they bulge past their end points.
 
