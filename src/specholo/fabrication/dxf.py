@@ -54,9 +54,8 @@ from specholo.fabrication.gcode import (
     chunk_bounds,
     format_number,
     is_straight,
-    slice_paths,
 )
-from specholo.fabrication.svg import Layer, arc_bounds, plan_layers, take_paths
+from specholo.fabrication.svg import Layer, drawing_bounds, plan_layers, take_paths
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -153,23 +152,6 @@ def _circles(g: Grooves, first_handle: int, layer: str, owner: str, radius: floa
     return t.tobytes()
 
 
-def _extent(grooves: Grooves, half: float) -> tuple[np.ndarray, np.ndarray]:
-    """Lower-left and upper-right corners (2,) of the drawing: the arcs' bounds
-    and the dots' rims (``half`` a dot wide around each), a chunk at a time."""
-    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
-    bounds = chunk_bounds(grooves.path_sizes, _CHUNK_ROWS)
-    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
-        g = slice_paths(grooves, a, b)
-        dots, _ = g.dots()
-        segs = g.segments()
-        parts = [dots - half, dots + half] + ([arc_bounds(segs)] if len(segs) else [])
-        box = np.concatenate(parts)
-        if len(box):
-            lo = np.minimum(lo, box.min(axis=0))
-            hi = np.maximum(hi, box.max(axis=0))
-    return lo, hi
-
-
 def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
               depths: np.ndarray | None = None) -> list[Layer]:
     """Write the grooves as a DXF drawing in mm, atomically, a chunk of paths at a time.
@@ -191,7 +173,6 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     """
     check_grooves(grooves)
     layers = plan_layers(grooves, tool, depths)
-    m = len(grooves.vertices)
 
     with _reproducible():
         doc = ezdxf.new(DXF_VERSION, units=units.MM)
@@ -213,8 +194,10 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
 
     # extents and the initial view, so viewers open on the drawing
     half = 0.5 * max([layer.width for layer in layers] or [tool.width])
-    lo, hi = _extent(grooves, half) if m else (np.zeros(2), np.zeros(2))
-    if m:  # ezdxf copies these into $EXTMIN/$EXTMAX; an empty drawing keeps its "no extents"
+    box = drawing_bounds(grooves, half)
+    lo, hi = box if box is not None else np.zeros((2, 2))
+    # ezdxf copies these into $EXTMIN/$EXTMAX; an empty drawing keeps its "no extents"
+    if box is not None:
         msp.dxf.extmin = (float(lo[0]), float(lo[1]), 0.0)
         msp.dxf.extmax = (float(hi[0]), float(hi[1]), 0.0)
     size = float(max(hi[0] - lo[0], hi[1] - lo[1], 1.0))

@@ -192,6 +192,13 @@ class GcodeStats:
     rapid_length_mm: float
 
 
+def chord_lengths(start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """(k,) distances between points (k, 2): ``np.linalg.norm(end - start, axis=1)``
+    to the bit, without numpy's slow reduction along rows of two."""
+    d = end - start
+    return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+
+
 def is_straight(segments: Segments) -> np.ndarray:
     """Which arcs the exporters write as straight segments.
 
@@ -203,7 +210,7 @@ def is_straight(segments: Segments) -> np.ndarray:
         and half its sweep below ``STRAIGHT_TURN_RAD``, or its radius below
         ``MIN_ARC_RADIUS_MM``.
     """
-    chord = np.linalg.norm(segments.end - segments.start, axis=1)
+    chord = chord_lengths(segments.start, segments.end)
     b = np.abs(segments.bulge)
     # chord / 2 * tan(sweep / 4) is the sagitta, chord (1 + b^2) / (4 b) the radius
     sagitta = 0.5 * chord * b
@@ -302,8 +309,9 @@ class TextRows:
         n = self.n
 
         def stack(arrays: list[np.ndarray], dtype: type) -> np.ndarray:
-            return np.stack(arrays).astype(dtype, copy=False) if arrays \
-                else np.zeros((0, n), dtype=dtype)
+            # (n, k): a row's values side by side
+            return np.stack(arrays, axis=1).astype(dtype, copy=False) if arrays \
+                else np.zeros((n, 0), dtype=dtype)
 
         options = np.asarray(self._options, dtype=np.int64).reshape(-1, 2)
         out = np.empty(n * self._width, dtype=np.uint8)
@@ -333,17 +341,19 @@ def _write_rows(n: int, ops: np.ndarray, pool: np.ndarray, options: np.ndarray, 
     for row in range(n):
         for k in range(ops.shape[0]):
             kind, a, b, m = ops[k, 0], ops[k, 1], ops[k, 2], ops[k, 3]
-            if m >= 0 and not masks[m, row]:
+            if m >= 0 and not masks[row, m]:
                 continue
             if kind == 0:
-                out[pos:pos + b] = pool[a:a + b]
+                for i in range(b):  # byte loops: a slice per row costs more than the copy
+                    out[pos + i] = pool[a + i]
                 pos += b
             elif kind == 1:
-                start, length = options[a + columns[b, row], 0], options[a + columns[b, row], 1]
-                out[pos:pos + length] = pool[start:start + length]
+                start, length = options[a + columns[row, b], 0], options[a + columns[row, b], 1]
+                for i in range(length):
+                    out[pos + i] = pool[start + i]
                 pos += length
             elif kind == 4:
-                q = columns[b, row]
+                q = columns[row, b]
                 nd = 0
                 while True:
                     digit = q & 15
@@ -356,18 +366,27 @@ def _write_rows(n: int, ops: np.ndarray, pool: np.ndarray, options: np.ndarray, 
                     out[pos] = digits[i]
                     pos += 1
             else:
-                q = columns[b, row]
+                q = columns[row, b]
                 if q < 0:
                     out[pos] = 45  # '-'
                     pos += 1
                     q = -q
                 nd = 0
+                while q >= 100:  # two digits a division
+                    r = q % 100
+                    q //= 100
+                    digits[nd] = 48 + r % 10
+                    digits[nd + 1] = 48 + r // 10
+                    nd += 2
                 while True:
                     digits[nd] = 48 + q % 10
                     q //= 10
                     nd += 1
-                    if q == 0 and nd > a:
+                    if q == 0:
                         break
+                while nd <= a:  # the units digit and the decimals always show
+                    digits[nd] = 48
+                    nd += 1
                 skip = 0  # trailing zeros left out
                 if kind == 3:
                     while skip < a - 1 and digits[skip] == 48:
@@ -552,7 +571,6 @@ def write_gcode(
     check_grooves(grooves)
     n_paths = grooves.n_paths
     n_dots = int(np.sum(grooves.path_sizes == 1))
-    grooves = split_wide_arcs(grooves, opt.max_arc_offset)
     mill = opt.mill
     depth = tool.depth if depth is None else float(depth)
     safe = machining.safe_z
@@ -562,42 +580,6 @@ def write_gcode(
     def num(mm: float) -> str:
         return format_number(mm * opt.per_mm, dec)
 
-    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
-    m = len(verts)
-    offsets = np.asarray(grooves.offsets, dtype=np.int64)
-    sizes = np.diff(offsets)
-
-    first = np.zeros(m, dtype=bool)
-    first[offsets[:-1]] = True
-    last = np.zeros(m, dtype=bool)
-    last[offsets[1:] - 1] = True
-    second = np.zeros(m, dtype=bool)
-    second[offsets[:-1][sizes > 1] + 1] = True
-    dot = first & last
-
-    qv = np.rint(verts * scale).astype(np.int64)
-    segs = grooves.segments()
-    straight = is_straight(segs)
-    arc_start = np.flatnonzero(~last)  # vertex where each segment starts
-    rows = arc_start + 1  # the segment's move is written on its end vertex's row
-    # an arc whose ends round to one point would be read as a full circle
-    straight |= np.all(qv[arc_start] == qv[rows], axis=1)
-    code = np.zeros(m, dtype=np.int64)  # 0 first vertex, 1 G1, 2 G2, 3 G3
-    code[rows] = np.where(straight, 1, np.where(segs.bulge < 0, 2, 3))
-    arc = code >= 2
-    centre, _, _, _ = Segments(
-        segs.start[~straight], segs.end[~straight], segs.bulge[~straight], segs.path[~straight]
-    ).geometry()
-    qij = np.zeros((m, 2), dtype=np.int64)
-    # the interpreter adds I J to the rounded start: offset the rounded centre from it
-    qij[rows[~straight]] = np.rint(centre * scale).astype(np.int64) - qv[arc_start[~straight]]
-    stipple = np.repeat(np.asarray(grooves.stipple, dtype=np.int64), sizes)
-
-    lengths = np.where(straight, np.linalg.norm(segs.end - segs.start, axis=1), segs.lengths())
-    starts = verts[offsets[:-1]]
-    ends = verts[offsets[1:] - 1]
-    # from above the origin to the first groove, then from each groove's end to the next
-    travel = np.linalg.norm(starts - np.vstack([np.zeros((1, 2)), ends[:-1]]), axis=1)
     vertical = n_paths * (safe + depth) if mill else 0.0
 
     unit = "mm" if opt.units == "mm" else "in"
@@ -658,44 +640,137 @@ def write_gcode(
     feed = f" F{num(machining.feed)}"
 
     n_lines = len(head) + len(tail)
+    cutting = rapid = 0.0
+    chords = 0
+    end = np.zeros(2)  # the job starts above the origin
+    bounds = chunk_bounds(grooves.path_sizes, _CHUNK_ROWS)
     with atomic_open(path, "wb") as fh:
         fh.write(("\n".join(head) + "\n").encode("ascii"))
-        for lo in range(0, m, _CHUNK_ROWS):
-            s = slice(lo, min(lo + _CHUNK_ROWS, m))
-            t = TextRows(s.stop - s.start)
-            f = first[s]
-            t.text(stipple_open, f)
-            t.number(stipple[s], 0, f)
-            t.choice([stipple_close + "G0", "G1", "G2", "G3"], code[s])
-            t.text(" X")
-            t.number(qv[s, 0], dec)
-            t.text(" Y")
-            t.number(qv[s, 1], dec)
-            a = arc[s]
-            t.text(" I", a)
-            t.number(qij[s, 0], dec, a)
-            t.text(" J", a)
-            t.number(qij[s, 1], dec, a)
-            t.text(feed, second[s])
-            if rapid_text:
-                t.text(rapid_text, f)
-            t.text("\n")
-            t.text(start_text, f)
-            if dot_text:
-                t.text(dot_text, dot[s])
-            t.text(end_text, last[s])
-            text = t.tobytes()
-            n_lines += text.count(b"\n")
-            fh.write(text)
+        for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+            part = slice_paths(grooves, lo, hi)
+            rows = _move_rows(part, scale, opt.max_arc_offset)
+            g = rows.grooves
+            chords += len(g.vertices) - len(part.vertices)
+            if chords > _MAX_CHORDS:
+                raise SpecholoError(f"wide arcs would need more than {_MAX_CHORDS:.0e} chords")
+            cutting += rows.length
+            starts = g.vertices[g.offsets[:-1]]
+            ends = g.vertices[g.offsets[1:] - 1]
+            # from the last groove's end (or the origin) to each groove's start
+            rapid += float(chord_lengths(np.vstack([end, ends[:-1]]), starts).sum())
+            end = ends[-1]
+            for r in range(0, len(g.vertices), _CHUNK_ROWS):
+                s = slice(r, r + _CHUNK_ROWS)
+                t = TextRows(len(rows.code[s]))
+                f = rows.first[s]
+                t.text(stipple_open, f)
+                t.number(rows.stipple[s], 0, f)
+                t.choice([stipple_close + "G0", "G1", "G2", "G3"], rows.code[s])
+                t.text(" X")
+                t.number(rows.qv[s, 0], dec)
+                t.text(" Y")
+                t.number(rows.qv[s, 1], dec)
+                a = rows.code[s] >= 2
+                t.text(" I", a)
+                t.number(rows.qij[s, 0], dec, a)
+                t.text(" J", a)
+                t.number(rows.qij[s, 1], dec, a)
+                t.text(feed, rows.second[s])
+                if rapid_text:
+                    t.text(rapid_text, f)
+                t.text("\n")
+                t.text(start_text, f)
+                if dot_text:
+                    t.text(dot_text, f & rows.last[s])
+                t.text(end_text, rows.last[s])
+                text = t.tobytes()
+                n_lines += text.count(b"\n")
+                fh.write(text)
         if tail:
             fh.write(("\n".join(tail) + "\n").encode("ascii"))
 
     return GcodeStats(
         lines=n_lines,
         paths=n_paths,
-        cutting_length_mm=float(lengths.sum() + vertical),
-        rapid_length_mm=float(travel.sum() + vertical),
+        cutting_length_mm=cutting + vertical,
+        rapid_length_mm=rapid + vertical,
     )
+
+
+@dataclass(frozen=True)
+class _MoveRows:
+    """The move written on each vertex's row of a program (see :func:`_move_rows`).
+
+    Attributes:
+        first: (m,) True where a path starts (comment, rapid, plunge).
+        second: (m,) True on a path's second vertex (its first feed move takes ``F``).
+        last: (m,) True where a path ends (retract).
+        code: (m,) 0 on a path's first vertex, else the move: 1 G1, 2 G2, 3 G3.
+        qv: (m, 2) the vertex, in written integers.
+        qij: (m, 2) the arc centre from the arc's start (rows of G2/G3), written integers.
+        stipple: (m,) stipple id of the vertex's path.
+        length: total length of the moves, mm.
+        grooves: the grooves written, wide arcs split (m vertices).
+    """
+
+    first: np.ndarray
+    second: np.ndarray
+    last: np.ndarray
+    code: np.ndarray
+    qv: np.ndarray
+    qij: np.ndarray
+    stipple: np.ndarray
+    length: float
+    grooves: Grooves
+
+
+def _move_rows(grooves: Grooves, scale: float, max_offset: float) -> _MoveRows:
+    """One row per vertex of the program that cuts the grooves.
+
+    Args:
+        grooves: n paths.
+        scale: written integers per mm.
+        max_offset: largest I/J, mm; arcs centred further away are split into
+            chords first (:func:`split_wide_arcs`).
+    """
+    segs = grooves.segments()
+    curved = np.flatnonzero(~is_straight(segs))
+    centre, _, _, _ = Segments(segs.start[curved], segs.end[curved], segs.bulge[curved],
+                               segs.path[curved]).geometry()
+    # as wide_arcs, without working out the arcs twice
+    offset = np.abs(centre - segs.start[curved])
+    if math.isfinite(max_offset) and (np.maximum(offset[:, 0], offset[:, 1]) > max_offset).any():
+        return _move_rows(split_wide_arcs(grooves, max_offset), scale, math.inf)
+    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
+    m = len(verts)
+    offsets = np.asarray(grooves.offsets, dtype=np.int64)
+    sizes = np.diff(offsets)
+
+    first = np.zeros(m, dtype=bool)
+    first[offsets[:-1]] = True
+    last = np.zeros(m, dtype=bool)
+    last[offsets[1:] - 1] = True
+    second = np.zeros(m, dtype=bool)
+    second[offsets[:-1][sizes > 1] + 1] = True
+
+    qv = np.rint(verts * scale).astype(np.int64)
+    arc_start = np.flatnonzero(~last)  # vertex where each segment starts
+    rows = arc_start + 1  # the segment's move is written on its end vertex's row
+    # an arc whose ends round to one point would be read as a full circle
+    a, b = qv[arc_start[curved]], qv[rows[curved]]
+    keep = (a[:, 0] != b[:, 0]) | (a[:, 1] != b[:, 1])
+    arcs = curved[keep]
+    code = np.zeros(m, dtype=np.int64)  # 0 first vertex, 1 G1, 2 G2, 3 G3
+    code[rows] = 1
+    code[rows[arcs]] = np.where(segs.bulge[arcs] < 0, 2, 3)
+    qij = np.zeros((m, 2), dtype=np.int64)
+    # the interpreter adds I J to the rounded start: offset the rounded centre from it
+    qij[rows[arcs]] = np.rint(centre[keep] * scale).astype(np.int64) - qv[arc_start[arcs]]
+    stipple = np.repeat(np.asarray(grooves.stipple, dtype=np.int64), sizes)
+    lengths = chord_lengths(segs.start, segs.end)
+    lengths[arcs] = Segments(segs.start[arcs], segs.end[arcs], segs.bulge[arcs],
+                             segs.path[arcs]).lengths()
+    return _MoveRows(first, second, last, code, qv, qij, stipple, float(lengths.sum()), grooves)
 
 
 # ---------------------------------------------------------------------------

@@ -15,8 +15,9 @@ layer number (a name like ``GROOVES_D0.080_R0.250`` alone would read as layer
 0, i.e. 1, for every layer). Each layer has its own colour, which is also how
 laser software such as LightBurn tells layers apart.
 
-Like the G-code writer, rows of text are built as byte tables (one row per
-vertex) so no Python code runs per element.
+Like the G-code writer, it writes a chunk of paths at a time, one row of text
+per vertex (:class:`~specholo.fabrication.gcode.TextRows`), so memory does not
+grow with the drawing and no Python code runs per element.
 """
 
 from __future__ import annotations
@@ -32,8 +33,10 @@ from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import (
     TextRows,
     check_grooves,
+    chunk_bounds,
     format_number,
     is_straight,
+    slice_paths,
 )
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves, Segments
@@ -201,42 +204,37 @@ def arc_bounds(segments: Segments) -> np.ndarray:
     return np.stack([allpts.min(axis=0), allpts.max(axis=0)])
 
 
-def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
-              margin: float = 5.0, depths: np.ndarray | None = None) -> None:
-    """Write the grooves as an SVG drawing in mm, atomically.
+def drawing_bounds(grooves: Grooves, half: float = 0.0) -> np.ndarray | None:
+    """Bounding box of a drawing of the grooves, a chunk of paths at a time.
 
     Args:
-        path: destination ``.svg`` file.
-        grooves: m vertices in n paths; dots become filled circles.
-        tool: the groove width for each depth is the stroke width and dot diameter.
-        margin: blank border around the grooves, mm.
-        depths: optional (n,) depth of each path, mm; each depth class gets its
-            own groove and dot layers (see :func:`plan_layers`).
+        grooves: n paths.
+        half: half the width of a dot, mm (dots reach that far round their plunge).
 
-    Raises:
-        SpecholoError: if the grooves hold an empty path or non-finite numbers,
-            or ``depths`` is malformed.
+    Returns:
+        (2, 2) lower-left and upper-right corners in mm of the arcs (see
+        :func:`arc_bounds`) and the dots, or None if there is no vertex.
     """
-    check_grooves(grooves)
-    margin = float(margin)
-    if not (math.isfinite(margin) and margin >= 0.0):
-        raise SpecholoError(f"SVG margin must be a finite number >= 0 mm, got {margin}")
-    layers = plan_layers(grooves, tool, depths)
-    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    bounds = chunk_bounds(grooves.path_sizes, _CHUNK_ROWS)
+    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+        g = slice_paths(grooves, a, b)
+        dots, _ = g.dots()
+        segs = g.segments()
+        box = np.concatenate([dots - half, dots + half]
+                             + ([arc_bounds(segs)] if len(segs) else []))
+        if len(box):
+            lo = np.minimum(lo, box.min(axis=0))
+            hi = np.maximum(hi, box.max(axis=0))
+    return np.stack([lo, hi]) if np.isfinite(lo).all() else None
+
+
+def _path_text(g: Grooves) -> bytes:
+    """SVG ``<path>`` elements of the paths of ``g`` (none a dot)."""
+    verts = np.asarray(g.vertices, dtype=float).reshape(-1, 2)
     m = len(verts)
-    offsets = np.asarray(grooves.offsets, dtype=np.int64)
-
-    segs = grooves.segments()
-    dots, _ = grooves.dots()
-    extent = np.concatenate([dots] + ([arc_bounds(segs)] if len(segs) else []))
-    if len(extent) == 0:
-        extent = np.zeros((1, 2))
-    box = np.stack([extent.min(axis=0), extent.max(axis=0)])
-    pad = margin + 0.5 * max([layer.width for layer in layers] or [tool.width])
-    x0, x1 = box[0, 0] - pad, box[1, 0] + pad
-    y0, y1 = -box[1, 1] - pad, -box[0, 1] + pad  # SVG y = -plate y
-    w, h = x1 - x0, y1 - y0
-
+    offsets = np.asarray(g.offsets, dtype=np.int64)
+    segs = g.segments()
     last = np.zeros(m, dtype=bool)
     last[offsets[1:] - 1] = True
     straight = is_straight(segs)
@@ -258,6 +256,64 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     large[rows] = np.abs(segs.bulge) > 1.0  # sweeps over 180 degrees
     sweep = np.zeros(m, dtype=np.int64)
     sweep[rows] = segs.bulge < 0  # y flipped: counter-clockwise on the plate is flag 0
+
+    t = TextRows(m)
+    t.choice(['<path d="M ', " A ", " L "], kind)
+    t.number(q_radius, _RADIUS_DECIMALS, arc)
+    t.text(" ", arc)
+    t.number(q_radius, _RADIUS_DECIMALS, arc)
+    t.text(" 0 ", arc)
+    t.choice(["", "0", "1"], np.where(arc, 1 + large, 0))
+    t.text(" ", arc)
+    t.choice(["", "0", "1"], np.where(arc, 1 + sweep, 0))
+    t.text(" ", arc)
+    t.number(qx, _DECIMALS)
+    t.text(" ")
+    t.number(qy, _DECIMALS)
+    t.choice(["", '"/>\n'], last.astype(np.int64))
+    return t.tobytes()
+
+
+def _dot_text(g: Grooves, radius: str) -> bytes:
+    """SVG ``<circle>`` elements of radius ``radius`` (text, mm) for the dots of ``g``."""
+    dots, _ = g.dots()
+    t = TextRows(len(dots))
+    t.text('<circle cx="')
+    t.number(np.rint(dots[:, 0] * _SCALE).astype(np.int64), _DECIMALS)
+    t.text('" cy="')
+    t.number(np.rint(-dots[:, 1] * _SCALE).astype(np.int64), _DECIMALS)
+    t.text(f'" r="{radius}"/>\n')
+    return t.tobytes()
+
+
+def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
+              margin: float = 5.0, depths: np.ndarray | None = None) -> None:
+    """Write the grooves as an SVG drawing in mm, atomically, a chunk of paths at a time.
+
+    Args:
+        path: destination ``.svg`` file.
+        grooves: m vertices in n paths; dots become filled circles.
+        tool: the groove width for each depth is the stroke width and dot diameter.
+        margin: blank border around the grooves, mm.
+        depths: optional (n,) depth of each path, mm; each depth class gets its
+            own groove and dot layers (see :func:`plan_layers`).
+
+    Raises:
+        SpecholoError: if the grooves hold an empty path or non-finite numbers,
+            or ``depths`` is malformed.
+    """
+    check_grooves(grooves)
+    margin = float(margin)
+    if not (math.isfinite(margin) and margin >= 0.0):
+        raise SpecholoError(f"SVG margin must be a finite number >= 0 mm, got {margin}")
+    layers = plan_layers(grooves, tool, depths)
+    box = drawing_bounds(grooves)
+    if box is None:
+        box = np.zeros((2, 2))
+    pad = margin + 0.5 * max([layer.width for layer in layers] or [tool.width])
+    x0, x1 = box[0, 0] - pad, box[1, 0] + pad
+    y0, y1 = -box[1, 1] - pad, -box[0, 1] + pad  # SVG y = -plate y
+    w, h = x1 - x0, y1 - y0
 
     def num(value: float) -> str:
         return format_number(value, _DECIMALS)
@@ -283,32 +339,9 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
                           f' stroke-width="{num(layer.width)}" stroke-linecap="round"'
                           ' stroke-linejoin="round">\n')
             fh.write(group.encode("ascii"))
-            idx = path_rows(offsets, layer.paths)
-            dot_end = f'" r="{num(0.5 * layer.width)}"/>\n'
-            for lo in range(0, len(idx), _CHUNK_ROWS):
-                s = idx[lo:lo + _CHUNK_ROWS]
-                t = TextRows(len(s))
-                if layer.dots:
-                    t.text('<circle cx="')
-                    t.number(qx[s], _DECIMALS)
-                    t.text('" cy="')
-                    t.number(qy[s], _DECIMALS)
-                    t.text(dot_end)
-                else:
-                    t.choice(['<path d="M ', " A ", " L "], kind[s])
-                    a = arc[s]
-                    t.number(q_radius[s], _RADIUS_DECIMALS, a)
-                    t.text(" ", a)
-                    t.number(q_radius[s], _RADIUS_DECIMALS, a)
-                    t.text(" 0 ", a)
-                    t.choice(["", "0", "1"], np.where(a, 1 + large[s], 0))
-                    t.text(" ", a)
-                    t.choice(["", "0", "1"], np.where(a, 1 + sweep[s], 0))
-                    t.text(" ", a)
-                    t.number(qx[s], _DECIMALS)
-                    t.text(" ")
-                    t.number(qy[s], _DECIMALS)
-                    t.choice(["", '"/>\n'], last[s].astype(np.int64))
-                fh.write(t.tobytes())
+            bounds = chunk_bounds(grooves.path_sizes[layer.paths], _CHUNK_ROWS)
+            for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+                g = take_paths(grooves, layer.paths[a:b])
+                fh.write(_dot_text(g, num(0.5 * layer.width)) if layer.dots else _path_text(g))
             fh.write(b"</g>\n")
         fh.write(b"</svg>\n")
