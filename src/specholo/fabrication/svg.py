@@ -26,6 +26,7 @@ import math
 import os
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
@@ -175,6 +176,27 @@ def take_paths(grooves: Grooves, paths: np.ndarray) -> Grooves:
                    grooves.stipple[paths])
 
 
+@nb.njit(cache=True)
+def _extremes_bounds(centre: np.ndarray, radius: np.ndarray, start: np.ndarray,
+                     sweep: np.ndarray, phi: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """(2, 2) bounds of the circles' extreme points in the directions ``phi`` (4,)
+    (unit vectors ``direction`` (4, 2)) that the arcs pass; +-inf if none."""
+    box = np.empty((2, 2))
+    box[0, :] = np.inf
+    box[1, :] = -np.inf
+    two_pi = 2.0 * np.pi
+    for i in range(len(radius)):
+        lo = min(start[i], start[i] + sweep[i])
+        span = abs(sweep[i])
+        for k in range(len(phi)):
+            if (phi[k] - lo) % two_pi <= span:  # the modulo of np.mod
+                for j in range(2):
+                    v = centre[i, j] + radius[i] * direction[k, j]
+                    box[0, j] = min(box[0, j], v)
+                    box[1, j] = max(box[1, j], v)
+    return box
+
+
 def arc_bounds(segments: Segments) -> np.ndarray:
     """Bounding box of arcs, counting where they bulge past their end points.
 
@@ -192,14 +214,11 @@ def arc_bounds(segments: Segments) -> np.ndarray:
         sub = Segments(segments.start[arcs], segments.end[arcs], segments.bulge[arcs],
                        segments.path[arcs])
         centre, radius, start, sweep = sub.geometry()
-        lo = np.minimum(start, start + sweep)
-        span = np.abs(sweep)
-        for k in range(4):
-            # the circle's extreme point in direction k * 90 degrees, where the arc passes it
-            phi = k * 0.5 * np.pi
-            inside = np.mod(phi - lo, 2.0 * np.pi) <= span
-            d = np.array([np.cos(phi), np.sin(phi)])
-            pts.append((centre + radius[:, None] * d)[inside])
+        phi = np.arange(4) * 0.5 * np.pi
+        box = _extremes_bounds(centre, radius, start, sweep, phi,
+                               np.stack([np.cos(phi), np.sin(phi)], axis=1))
+        if np.isfinite(box).all():  # its corners bound the extreme points
+            pts.append(box)
     allpts = np.concatenate(pts)
     return np.stack([allpts.min(axis=0), allpts.max(axis=0)])
 
