@@ -419,9 +419,12 @@ def check_grooves(grooves: Grooves) -> None:
     """Raise SpecholoError unless the grooves can be written (no empty path, finite numbers)."""
     if np.any(grooves.path_sizes < 1):
         raise SpecholoError("grooves contain an empty path")
-    if not np.all(np.isfinite(grooves.vertices)) or not np.all(np.isfinite(grooves.bulges)):
+    # the least and greatest value (NaN if any is NaN) tell, without a copy of the grooves
+    ends = [float(f(a)) for a in (grooves.vertices, grooves.bulges) if np.size(a)
+            for f in (np.min, np.max)]
+    if not all(math.isfinite(e) for e in ends):
         raise SpecholoError("grooves contain non-finite vertices or bulges")
-    if len(grooves.vertices) and np.abs(grooves.vertices).max() > _MAX_COORD_MM:
+    if np.size(grooves.vertices) and max(-ends[0], ends[1]) > _MAX_COORD_MM:
         raise SpecholoError(f"groove vertices exceed {_MAX_COORD_MM:g} mm")
 
 
