@@ -25,6 +25,8 @@ from specholo.fabrication.gcode import (
     SCALE,
     GcodeOptions,
     GcodeStats,
+    TextRows,
+    chunk_bounds,
     format_number,
     is_straight,
     read_gcode,
@@ -702,3 +704,60 @@ def test_read_rejects(tmp_path, program, message):
 def test_read_missing_file(tmp_path):
     with pytest.raises(SpecholoError, match="cannot read"):
         read_gcode(tmp_path / "nope.ngc")
+
+
+@settings(max_examples=200, deadline=None)
+@given(q=st.lists(st.integers(-(2**63) + 1, 2**63 - 1), min_size=1, max_size=20),
+       decimals=st.integers(0, 18), data=st.data())
+def test_text_rows_numbers(q, decimals, data):
+    """Numbers, trimmed numbers and hexadecimal as Python writes them, masks leave rows out."""
+    values = np.array(q, dtype=np.int64)
+    mask = np.array(data.draw(st.lists(st.booleans(), min_size=len(q), max_size=len(q))))
+    t = TextRows(len(q))
+    t.choice(["<", "[", ""], np.arange(len(q)) % 3)
+    t.number(values, decimals)
+    t.text(" ")
+    t.number(values, decimals, mask, trim=True)
+    t.text(" ", mask)
+    t.hex(np.abs(values), mask)
+    t.text("\n")
+
+    def fixed(v: int, trim: bool) -> str:
+        sign = "-" if v < 0 else ""
+        whole, frac = divmod(abs(v), 10**decimals)
+        if not decimals:
+            return f"{sign}{whole}"
+        text = f"{frac:0{decimals}d}"
+        return f"{sign}{whole}.{text.rstrip('0') or '0' if trim else text}"
+
+    want = "".join(
+        "<[ "[i % 3].strip() + fixed(v, False) + " "
+        + (f"{fixed(v, True)} {abs(v):X}" if keep else "") + "\n"
+        for i, (v, keep) in enumerate(zip(q, mask.tolist(), strict=True)))
+    assert t.tobytes().decode("ascii") == want
+
+
+def test_chunk_bounds():
+    sizes = np.array([3, 1, 5, 2, 2, 1])
+    assert chunk_bounds(sizes, 4).tolist() == [0, 2, 3, 5, 6]  # the 5-vertex path alone
+    assert chunk_bounds(sizes, 100).tolist() == [0, 6]
+    assert chunk_bounds(np.zeros(0, dtype=np.int64), 4).tolist() == [0]
+    with pytest.raises(ValueError, match="got 0"):
+        chunk_bounds(sizes, 0)
+
+
+def test_chunks_change_nothing(tmp_path, groove_example, monkeypatch):
+    """Written a few paths at a time, the program is the same byte for byte."""
+    from specholo.fabrication import gcode
+
+    g = Grooves.concatenate([groove_example] * 7)
+    whole = tmp_path / "whole.ngc"
+    stats = write_gcode(whole, g, Tool(), Machining())
+    monkeypatch.setattr(gcode, "_CHUNK_ROWS", 3)
+    parts = tmp_path / "parts.ngc"
+    again = write_gcode(parts, g, Tool(), Machining())
+    assert (again.lines, again.paths) == (stats.lines, stats.paths)
+    # lengths are summed chunk by chunk: equal to rounding
+    assert again.cutting_length_mm == pytest.approx(stats.cutting_length_mm, rel=1e-12)
+    assert again.rapid_length_mm == pytest.approx(stats.rapid_length_mm, rel=1e-12)
+    assert parts.read_bytes() == whole.read_bytes()

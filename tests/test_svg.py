@@ -297,3 +297,17 @@ def test_rejects_bad_grooves(tmp_path):
     with pytest.raises(SpecholoError):
         write_svg(tmp_path / "x.svg", bad, Tool())
     assert not (tmp_path / "x.svg").exists()
+
+
+def test_chunks_change_nothing(tmp_path, groove_example, monkeypatch):
+    """Written a few paths at a time, the drawing is the same byte for byte."""
+    from specholo.fabrication import svg
+
+    g = Grooves.concatenate([groove_example] * 7)
+    depths = np.tile([0.1, 0.05, 0.05], 7)
+    whole = tmp_path / "whole.svg"
+    write_svg(whole, g, Tool(), depths=depths)
+    monkeypatch.setattr(svg, "_CHUNK_ROWS", 3)
+    parts = tmp_path / "parts.svg"
+    write_svg(parts, g, Tool(), depths=depths)
+    assert parts.read_bytes() == whole.read_bytes()

@@ -2,8 +2,10 @@
 
 Each groove is an LWPOLYLINE whose vertices carry their bulges, so arcs stay
 exact arcs (the DXF bulge is the same tan(sweep / 4) the grooves use, and DXF,
-like the plate, has y up: nothing is flipped). Coordinates and bulges are
-written with Python's shortest round-trip text, so they read back bit for bit.
+like the plate, has y up: nothing is flipped). Coordinates are written with 9
+decimals (1e-9 mm) and bulges with 12 (the sweep within 4e-12 rad), trailing
+zeros left out; the dots' radii and the extents keep Python's shortest
+round-trip text.
 Arcs the other exporters draw straight (:func:`~specholo.fabrication.gcode.is_straight`)
 get bulge 0 here too: a near-zero bulge means a near-infinite radius, which
 some CAD programs mishandle.
@@ -22,6 +24,15 @@ The same grooves give the same file byte for byte: the drawing's dates and
 GUIDs, which ezdxf would otherwise take from the clock and a random source,
 are its fixed values (1 January 2000 and the constant GUID), and its classes
 are listed in name order, not in the order of a set of strings.
+
+The ENTITIES section is written here, not by ezdxf, a chunk of paths at a time
+and formatted by a compiled loop (:class:`~specholo.fabrication.gcode.TextRows`):
+adding 10^5 entities one by one through ezdxf takes minutes and holds the whole
+drawing in memory, and even Python's float text costs microseconds a number.
+ezdxf writes the rest of the drawing (header, tables, objects) with an empty
+modelspace and the entities go in its place, laid out as ezdxf lays them out,
+with the handles ezdxf would have given them: each layer's entities take the
+handles after the layer's own, and $HANDSEED lies past them all.
 """
 
 from __future__ import annotations
@@ -35,15 +46,37 @@ import ezdxf
 import numpy as np
 from ezdxf import units
 
+from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
-from specholo.fabrication.gcode import check_grooves, format_number, is_straight
-from specholo.fabrication.svg import Layer, arc_bounds, plan_layers
+from specholo.fabrication.gcode import (
+    TextRows,
+    check_grooves,
+    chunk_bounds,
+    format_number,
+    is_straight,
+)
+from specholo.fabrication.svg import Layer, drawing_bounds, plan_layers, take_paths
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves
 
 #: DXF version written: R2010 has LWPOLYLINE, $INSUNITS and UTF-8 text, and
 #: every current CAD/CAM or laser program reads it.
 DXF_VERSION = "R2010"
+
+_CHUNK_ROWS = 1 << 16
+#: Decimals of the written coordinates (mm; 1e-9 mm keeps every vertex within
+#: check_grooves' 1e9 mm in an int64) and bulges.
+_DECIMALS = 9
+_SCALE = 10**_DECIMALS
+_BULGE_DECIMALS = 12
+_BULGE_SCALE = 10**_BULGE_DECIMALS
+# Larger bulges (sweeps within 4e-6 rad of a full turn) are written with one
+# decimal: the sweep moves by 4 db / (1 + b^2), so that is still finer.
+_BIG_BULGE = 1e6
+_MAX_BULGE = 1e17
+# where ezdxf writes the (empty) modelspace
+_ENTITIES = "  0\nSECTION\n  2\nENTITIES\n"
+_ENDSEC = "  0\nENDSEC\n"
 
 
 @contextlib.contextmanager
@@ -57,9 +90,71 @@ def _reproducible() -> Iterator[None]:
         ezdxf.options.write_fixed_meta_data_for_testing = before
 
 
+def _written_bulges(g: Grooves) -> np.ndarray:
+    """(m,) bulge written at each vertex: 0 after a path's last vertex and for
+    arcs drawn straight."""
+    m = len(g.vertices)
+    last = np.zeros(m, dtype=bool)
+    last[g.offsets[1:] - 1] = True
+    bulge = np.zeros(m)
+    segs = g.segments()
+    bulge[~last] = np.where(is_straight(segs), 0.0, segs.bulge)
+    return bulge
+
+
+def _polylines(g: Grooves, first_handle: int, layer: str, owner: str) -> bytes:
+    """The DXF text of the paths of ``g`` as LWPOLYLINEs (a vertex's bulge only
+    when it is not 0), with handles from ``first_handle``."""
+    verts = g.vertices.reshape(-1, 2)
+    m = len(verts)
+    first = np.zeros(m, dtype=bool)
+    first[g.offsets[:-1]] = True
+    handle = np.cumsum(first) - 1 + first_handle
+    count = np.repeat(g.path_sizes, g.path_sizes)
+    bulge = _written_bulges(g)
+    q = np.rint(verts * _SCALE).astype(np.int64)
+    big = np.abs(bulge) >= _BIG_BULGE
+    qb = np.rint(np.where(big, 0.0, bulge) * _BULGE_SCALE).astype(np.int64)
+    qbig = np.rint(np.clip(np.where(big, bulge, 0.0), -_MAX_BULGE, _MAX_BULGE)
+                   * 10).astype(np.int64)
+    bent = (qb != 0) | big
+    t = TextRows(m)
+    t.text("  0\nLWPOLYLINE\n  5\n", first)
+    t.hex(handle, first)
+    t.text(f"\n330\n{owner}\n100\nAcDbEntity\n  8\n{layer}\n100\nAcDbPolyline\n 90\n", first)
+    t.number(count, 0, first)
+    t.text("\n 70\n0\n", first)
+    t.text(" 10\n")
+    t.number(q[:, 0], _DECIMALS, trim=True)
+    t.text("\n 20\n")
+    t.number(q[:, 1], _DECIMALS, trim=True)
+    t.text("\n")
+    t.text(" 42\n", bent)
+    t.number(qb, _BULGE_DECIMALS, bent & ~big, trim=True)
+    t.number(qbig, 1, big, trim=True)
+    t.text("\n", bent)
+    return t.tobytes()
+
+
+def _circles(g: Grooves, first_handle: int, layer: str, owner: str, radius: float) -> bytes:
+    """The DXF text of the dots of ``g`` as CIRCLEs of ``radius``, handles from
+    ``first_handle``."""
+    centres = g.vertices.reshape(-1, 2)[g.offsets[:-1]]
+    q = np.rint(centres * _SCALE).astype(np.int64)
+    t = TextRows(len(centres))
+    t.text("  0\nCIRCLE\n  5\n")
+    t.hex(np.arange(first_handle, first_handle + len(centres)))
+    t.text(f"\n330\n{owner}\n100\nAcDbEntity\n  8\n{layer}\n100\nAcDbCircle\n 10\n")
+    t.number(q[:, 0], _DECIMALS, trim=True)
+    t.text("\n 20\n")
+    t.number(q[:, 1], _DECIMALS, trim=True)
+    t.text(f"\n 30\n0.0\n 40\n{float(radius)!r}\n")
+    return t.tobytes()
+
+
 def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
               depths: np.ndarray | None = None) -> list[Layer]:
-    """Write the grooves as a DXF drawing in mm, atomically.
+    """Write the grooves as a DXF drawing in mm, atomically, a chunk of paths at a time.
 
     Args:
         path: destination ``.dxf`` file.
@@ -78,45 +173,31 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     """
     check_grooves(grooves)
     layers = plan_layers(grooves, tool, depths)
-    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
-    offsets = np.asarray(grooves.offsets, dtype=np.int64)
-    m = len(verts)
-
-    segs = grooves.segments()
-    last = np.zeros(m, dtype=bool)
-    last[offsets[1:] - 1] = True
-    bulge = np.zeros(m)
-    bulge[~last] = np.where(is_straight(segs), 0.0, segs.bulge)
-    # one [x, y, bulge] row per vertex, as Python floats for ezdxf
-    xyb = np.column_stack([verts, bulge]).tolist()
 
     with _reproducible():
         doc = ezdxf.new(DXF_VERSION, units=units.MM)
     doc.header["$MEASUREMENT"] = 1  # metric
     msp = doc.modelspace()
+    owner = msp.block_record.dxf.handle
     r = format_number(tool.radius, 3)
+    handles = doc.entitydb.handles
+    first_handles = []
     for layer in layers:
         entry = doc.layers.add(layer.name, color=layer.aci)
         kind = "dots (plunges)" if layer.dots else "grooves"
         entry.description = (f"specholo {kind}: depth {format_number(layer.depth, 4)} mm, "
                              f"ball radius {r} mm, width {format_number(layer.width, 4)} mm")
-        attribs = {"layer": layer.name}
-        starts = offsets[layer.paths]
-        if layer.dots:
-            radius = 0.5 * layer.width
-            for i in starts.tolist():
-                msp.add_circle(xyb[i][:2], radius, dxfattribs=attribs)
-        else:
-            for i, j in zip(starts.tolist(), offsets[layer.paths + 1].tolist(), strict=True):
-                msp.add_lwpolyline(xyb[i:j], format="xyb", dxfattribs=attribs)
+        # the layer's entities take the next handles, as when ezdxf adds them
+        first = int(str(handles), 16)
+        first_handles.append(first)
+        handles.reset(f"{first + len(layer.paths):X}")
 
     # extents and the initial view, so viewers open on the drawing
-    dots, _ = grooves.dots()
     half = 0.5 * max([layer.width for layer in layers] or [tool.width])
-    parts = [dots - half, dots + half] + ([arc_bounds(segs)] if len(segs) else [])
-    extent = np.concatenate(parts) if m else np.zeros((1, 2))
-    lo, hi = extent.min(axis=0), extent.max(axis=0)
-    if m:  # ezdxf copies these into $EXTMIN/$EXTMAX; an empty drawing keeps its "no extents"
+    box = drawing_bounds(grooves, half)
+    lo, hi = box if box is not None else np.zeros((2, 2))
+    # ezdxf copies these into $EXTMIN/$EXTMAX; an empty drawing keeps its "no extents"
+    if box is not None:
         msp.dxf.extmin = (float(lo[0]), float(lo[1]), 0.0)
         msp.dxf.extmax = (float(hi[0]), float(hi[1]), 0.0)
     size = float(max(hi[0] - lo[0], hi[1] - lo[1], 1.0))
@@ -130,6 +211,22 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     doc.entitydb.dxf_types_in_use = lambda: sorted(in_use())  # type: ignore[method-assign,assignment,return-value]
     with _reproducible():
         doc.write(text)
+    drawing = text.getvalue()
+    at = drawing.find(_ENTITIES)
+    if at < 0 or not drawing.startswith(_ENDSEC, at + len(_ENTITIES)):
+        raise SpecholoError(f"ezdxf {ezdxf.__version__} wrote no empty ENTITIES section")
+    at += len(_ENTITIES)
     with atomic_open(path, "wb") as fh:
-        fh.write(doc.encode(text.getvalue()))
+        fh.write(doc.encode(drawing[:at]))
+        for layer, first in zip(layers, first_handles, strict=True):
+            sizes = grooves.path_sizes[layer.paths]
+            bounds = chunk_bounds(sizes, _CHUNK_ROWS)
+            for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+                g = take_paths(grooves, layer.paths[a:b])
+                if layer.dots:
+                    chunk = _circles(g, first + a, layer.name, owner, 0.5 * layer.width)
+                else:
+                    chunk = _polylines(g, first + a, layer.name, owner)
+                fh.write(chunk)
+        fh.write(doc.encode(drawing[at:]))
     return layers

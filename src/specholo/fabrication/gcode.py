@@ -38,10 +38,12 @@ offset from the arc starts, so the interpreter sees exactly the rounded centre:
 the two radii of an arc then differ by less than 3e-5 mm, far inside the
 tolerance of LinuxCNC (and GRBL's 5 um).
 
-Writing is vectorised: each vertex becomes one row of a byte table (its
-``(stipple N)``/rapid/plunge lines if it starts a path, its move line otherwise,
-and the retract if it ends one). Absent parts are NUL bytes, which are squeezed
-out in one pass, so no Python code runs per line.
+Writing streams: paths are taken a chunk at a time (at most ``_CHUNK_ROWS``
+vertices), so memory does not grow with the program. In a chunk each vertex
+becomes one row of text (its ``(stipple N)``/rapid/plunge lines if it starts a
+path, its move line otherwise, and the retract if it ends one), described by
+columns of numbers and masks (:class:`TextRows`) and written by one compiled
+loop, so no Python code runs per line.
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ from dataclasses import dataclass
 from operator import itemgetter
 from typing import Literal
 
+import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
@@ -189,6 +192,13 @@ class GcodeStats:
     rapid_length_mm: float
 
 
+def chord_lengths(start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """(k,) distances between points (k, 2): ``np.linalg.norm(end - start, axis=1)``
+    to the bit, without numpy's slow reduction along rows of two."""
+    d = end - start
+    return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+
+
 def is_straight(segments: Segments) -> np.ndarray:
     """Which arcs the exporters write as straight segments.
 
@@ -200,7 +210,7 @@ def is_straight(segments: Segments) -> np.ndarray:
         and half its sweep below ``STRAIGHT_TURN_RAD``, or its radius below
         ``MIN_ARC_RADIUS_MM``.
     """
-    chord = np.linalg.norm(segments.end - segments.start, axis=1)
+    chord = chord_lengths(segments.start, segments.end)
     b = np.abs(segments.bulge)
     # chord / 2 * tan(sweep / 4) is the sagitta, chord (1 + b^2) / (4 b) the radius
     sagitta = 0.5 * chord * b
@@ -225,69 +235,169 @@ def format_number(value: float, decimals: int = DECIMALS) -> str:
 class TextRows:
     """Builds n rows of ASCII text side by side, one column block at a time.
 
-    Each block is an (n, w) uint8 array; NUL bytes are padding and are removed
-    when the rows are joined, so a block can be left out of some rows by zeroing it.
+    Blocks are recorded as they are added (a text, a choice of texts, or a
+    column of fixed-point numbers, each optionally left out of some rows) and
+    written out row by row by one compiled loop in :meth:`tobytes`, so no Python
+    code runs per row.
     """
 
     def __init__(self, n: int) -> None:
         self.n = n
-        self._blocks: list[np.ndarray] = []
+        self._ops: list[tuple[int, int, int, int]] = []  # kind, a, b, mask column (-1: none)
+        self._pool = bytearray()  # the texts of all blocks, back to back
+        self._options: list[tuple[int, int]] = []  # (pool start, length) of each choice option
+        self._masks: list[np.ndarray] = []
+        self._columns: list[np.ndarray] = []  # choice indices and numbers, (n,) int64 each
+        self._width = 0  # most bytes one row can take
 
-    def _add(self, block: np.ndarray, mask: np.ndarray | None) -> None:
-        if mask is not None:
-            block = block * mask[:, None].astype(np.uint8)
-        self._blocks.append(block)
+    def _mask(self, mask: np.ndarray | None) -> int:
+        if mask is None:
+            return -1
+        self._masks.append(np.asarray(mask, dtype=bool).reshape(self.n))
+        return len(self._masks) - 1
+
+    def _column(self, values: np.ndarray) -> int:
+        self._columns.append(np.asarray(values, dtype=np.int64).reshape(self.n))
+        return len(self._columns) - 1
 
     def text(self, text: str, mask: np.ndarray | None = None) -> None:
         """The same text in every row (or in the rows where ``mask`` (n,) is True)."""
-        row = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
-        self._add(np.broadcast_to(row, (self.n, len(row))), mask)
+        data = text.encode("ascii")
+        self._ops.append((_OP_TEXT, len(self._pool), len(data), self._mask(mask)))
+        self._pool += data
+        self._width += len(data)
 
     def choice(self, options: Sequence[str], index: np.ndarray) -> None:
         """``options[index[i]]`` in row i; index (n,) ints."""
-        width = max(len(o) for o in options)
-        table = np.zeros((len(options), width), dtype=np.uint8)
-        for k, option in enumerate(options):
-            table[k, : len(option)] = np.frombuffer(option.encode("ascii"), dtype=np.uint8)
-        self._blocks.append(table[index])
+        index = np.asarray(index, dtype=np.int64)
+        if self.n and not (0 <= index.min() and index.max() < len(options)):
+            raise ValueError(f"choice index must be in [0, {len(options)}), got "
+                             f"{index.min()} to {index.max()}")
+        first = len(self._options)
+        for option in options:
+            data = option.encode("ascii")
+            self._options.append((len(self._pool), len(data)))
+            self._pool += data
+        self._ops.append((_OP_CHOICE, first, self._column(index), -1))
+        self._width += max(len(o) for o in options)
 
-    def number(self, q: np.ndarray, decimals: int, mask: np.ndarray | None = None) -> None:
-        """Fixed-point numbers given as integers q (n,) in units of 10**-decimals."""
-        self._add(fixed_point_bytes(q, decimals), mask)
+    def number(self, q: np.ndarray, decimals: int, mask: np.ndarray | None = None,
+               trim: bool = False) -> None:
+        """Fixed-point numbers given as integers q (n,) in units of 10**-decimals.
+
+        With ``trim``, trailing zeros of the decimals are left out but for one
+        (``10.0``, ``0.25``), as Python writes floats.
+        """
+        if not 0 <= decimals <= 18:
+            raise ValueError(f"decimals must be in [0, 18], got {decimals}")
+        kind = _OP_TRIMMED if trim and decimals else _OP_NUMBER
+        self._ops.append((kind, decimals, self._column(q), self._mask(mask)))
+        self._width += _MAX_NUMBER_BYTES
+
+    def hex(self, q: np.ndarray, mask: np.ndarray | None = None) -> None:
+        """Integers q (n,) >= 0 in upper-case hexadecimal (DXF handles)."""
+        q = np.asarray(q, dtype=np.int64)
+        if self.n and q.min() < 0:
+            raise ValueError(f"hexadecimal numbers must be >= 0, got {q.min()}")
+        self._ops.append((_OP_HEX, 0, self._column(q), self._mask(mask)))
+        self._width += _MAX_NUMBER_BYTES
 
     def tobytes(self) -> bytes:
-        """All rows, concatenated without the padding."""
-        if not self._blocks or self.n == 0:
+        """All rows, concatenated."""
+        if not self._ops or self.n == 0:
             return b""
-        table = np.concatenate(self._blocks, axis=1)
-        return table[table != 0].tobytes()
+        n = self.n
+
+        def stack(arrays: list[np.ndarray], dtype: type) -> np.ndarray:
+            # (n, k): a row's values side by side
+            return np.stack(arrays, axis=1).astype(dtype, copy=False) if arrays \
+                else np.zeros((n, 0), dtype=dtype)
+
+        options = np.asarray(self._options, dtype=np.int64).reshape(-1, 2)
+        out = np.empty(n * self._width, dtype=np.uint8)
+        size = _write_rows(n, np.asarray(self._ops, dtype=np.int64),
+                           np.frombuffer(bytes(self._pool), dtype=np.uint8), options,
+                           stack(self._masks, np.bool_), stack(self._columns, np.int64), out)
+        return out[:size].tobytes()
 
 
-def fixed_point_bytes(q: np.ndarray, decimals: int) -> np.ndarray:
-    """ASCII digits of scaled integers, NUL-padded.
+_OP_TEXT, _OP_CHOICE, _OP_NUMBER, _OP_TRIMMED, _OP_HEX = 0, 1, 2, 3, 4
+#: Digits of the largest int64, plus a sign and a point.
+_MAX_NUMBER_BYTES = 21
 
-    Args:
-        q: (n,) integers, the numbers in units of 10**-decimals.
-        decimals: digits after the decimal point (0 for integers).
 
-    Returns:
-        (n, w) uint8: a '-' (or NUL) in column 0, then the digits right-aligned
-        with NUL in place of leading zeros, with the point before the last
-        ``decimals`` digits. Removing the NULs gives e.g. ``-12.0400``.
+@nb.njit(cache=True)
+def _write_rows(n: int, ops: np.ndarray, pool: np.ndarray, options: np.ndarray, masks: np.ndarray,
+                columns: np.ndarray, out: np.ndarray) -> int:
+    """Write the rows of a :class:`TextRows` into ``out``; returns the bytes written.
+
+    A number q with d decimals is written like ``-12.0400``: a '-' if q < 0, the
+    digits of |q| (at least d + 1 of them, so ``0.05``, never ``.05``) with the
+    point before the last d; trimmed, without the trailing zeros but one
+    (``-12.04``).
     """
-    q = np.asarray(q, dtype=np.int64)
-    a = np.abs(q)
-    ndig = max(len(str(int(a.max(initial=0)))), decimals + 1)
-    pow10 = 10 ** np.arange(ndig - 1, -1, -1, dtype=np.int64)
-    digits = (a[:, None] // pow10) % 10
-    shown = a[:, None] >= pow10
-    shown[:, ndig - decimals - 1 :] = True  # the units digit and the decimals always show
-    chars = np.where(shown, digits + ord("0"), 0).astype(np.uint8)
-    sign = np.where(q < 0, ord("-"), 0).astype(np.uint8)[:, None]
-    if decimals == 0:
-        return np.concatenate([sign, chars], axis=1)
-    point = np.full((len(q), 1), ord("."), dtype=np.uint8)
-    return np.concatenate([sign, chars[:, :-decimals], point, chars[:, -decimals:]], axis=1)
+    digits = np.empty(20, dtype=np.uint8)
+    pos = 0
+    for row in range(n):
+        for k in range(ops.shape[0]):
+            kind, a, b, m = ops[k, 0], ops[k, 1], ops[k, 2], ops[k, 3]
+            if m >= 0 and not masks[row, m]:
+                continue
+            if kind == 0:
+                for i in range(b):  # byte loops: a slice per row costs more than the copy
+                    out[pos + i] = pool[a + i]
+                pos += b
+            elif kind == 1:
+                start, length = options[a + columns[row, b], 0], options[a + columns[row, b], 1]
+                for i in range(length):
+                    out[pos + i] = pool[start + i]
+                pos += length
+            elif kind == 4:
+                q = columns[row, b]
+                nd = 0
+                while True:
+                    digit = q & 15
+                    digits[nd] = 48 + digit if digit < 10 else 55 + digit
+                    q >>= 4
+                    nd += 1
+                    if q == 0:
+                        break
+                for i in range(nd - 1, -1, -1):
+                    out[pos] = digits[i]
+                    pos += 1
+            else:
+                q = columns[row, b]
+                if q < 0:
+                    out[pos] = 45  # '-'
+                    pos += 1
+                    q = -q
+                nd = 0
+                while q >= 100:  # two digits a division
+                    r = q % 100
+                    q //= 100
+                    digits[nd] = 48 + r % 10
+                    digits[nd + 1] = 48 + r // 10
+                    nd += 2
+                while True:
+                    digits[nd] = 48 + q % 10
+                    q //= 10
+                    nd += 1
+                    if q == 0:
+                        break
+                while nd <= a:  # the units digit and the decimals always show
+                    digits[nd] = 48
+                    nd += 1
+                skip = 0  # trailing zeros left out
+                if kind == 3:
+                    while skip < a - 1 and digits[skip] == 48:
+                        skip += 1
+                for i in range(nd - 1, skip - 1, -1):
+                    out[pos] = digits[i]
+                    pos += 1
+                    if i == a and a > 0:
+                        out[pos] = 46  # '.'
+                        pos += 1
+    return pos
 
 
 def _comment(text: str, semicolon: bool = False) -> str:
@@ -309,10 +419,43 @@ def check_grooves(grooves: Grooves) -> None:
     """Raise SpecholoError unless the grooves can be written (no empty path, finite numbers)."""
     if np.any(grooves.path_sizes < 1):
         raise SpecholoError("grooves contain an empty path")
-    if not np.all(np.isfinite(grooves.vertices)) or not np.all(np.isfinite(grooves.bulges)):
+    # the least and greatest value (NaN if any is NaN) tell, without a copy of the grooves
+    ends = [float(f(a)) for a in (grooves.vertices, grooves.bulges) if np.size(a)
+            for f in (np.min, np.max)]
+    if not all(math.isfinite(e) for e in ends):
         raise SpecholoError("grooves contain non-finite vertices or bulges")
-    if len(grooves.vertices) and np.abs(grooves.vertices).max() > _MAX_COORD_MM:
+    if np.size(grooves.vertices) and max(-ends[0], ends[1]) > _MAX_COORD_MM:
         raise SpecholoError(f"groove vertices exceed {_MAX_COORD_MM:g} mm")
+
+
+def chunk_bounds(sizes: np.ndarray, rows: int) -> np.ndarray:
+    """Split consecutive paths into chunks of at most ``rows`` vertices.
+
+    Args:
+        sizes: (k,) vertices of each path.
+        rows: most vertices per chunk; a longer path is a chunk of its own.
+
+    Returns:
+        (c + 1,) ascending path indices from 0 to k: chunk i holds paths
+        ``bounds[i]:bounds[i + 1]``.
+    """
+    if rows < 1:
+        raise ValueError(f"rows per chunk must be at least 1, got {rows}")
+    ends = np.cumsum(np.asarray(sizes, dtype=np.int64))
+    bounds = [0]
+    while bounds[-1] < len(ends):
+        lo = bounds[-1]
+        before = int(ends[lo - 1]) if lo else 0
+        bounds.append(max(int(np.searchsorted(ends, before + rows, side="right")), lo + 1))
+    return np.asarray(bounds, dtype=np.int64)
+
+
+def slice_paths(grooves: Grooves, lo: int, hi: int) -> Grooves:
+    """Paths ``lo:hi`` of the grooves as grooves of their own (views, not copies)."""
+    a, b = int(grooves.offsets[lo]), int(grooves.offsets[hi])
+    return Grooves(grooves.vertices[a:b], grooves.bulges[a:b],
+                   np.asarray(grooves.offsets[lo:hi + 1], dtype=np.int64) - a,
+                   grooves.stipple[lo:hi])
 
 
 def wide_arcs(segments: Segments, max_offset: float = MAX_ARC_OFFSET_MM) -> np.ndarray:
@@ -431,7 +574,6 @@ def write_gcode(
     check_grooves(grooves)
     n_paths = grooves.n_paths
     n_dots = int(np.sum(grooves.path_sizes == 1))
-    grooves = split_wide_arcs(grooves, opt.max_arc_offset)
     mill = opt.mill
     depth = tool.depth if depth is None else float(depth)
     safe = machining.safe_z
@@ -441,42 +583,6 @@ def write_gcode(
     def num(mm: float) -> str:
         return format_number(mm * opt.per_mm, dec)
 
-    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
-    m = len(verts)
-    offsets = np.asarray(grooves.offsets, dtype=np.int64)
-    sizes = np.diff(offsets)
-
-    first = np.zeros(m, dtype=bool)
-    first[offsets[:-1]] = True
-    last = np.zeros(m, dtype=bool)
-    last[offsets[1:] - 1] = True
-    second = np.zeros(m, dtype=bool)
-    second[offsets[:-1][sizes > 1] + 1] = True
-    dot = first & last
-
-    qv = np.rint(verts * scale).astype(np.int64)
-    segs = grooves.segments()
-    straight = is_straight(segs)
-    arc_start = np.flatnonzero(~last)  # vertex where each segment starts
-    rows = arc_start + 1  # the segment's move is written on its end vertex's row
-    # an arc whose ends round to one point would be read as a full circle
-    straight |= np.all(qv[arc_start] == qv[rows], axis=1)
-    code = np.zeros(m, dtype=np.int64)  # 0 first vertex, 1 G1, 2 G2, 3 G3
-    code[rows] = np.where(straight, 1, np.where(segs.bulge < 0, 2, 3))
-    arc = code >= 2
-    centre, _, _, _ = Segments(
-        segs.start[~straight], segs.end[~straight], segs.bulge[~straight], segs.path[~straight]
-    ).geometry()
-    qij = np.zeros((m, 2), dtype=np.int64)
-    # the interpreter adds I J to the rounded start: offset the rounded centre from it
-    qij[rows[~straight]] = np.rint(centre * scale).astype(np.int64) - qv[arc_start[~straight]]
-    stipple = np.repeat(np.asarray(grooves.stipple, dtype=np.int64), sizes)
-
-    lengths = np.where(straight, np.linalg.norm(segs.end - segs.start, axis=1), segs.lengths())
-    starts = verts[offsets[:-1]]
-    ends = verts[offsets[1:] - 1]
-    # from above the origin to the first groove, then from each groove's end to the next
-    travel = np.linalg.norm(starts - np.vstack([np.zeros((1, 2)), ends[:-1]]), axis=1)
     vertical = n_paths * (safe + depth) if mill else 0.0
 
     unit = "mm" if opt.units == "mm" else "in"
@@ -537,44 +643,137 @@ def write_gcode(
     feed = f" F{num(machining.feed)}"
 
     n_lines = len(head) + len(tail)
+    cutting = rapid = 0.0
+    chords = 0
+    end = np.zeros(2)  # the job starts above the origin
+    bounds = chunk_bounds(grooves.path_sizes, _CHUNK_ROWS)
     with atomic_open(path, "wb") as fh:
         fh.write(("\n".join(head) + "\n").encode("ascii"))
-        for lo in range(0, m, _CHUNK_ROWS):
-            s = slice(lo, min(lo + _CHUNK_ROWS, m))
-            t = TextRows(s.stop - s.start)
-            f = first[s]
-            t.text(stipple_open, f)
-            t.number(stipple[s], 0, f)
-            t.choice([stipple_close + "G0", "G1", "G2", "G3"], code[s])
-            t.text(" X")
-            t.number(qv[s, 0], dec)
-            t.text(" Y")
-            t.number(qv[s, 1], dec)
-            a = arc[s]
-            t.text(" I", a)
-            t.number(qij[s, 0], dec, a)
-            t.text(" J", a)
-            t.number(qij[s, 1], dec, a)
-            t.text(feed, second[s])
-            if rapid_text:
-                t.text(rapid_text, f)
-            t.text("\n")
-            t.text(start_text, f)
-            if dot_text:
-                t.text(dot_text, dot[s])
-            t.text(end_text, last[s])
-            text = t.tobytes()
-            n_lines += text.count(b"\n")
-            fh.write(text)
+        for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+            part = slice_paths(grooves, lo, hi)
+            rows = _move_rows(part, scale, opt.max_arc_offset)
+            g = rows.grooves
+            chords += len(g.vertices) - len(part.vertices)
+            if chords > _MAX_CHORDS:
+                raise SpecholoError(f"wide arcs would need more than {_MAX_CHORDS:.0e} chords")
+            cutting += rows.length
+            starts = g.vertices[g.offsets[:-1]]
+            ends = g.vertices[g.offsets[1:] - 1]
+            # from the last groove's end (or the origin) to each groove's start
+            rapid += float(chord_lengths(np.vstack([end, ends[:-1]]), starts).sum())
+            end = ends[-1]
+            for r in range(0, len(g.vertices), _CHUNK_ROWS):
+                s = slice(r, r + _CHUNK_ROWS)
+                t = TextRows(len(rows.code[s]))
+                f = rows.first[s]
+                t.text(stipple_open, f)
+                t.number(rows.stipple[s], 0, f)
+                t.choice([stipple_close + "G0", "G1", "G2", "G3"], rows.code[s])
+                t.text(" X")
+                t.number(rows.qv[s, 0], dec)
+                t.text(" Y")
+                t.number(rows.qv[s, 1], dec)
+                a = rows.code[s] >= 2
+                t.text(" I", a)
+                t.number(rows.qij[s, 0], dec, a)
+                t.text(" J", a)
+                t.number(rows.qij[s, 1], dec, a)
+                t.text(feed, rows.second[s])
+                if rapid_text:
+                    t.text(rapid_text, f)
+                t.text("\n")
+                t.text(start_text, f)
+                if dot_text:
+                    t.text(dot_text, f & rows.last[s])
+                t.text(end_text, rows.last[s])
+                text = t.tobytes()
+                n_lines += text.count(b"\n")
+                fh.write(text)
         if tail:
             fh.write(("\n".join(tail) + "\n").encode("ascii"))
 
     return GcodeStats(
         lines=n_lines,
         paths=n_paths,
-        cutting_length_mm=float(lengths.sum() + vertical),
-        rapid_length_mm=float(travel.sum() + vertical),
+        cutting_length_mm=cutting + vertical,
+        rapid_length_mm=rapid + vertical,
     )
+
+
+@dataclass(frozen=True)
+class _MoveRows:
+    """The move written on each vertex's row of a program (see :func:`_move_rows`).
+
+    Attributes:
+        first: (m,) True where a path starts (comment, rapid, plunge).
+        second: (m,) True on a path's second vertex (its first feed move takes ``F``).
+        last: (m,) True where a path ends (retract).
+        code: (m,) 0 on a path's first vertex, else the move: 1 G1, 2 G2, 3 G3.
+        qv: (m, 2) the vertex, in written integers.
+        qij: (m, 2) the arc centre from the arc's start (rows of G2/G3), written integers.
+        stipple: (m,) stipple id of the vertex's path.
+        length: total length of the moves, mm.
+        grooves: the grooves written, wide arcs split (m vertices).
+    """
+
+    first: np.ndarray
+    second: np.ndarray
+    last: np.ndarray
+    code: np.ndarray
+    qv: np.ndarray
+    qij: np.ndarray
+    stipple: np.ndarray
+    length: float
+    grooves: Grooves
+
+
+def _move_rows(grooves: Grooves, scale: float, max_offset: float) -> _MoveRows:
+    """One row per vertex of the program that cuts the grooves.
+
+    Args:
+        grooves: n paths.
+        scale: written integers per mm.
+        max_offset: largest I/J, mm; arcs centred further away are split into
+            chords first (:func:`split_wide_arcs`).
+    """
+    segs = grooves.segments()
+    curved = np.flatnonzero(~is_straight(segs))
+    centre, _, _, _ = Segments(segs.start[curved], segs.end[curved], segs.bulge[curved],
+                               segs.path[curved]).geometry()
+    # as wide_arcs, without working out the arcs twice
+    offset = np.abs(centre - segs.start[curved])
+    if math.isfinite(max_offset) and (np.maximum(offset[:, 0], offset[:, 1]) > max_offset).any():
+        return _move_rows(split_wide_arcs(grooves, max_offset), scale, math.inf)
+    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
+    m = len(verts)
+    offsets = np.asarray(grooves.offsets, dtype=np.int64)
+    sizes = np.diff(offsets)
+
+    first = np.zeros(m, dtype=bool)
+    first[offsets[:-1]] = True
+    last = np.zeros(m, dtype=bool)
+    last[offsets[1:] - 1] = True
+    second = np.zeros(m, dtype=bool)
+    second[offsets[:-1][sizes > 1] + 1] = True
+
+    qv = np.rint(verts * scale).astype(np.int64)
+    arc_start = np.flatnonzero(~last)  # vertex where each segment starts
+    rows = arc_start + 1  # the segment's move is written on its end vertex's row
+    # an arc whose ends round to one point would be read as a full circle
+    a, b = qv[arc_start[curved]], qv[rows[curved]]
+    keep = (a[:, 0] != b[:, 0]) | (a[:, 1] != b[:, 1])
+    arcs = curved[keep]
+    code = np.zeros(m, dtype=np.int64)  # 0 first vertex, 1 G1, 2 G2, 3 G3
+    code[rows] = 1
+    code[rows[arcs]] = np.where(segs.bulge[arcs] < 0, 2, 3)
+    qij = np.zeros((m, 2), dtype=np.int64)
+    # the interpreter adds I J to the rounded start: offset the rounded centre from it
+    qij[rows[arcs]] = np.rint(centre[keep] * scale).astype(np.int64) - qv[arc_start[arcs]]
+    stipple = np.repeat(np.asarray(grooves.stipple, dtype=np.int64), sizes)
+    lengths = chord_lengths(segs.start, segs.end)
+    lengths[arcs] = Segments(segs.start[arcs], segs.end[arcs], segs.bulge[arcs],
+                             segs.path[arcs]).lengths()
+    return _MoveRows(first, second, last, code, qv, qij, stipple, float(lengths.sum()), grooves)
 
 
 # ---------------------------------------------------------------------------

@@ -15,8 +15,9 @@ layer number (a name like ``GROOVES_D0.080_R0.250`` alone would read as layer
 0, i.e. 1, for every layer). Each layer has its own colour, which is also how
 laser software such as LightBurn tells layers apart.
 
-Like the G-code writer, rows of text are built as byte tables (one row per
-vertex) so no Python code runs per element.
+Like the G-code writer, it writes a chunk of paths at a time, one row of text
+per vertex (:class:`~specholo.fabrication.gcode.TextRows`), so memory does not
+grow with the drawing and no Python code runs per element.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import math
 import os
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
@@ -32,8 +34,10 @@ from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import (
     TextRows,
     check_grooves,
+    chunk_bounds,
     format_number,
     is_straight,
+    slice_paths,
 )
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves, Segments
@@ -162,6 +166,37 @@ def path_rows(offsets: np.ndarray, paths: np.ndarray) -> np.ndarray:
     return np.repeat(starts - first, sizes) + np.arange(int(sizes.sum()), dtype=np.int64)
 
 
+def take_paths(grooves: Grooves, paths: np.ndarray) -> Grooves:
+    """The given paths (k,) of the grooves, in that order, as grooves of their own."""
+    offsets = np.asarray(grooves.offsets, dtype=np.int64)
+    idx = path_rows(offsets, paths)
+    sizes = offsets[paths + 1] - offsets[paths]
+    return Grooves(grooves.vertices[idx], grooves.bulges[idx],
+                   np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                   grooves.stipple[paths])
+
+
+@nb.njit(cache=True)
+def _extremes_bounds(centre: np.ndarray, radius: np.ndarray, start: np.ndarray,
+                     sweep: np.ndarray, phi: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """(2, 2) bounds of the circles' extreme points in the directions ``phi`` (4,)
+    (unit vectors ``direction`` (4, 2)) that the arcs pass; +-inf if none."""
+    box = np.empty((2, 2))
+    box[0, :] = np.inf
+    box[1, :] = -np.inf
+    two_pi = 2.0 * np.pi
+    for i in range(len(radius)):
+        lo = min(start[i], start[i] + sweep[i])
+        span = abs(sweep[i])
+        for k in range(len(phi)):
+            if (phi[k] - lo) % two_pi <= span:  # the modulo of np.mod
+                for j in range(2):
+                    v = centre[i, j] + radius[i] * direction[k, j]
+                    box[0, j] = min(box[0, j], v)
+                    box[1, j] = max(box[1, j], v)
+    return box
+
+
 def arc_bounds(segments: Segments) -> np.ndarray:
     """Bounding box of arcs, counting where they bulge past their end points.
 
@@ -179,54 +214,55 @@ def arc_bounds(segments: Segments) -> np.ndarray:
         sub = Segments(segments.start[arcs], segments.end[arcs], segments.bulge[arcs],
                        segments.path[arcs])
         centre, radius, start, sweep = sub.geometry()
-        lo = np.minimum(start, start + sweep)
-        span = np.abs(sweep)
-        for k in range(4):
-            # the circle's extreme point in direction k * 90 degrees, where the arc passes it
-            phi = k * 0.5 * np.pi
-            inside = np.mod(phi - lo, 2.0 * np.pi) <= span
-            d = np.array([np.cos(phi), np.sin(phi)])
-            pts.append((centre + radius[:, None] * d)[inside])
-    allpts = np.concatenate(pts)
-    return np.stack([allpts.min(axis=0), allpts.max(axis=0)])
+        phi = np.arange(4) * 0.5 * np.pi
+        box = _extremes_bounds(centre, radius, start, sweep, phi,
+                               np.stack([np.cos(phi), np.sin(phi)], axis=1))
+        if np.isfinite(box).all():  # its corners bound the extreme points
+            pts.append(box)
+    return _corners(pts)
 
 
-def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
-              margin: float = 5.0, depths: np.ndarray | None = None) -> None:
-    """Write the grooves as an SVG drawing in mm, atomically.
+def _corners(points: list[np.ndarray]) -> np.ndarray:
+    """(2, 2) lowest and highest x and y of several (k, 2) arrays, not all empty.
+
+    Column by column: numpy reduces an (k, 2) array along axis 0 several times
+    slower."""
+    points = [p for p in points if len(p)]
+    return np.array([[min(float(p[:, j].min()) for p in points) for j in range(2)],
+                     [max(float(p[:, j].max()) for p in points) for j in range(2)]])
+
+
+def drawing_bounds(grooves: Grooves, half: float = 0.0) -> np.ndarray | None:
+    """Bounding box of a drawing of the grooves, a chunk of paths at a time.
 
     Args:
-        path: destination ``.svg`` file.
-        grooves: m vertices in n paths; dots become filled circles.
-        tool: the groove width for each depth is the stroke width and dot diameter.
-        margin: blank border around the grooves, mm.
-        depths: optional (n,) depth of each path, mm; each depth class gets its
-            own groove and dot layers (see :func:`plan_layers`).
+        grooves: n paths.
+        half: half the width of a dot, mm (dots reach that far round their plunge).
 
-    Raises:
-        SpecholoError: if the grooves hold an empty path or non-finite numbers,
-            or ``depths`` is malformed.
+    Returns:
+        (2, 2) lower-left and upper-right corners in mm of the arcs (see
+        :func:`arc_bounds`) and the dots, or None if there is no vertex.
     """
-    check_grooves(grooves)
-    margin = float(margin)
-    if not (math.isfinite(margin) and margin >= 0.0):
-        raise SpecholoError(f"SVG margin must be a finite number >= 0 mm, got {margin}")
-    layers = plan_layers(grooves, tool, depths)
-    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    bounds = chunk_bounds(grooves.path_sizes, _CHUNK_ROWS)
+    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+        g = slice_paths(grooves, a, b)
+        dots, _ = g.dots()
+        segs = g.segments()
+        parts = [dots - half, dots + half] + ([arc_bounds(segs)] if len(segs) else [])
+        if any(len(p) for p in parts):
+            box = _corners(parts)
+            lo = np.minimum(lo, box[0])
+            hi = np.maximum(hi, box[1])
+    return np.stack([lo, hi]) if np.isfinite(lo).all() else None
+
+
+def _path_text(g: Grooves) -> bytes:
+    """SVG ``<path>`` elements of the paths of ``g`` (none a dot)."""
+    verts = np.asarray(g.vertices, dtype=float).reshape(-1, 2)
     m = len(verts)
-    offsets = np.asarray(grooves.offsets, dtype=np.int64)
-
-    segs = grooves.segments()
-    dots, _ = grooves.dots()
-    extent = np.concatenate([dots] + ([arc_bounds(segs)] if len(segs) else []))
-    if len(extent) == 0:
-        extent = np.zeros((1, 2))
-    box = np.stack([extent.min(axis=0), extent.max(axis=0)])
-    pad = margin + 0.5 * max([layer.width for layer in layers] or [tool.width])
-    x0, x1 = box[0, 0] - pad, box[1, 0] + pad
-    y0, y1 = -box[1, 1] - pad, -box[0, 1] + pad  # SVG y = -plate y
-    w, h = x1 - x0, y1 - y0
-
+    offsets = np.asarray(g.offsets, dtype=np.int64)
+    segs = g.segments()
     last = np.zeros(m, dtype=bool)
     last[offsets[1:] - 1] = True
     straight = is_straight(segs)
@@ -248,6 +284,64 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     large[rows] = np.abs(segs.bulge) > 1.0  # sweeps over 180 degrees
     sweep = np.zeros(m, dtype=np.int64)
     sweep[rows] = segs.bulge < 0  # y flipped: counter-clockwise on the plate is flag 0
+
+    t = TextRows(m)
+    t.choice(['<path d="M ', " A ", " L "], kind)
+    t.number(q_radius, _RADIUS_DECIMALS, arc)
+    t.text(" ", arc)
+    t.number(q_radius, _RADIUS_DECIMALS, arc)
+    t.text(" 0 ", arc)
+    t.choice(["", "0", "1"], np.where(arc, 1 + large, 0))
+    t.text(" ", arc)
+    t.choice(["", "0", "1"], np.where(arc, 1 + sweep, 0))
+    t.text(" ", arc)
+    t.number(qx, _DECIMALS)
+    t.text(" ")
+    t.number(qy, _DECIMALS)
+    t.choice(["", '"/>\n'], last.astype(np.int64))
+    return t.tobytes()
+
+
+def _dot_text(g: Grooves, radius: str) -> bytes:
+    """SVG ``<circle>`` elements of radius ``radius`` (text, mm) for the dots of ``g``."""
+    dots, _ = g.dots()
+    t = TextRows(len(dots))
+    t.text('<circle cx="')
+    t.number(np.rint(dots[:, 0] * _SCALE).astype(np.int64), _DECIMALS)
+    t.text('" cy="')
+    t.number(np.rint(-dots[:, 1] * _SCALE).astype(np.int64), _DECIMALS)
+    t.text(f'" r="{radius}"/>\n')
+    return t.tobytes()
+
+
+def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
+              margin: float = 5.0, depths: np.ndarray | None = None) -> None:
+    """Write the grooves as an SVG drawing in mm, atomically, a chunk of paths at a time.
+
+    Args:
+        path: destination ``.svg`` file.
+        grooves: m vertices in n paths; dots become filled circles.
+        tool: the groove width for each depth is the stroke width and dot diameter.
+        margin: blank border around the grooves, mm.
+        depths: optional (n,) depth of each path, mm; each depth class gets its
+            own groove and dot layers (see :func:`plan_layers`).
+
+    Raises:
+        SpecholoError: if the grooves hold an empty path or non-finite numbers,
+            or ``depths`` is malformed.
+    """
+    check_grooves(grooves)
+    margin = float(margin)
+    if not (math.isfinite(margin) and margin >= 0.0):
+        raise SpecholoError(f"SVG margin must be a finite number >= 0 mm, got {margin}")
+    layers = plan_layers(grooves, tool, depths)
+    box = drawing_bounds(grooves)
+    if box is None:
+        box = np.zeros((2, 2))
+    pad = margin + 0.5 * max([layer.width for layer in layers] or [tool.width])
+    x0, x1 = box[0, 0] - pad, box[1, 0] + pad
+    y0, y1 = -box[1, 1] - pad, -box[0, 1] + pad  # SVG y = -plate y
+    w, h = x1 - x0, y1 - y0
 
     def num(value: float) -> str:
         return format_number(value, _DECIMALS)
@@ -273,32 +367,9 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
                           f' stroke-width="{num(layer.width)}" stroke-linecap="round"'
                           ' stroke-linejoin="round">\n')
             fh.write(group.encode("ascii"))
-            idx = path_rows(offsets, layer.paths)
-            dot_end = f'" r="{num(0.5 * layer.width)}"/>\n'
-            for lo in range(0, len(idx), _CHUNK_ROWS):
-                s = idx[lo:lo + _CHUNK_ROWS]
-                t = TextRows(len(s))
-                if layer.dots:
-                    t.text('<circle cx="')
-                    t.number(qx[s], _DECIMALS)
-                    t.text('" cy="')
-                    t.number(qy[s], _DECIMALS)
-                    t.text(dot_end)
-                else:
-                    t.choice(['<path d="M ', " A ", " L "], kind[s])
-                    a = arc[s]
-                    t.number(q_radius[s], _RADIUS_DECIMALS, a)
-                    t.text(" ", a)
-                    t.number(q_radius[s], _RADIUS_DECIMALS, a)
-                    t.text(" 0 ", a)
-                    t.choice(["", "0", "1"], np.where(a, 1 + large[s], 0))
-                    t.text(" ", a)
-                    t.choice(["", "0", "1"], np.where(a, 1 + sweep[s], 0))
-                    t.text(" ", a)
-                    t.number(qx[s], _DECIMALS)
-                    t.text(" ")
-                    t.number(qy[s], _DECIMALS)
-                    t.choice(["", '"/>\n'], last[s].astype(np.int64))
-                fh.write(t.tobytes())
+            bounds = chunk_bounds(grooves.path_sizes[layer.paths], _CHUNK_ROWS)
+            for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+                g = take_paths(grooves, layer.paths[a:b])
+                fh.write(_dot_text(g, num(0.5 * layer.width)) if layer.dots else _path_text(g))
             fh.write(b"</g>\n")
         fh.write(b"</svg>\n")

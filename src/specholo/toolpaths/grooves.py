@@ -121,7 +121,8 @@ class Segments:
 
     def lengths(self) -> np.ndarray:
         """Arc lengths (k,) in mm."""
-        chord = np.linalg.norm(self.end - self.start, axis=1)
+        d = self.end - self.start
+        chord = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])  # norm along rows, faster
         b = np.abs(self.bulge)
         sweep = 4.0 * np.arctan(b)
         with np.errstate(divide="ignore", invalid="ignore"):
