@@ -71,18 +71,30 @@ def _tilt_ok(hx: float, hy: float, hz: float, cos_tilt: float) -> bool:
     return hz >= cos_tilt * math.sqrt(hx * hx + hy * hy + hz * hz)
 
 
+@nb.njit(cache=True, inline="always")
+def _at_row(geo: np.ndarray, i: int, u: float) -> tuple[float, float, float, float]:
+    """Point and unit tangent at parameter u of packed row i (see :func:`pack`)."""
+    r = geo[i, 2]
+    if r > 0.0:
+        sweep = geo[i, 4]
+        ang = geo[i, 3] + u * sweep
+        c, s = math.cos(ang), math.sin(ang)
+        sg = 1.0 if sweep > 0.0 else (-1.0 if sweep < 0.0 else 0.0)
+        return geo[i, 0] + r * c, geo[i, 1] + r * s, -sg * s, sg * c
+    return (geo[i, 0] + u * (geo[i, 3] - geo[i, 0]), geo[i, 1] + u * (geo[i, 4] - geo[i, 1]),
+            geo[i, 5], geo[i, 6])
+
+
 @nb.njit(cache=True, parallel=True)
-def arc_glints(cand: np.ndarray, start: np.ndarray, end: np.ndarray, centre: np.ndarray,
-               radius: np.ndarray, start_angle: np.ndarray, sweep: np.ndarray,
-               direction: np.ndarray, tool_radius: float, depth: float, max_tilt: float,
-               eye: np.ndarray, light: np.ndarray, point: bool,
+def arc_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: float,
+               max_tilt: float, eye: np.ndarray, light: np.ndarray, point: bool,
                iterations: int) -> tuple[np.ndarray, np.ndarray]:
     """Glints on candidate arcs.
 
     Args:
-        cand: (m,) arc indices to test.
-        start, end, centre, radius, start_angle, sweep, direction: arc geometry
-            as in :class:`~specholo.simulation.glints.Engraved`.
+        rows: (m,) rows of ``geo`` to test, ascending (contiguous runs stream
+            from memory).
+        geo: (k, 7) packed arc geometry (see :func:`pack`).
         tool_radius, depth: the ball-end tool.
         max_tilt: the walls' largest tilt, radians.
         eye: (3,) eye position.
@@ -91,39 +103,36 @@ def arc_glints(cand: np.ndarray, start: np.ndarray, end: np.ndarray, centre: np.
         iterations: regula falsi steps.
 
     Returns:
-        ok (m,) whether arc cand[j] glints, and points (m, 3) where.
+        ok (m,) whether row rows[j] glints, and points (m, 3) where.
     """
-    m = cand.size
+    m = rows.size
     ok = np.zeros(m, np.bool_)
-    pts = np.zeros((m, 3))
+    pts = np.empty((m, 3))
     cz = tool_radius - depth
     cos_tilt = math.cos(max_tilt)
     for j in nb.prange(m):
-        i = cand[j]
+        i = rows[j]
         # Screen on the toolpath: the wall shifts h by only ~R / distance radians.
-        px, py, tx, ty = _at(i, 0.0, start, end, centre, radius, start_angle, sweep, direction)
+        px, py, tx, ty = _at_row(geo, i, 0.0)
         hx, hy, hz = _h(px, py, 0.0, eye, light, point)
         s0 = hx * tx + hy * ty
         tol = SCREEN * math.sqrt(hx * hx + hy * hy + hz * hz)
-        px, py, tx, ty = _at(i, 1.0, start, end, centre, radius, start_angle, sweep, direction)
-        hx, hy, hz = _h(px, py, 0.0, eye, light, point)
-        s1 = hx * tx + hy * ty
+        qx, qy, rx, ry = _at_row(geo, i, 1.0)
+        hx, hy, hz = _h(qx, qy, 0.0, eye, light, point)
+        s1 = hx * rx + hy * ry
         if s0 * s1 > 0.0 and min(abs(s0), abs(s1)) >= tol:
             continue
-        px, py, tx, ty = _at(i, 0.0, start, end, centre, radius, start_angle, sweep, direction)
         _, _, _, hx, hy, hz = _wall(px, py, tool_radius, cz, eye, light, point)
         fa = hx * tx + hy * ty
-        px, py, tx, ty = _at(i, 1.0, start, end, centre, radius, start_angle, sweep, direction)
-        _, _, _, hx, hy, hz = _wall(px, py, tool_radius, cz, eye, light, point)
-        fb = hx * tx + hy * ty
+        _, _, _, hx, hy, hz = _wall(qx, qy, tool_radius, cz, eye, light, point)
+        fb = hx * rx + hy * ry
         # A root exactly on a shared vertex belongs to the arc that starts there.
         if not (fa == 0.0 or fa * fb < 0.0):
             continue
         a, b, side, u = 0.0, 1.0, 0.0, 0.0
         for _ in range(iterations):
             u = a if fa == fb else (a * fb - b * fa) / (fb - fa)
-            px, py, tx, ty = _at(i, u, start, end, centre, radius, start_angle, sweep,
-                                 direction)
+            px, py, tx, ty = _at_row(geo, i, u)
             _, _, _, hx, hy, hz = _wall(px, py, tool_radius, cz, eye, light, point)
             fu = hx * tx + hy * ty
             if fa * fu > 0.0:
@@ -137,7 +146,7 @@ def arc_glints(cand: np.ndarray, start: np.ndarray, end: np.ndarray, centre: np.
                     fa *= 0.5
                 side = -1.0
         u = min(max(u, 0.0), 1.0)
-        px, py, tx, ty = _at(i, u, start, end, centre, radius, start_angle, sweep, direction)
+        px, py, tx, ty = _at_row(geo, i, u)
         gx, gy, gz, hx, hy, hz = _wall(px, py, tool_radius, cz, eye, light, point)
         if _tilt_ok(hx, hy, hz, cos_tilt):
             ok[j] = True
@@ -281,3 +290,129 @@ def sort_by_cell(cell: np.ndarray, angle: np.ndarray, n_cells: int) -> np.ndarra
             part = order[lo:hi]
             order[lo:hi] = part[np.argsort(angle[part], kind="mergesort")]
     return order
+
+
+@nb.njit(cache=True, parallel=True)
+def pack(layout: np.ndarray, start: np.ndarray, end: np.ndarray, centre: np.ndarray,
+         radius: np.ndarray, start_angle: np.ndarray, sweep: np.ndarray,
+         direction: np.ndarray) -> np.ndarray:
+    """Arc geometry in index order, one 56-byte row per arc, so a cell's
+    candidates are read from memory in one run instead of one miss per array.
+
+    Args:
+        layout: (n,) arc of each row.
+        start, end, centre, radius, start_angle, sweep, direction: as
+            :func:`prepare` gives them, one entry per arc.
+
+    Returns:
+        (n, 7) rows: centre x, y, radius, start angle, sweep for arcs; start
+        x, y, 0, end x, y, direction x, y for straight segments.
+    """
+    n = layout.size
+    geo = np.zeros((n, 7))
+    for p in nb.prange(n):
+        i = layout[p]
+        if radius[i] > 0.0:
+            geo[p, 0], geo[p, 1] = centre[i, 0], centre[i, 1]
+            geo[p, 2], geo[p, 3], geo[p, 4] = radius[i], start_angle[i], sweep[i]
+        else:
+            geo[p, 0], geo[p, 1] = start[i, 0], start[i, 1]
+            geo[p, 3], geo[p, 4] = end[i, 0], end[i, 1]
+            geo[p, 5], geo[p, 6] = direction[i, 0], direction[i, 1]
+    return geo
+
+
+@nb.njit(cache=True, parallel=True)
+def cell_keys(mid: np.ndarray, tangent: np.ndarray, narrow: np.ndarray, origin: np.ndarray,
+              size: float) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Grid cell and tangent angle mod pi of arcs ``narrow`` (n,), with the
+    grid's columns and rows (cells of ``size`` mm from ``origin``)."""
+    n = narrow.size
+    ix = np.empty(n, np.int64)
+    cell = np.empty(n, np.int64)
+    angle = np.empty(n)
+    for j in nb.prange(n):
+        i = narrow[j]
+        ix[j] = np.int64(math.floor((mid[i, 0] - origin[0]) / size))
+        cell[j] = np.int64(math.floor((mid[i, 1] - origin[1]) / size))
+        # numpy's float mod: fmod, then shifted into [0, pi).
+        a = np.fmod(tangent[i], math.pi)
+        if a != 0.0:
+            if a < 0.0:
+                a += math.pi
+        else:
+            a = 0.0
+        angle[j] = a
+    nx = 1
+    ny = 1
+    if n:
+        nx = int(ix.max()) + 1
+        ny = int(cell.max()) + 1
+    for j in nb.prange(n):
+        cell[j] += ix[j] * ny
+    return cell, angle, nx, ny
+
+
+@nb.njit(cache=True, parallel=True)
+def sorted_keys(cell: np.ndarray, angle: np.ndarray,
+                order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Keys cell * 4 + angle in ``order`` (m,), and the distinct cells."""
+    m = order.size
+    keys = np.empty(m)
+    first = np.zeros(m, np.bool_)
+    for p in nb.prange(m):
+        c = cell[order[p]]
+        keys[p] = c * 4.0 + angle[order[p]]
+        first[p] = p == 0 or cell[order[p - 1]] != c
+    cells = np.empty(first.sum(), np.int64)
+    q = 0
+    for p in range(m):
+        if first[p]:
+            cells[q] = cell[order[p]]
+            q += 1
+    return keys, cells
+
+
+@nb.njit(cache=True)
+def merge_ranges(i0: np.ndarray, i1: np.ndarray, tail0: int,
+                 tail1: int) -> tuple[np.ndarray, np.ndarray]:
+    """The union of row ranges [i0, i1) (r, c), each column one cell's (cells
+    ascending, so a column's ranges follow the previous column's), and
+    [tail0, tail1) after them all, as sorted disjoint ranges."""
+    r, c = i0.shape
+    starts = np.empty(r * c + 1, np.int64)
+    ends = np.empty(r * c + 1, np.int64)
+    q = 0
+    for j in range(c):
+        lo = i0[:, j].copy()
+        hi = i1[:, j].copy()
+        o = np.argsort(lo)
+        for t in range(r):
+            a, b = lo[o[t]], hi[o[t]]
+            if b <= a:
+                continue
+            # Sorted by start throughout, so only the last range can meet this one.
+            if q > 0 and a <= ends[q - 1]:
+                if b > ends[q - 1]:
+                    ends[q - 1] = b
+            else:
+                starts[q], ends[q] = a, b
+                q += 1
+    if tail1 > tail0:
+        starts[q], ends[q] = tail0, tail1
+        q += 1
+    return starts[:q], ends[:q]
+
+
+@nb.njit(cache=True, parallel=True)
+def expand(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """All rows of the ranges [starts, ends) (r,), in order."""
+    r = starts.size
+    at = np.zeros(r + 1, np.int64)
+    for t in range(r):
+        at[t + 1] = at[t] + ends[t] - starts[t]
+    rows = np.empty(at[r], np.int64)
+    for t in nb.prange(r):
+        for q in range(ends[t] - starts[t]):
+            rows[at[t] + q] = starts[t] + q
+    return rows
