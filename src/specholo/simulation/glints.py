@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -71,18 +72,17 @@ class ArcIndex:
         """Index arcs by middle point (k, 2), tangent angle, half turn and chord (k,)."""
         narrow = np.flatnonzero(half_turn <= cls.WIDE)
         wide = np.flatnonzero(half_turn > cls.WIDE)
-        origin = mid.min(axis=0) if len(mid) else np.zeros(2)
+        origin, top = _kernel.extent(mid) if len(mid) else (np.zeros(2), np.zeros(2))
         # Cells of CELL mm, larger on a plate so wide the cells would outnumber
         # the arcs by far (the grid must fit in memory).
         size = cls.CELL
         if len(mid):
-            wx, wy = (float(v) for v in mid.max(axis=0) - origin)
+            wx, wy = (float(v) for v in top - origin)
             most = 4 * len(narrow) + 1024
             if (wx / size + 1.0) * (wy / size + 1.0) > most:
                 size = max(size, math.sqrt(wx * wy / most), (wx + wy) / most)
         cell, angle, nx, ny = _kernel.cell_keys(mid, tangent, narrow, origin, size)
-        order = _kernel.sort_by_cell(cell, angle, nx * ny)
-        keys, cells = _kernel.sorted_keys(cell, angle, order)
+        order, keys, cells = _kernel.sort_by_cell(cell, angle, nx * ny)
         del cell, angle
         centres = origin + (np.stack([cells // ny, cells % ny], axis=1) + 0.5) * size
         half_length = float(0.5 * chord[narrow].max()) if len(narrow) else 0.0
@@ -144,35 +144,32 @@ class ArcIndex:
 
 @dataclass(frozen=True)
 class Engraved:
-    """Groove geometry prepared for glint finding (one row per arc).
+    """Groove geometry prepared for glint finding.
+
+    The glint search reads the indexed arcs' geometry packed in index order;
+    the per-arc arrays in path order (``start`` to ``direction``) are worked
+    out on first use, so a verification of millions of arcs never holds both.
 
     Attributes:
         grooves: the grooves.
         tool: the cutting tool (its wall tilt bounds the glints).
-        start, end: (k, 2) arc end points.
-        centre: (k, 2) arc centres (start point for straight segments).
-        radius: (k,) radii (0 for straight segments).
-        start_angle, sweep: (k,) polar angle of the start about the centre, signed sweep.
-        direction: (k, 2) unit direction of straight segments.
         path: (k,) path index of each arc.
         dot_pos: (q, 2) dimples; dot_path (q,).
         index: arcs sorted by plate cell and tangent direction (see :class:`ArcIndex`).
         kinked: (k,) whether the path turns at the end of each arc (a corner).
         geometry: (k', 7) the indexed arcs packed in index order (rows as
-            ``index.layout``; see :func:`~specholo.simulation._glint_kernel.pack`).
+            ``index.layout``; see :func:`~specholo.simulation._glint_kernel.index_arcs`).
         kinks: (c,) arcs after which the path turns, ascending.
         kink_rows: (c, 2) index rows of each such arc and the next (-1: not indexed).
+        start, end: (k, 2) arc end points.
+        centre: (k, 2) arc centres (start point for straight segments).
+        radius: (k,) radii (0 for straight segments).
+        start_angle, sweep: (k,) polar angle of the start about the centre, signed sweep.
+        direction: (k, 2) unit direction of straight segments.
     """
 
     grooves: Grooves
     tool: Tool
-    start: np.ndarray
-    end: np.ndarray
-    centre: np.ndarray
-    radius: np.ndarray
-    start_angle: np.ndarray
-    sweep: np.ndarray
-    direction: np.ndarray
     path: np.ndarray
     dot_pos: np.ndarray
     dot_path: np.ndarray
@@ -184,24 +181,66 @@ class Engraved:
 
     @classmethod
     def from_grooves(cls, grooves: Grooves, tool: Tool) -> Engraved:
-        seg = grooves.segments()
-        (centre, radius, start_angle, sweep, direction, mid_tangent, turn,
-         chord, kinked) = _kernel.prepare(seg.start, seg.end, seg.bulge, seg.path, _LINE_BULGE,
-                                  ArcIndex.WIDE)
-        dot_pos, dot_path = grooves.dots()
-        index = ArcIndex.build(0.5 * (seg.start + seg.end), mid_tangent, turn, chord)
-        del mid_tangent, turn, chord
-        geometry = _kernel.pack(index.layout, seg.start, seg.end, centre, radius, start_angle,
-                                sweep, direction)
+        vertices = np.ascontiguousarray(grooves.vertices, dtype=float)
+        bulges = np.ascontiguousarray(grooves.bulges, dtype=float)
+        first, path = _kernel.arcs_of(np.asarray(grooves.offsets, np.int64), len(vertices))
+        # Large outputs are allocated here, by numpy, which asks for huge pages:
+        # their rows are then read in random order without a TLB miss each.
+        k = len(first)
+        mid, packed = np.empty((k, 2)), np.empty((k, 7))
+        mid_tangent, turn, chord, kinked = _kernel.index_arcs(
+            vertices, bulges, first, path, _LINE_BULGE, ArcIndex.WIDE, mid, packed)
+        del first
+        index = ArcIndex.build(mid, mid_tangent, turn, chord)
+        del mid, mid_tangent, turn, chord
+        geometry = np.empty((index.size, 7))
+        _kernel.gather_rows(packed, index.layout, geometry)
+        del packed
         kinks = np.flatnonzero(kinked)
         kink_rows = np.full((len(kinks), 2), -1, np.int64)
         if len(kinks):
-            row = np.full(len(seg.path), -1, np.int64)
+            row = np.full(len(path), -1, np.int64)
             row[index.layout] = np.arange(index.size)
             kink_rows[:, 0], kink_rows[:, 1] = row[kinks], row[kinks + 1]
-        return cls(grooves, tool, seg.start, seg.end, centre, radius, start_angle, sweep,
-                   direction, seg.path, dot_pos, dot_path, index, kinked, geometry, kinks,
+        dot_pos, dot_path = grooves.dots()
+        return cls(grooves, tool, path, dot_pos, dot_path, index, kinked, geometry, kinks,
                    kink_rows)
+
+    @cached_property
+    def _arcs(self) -> tuple[np.ndarray, ...]:
+        """start, end, centre, radius, start_angle, sweep, direction in path order."""
+        seg = self.grooves.segments()
+        centre, radius, start_angle, sweep, direction, *_ = _kernel.prepare(
+            seg.start, seg.end, seg.bulge, seg.path, _LINE_BULGE, ArcIndex.WIDE)
+        return seg.start, seg.end, centre, radius, start_angle, sweep, direction
+
+    @property
+    def start(self) -> np.ndarray:
+        return self._arcs[0]
+
+    @property
+    def end(self) -> np.ndarray:
+        return self._arcs[1]
+
+    @property
+    def centre(self) -> np.ndarray:
+        return self._arcs[2]
+
+    @property
+    def radius(self) -> np.ndarray:
+        return self._arcs[3]
+
+    @property
+    def start_angle(self) -> np.ndarray:
+        return self._arcs[4]
+
+    @property
+    def sweep(self) -> np.ndarray:
+        return self._arcs[5]
+
+    @property
+    def direction(self) -> np.ndarray:
+        return self._arcs[6]
 
     def at(self, idx: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points (k, 3) and unit tangents (k, 2) at parameters u in [0, 1] of arcs idx."""
@@ -304,15 +343,13 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
         # directions lie between theirs, so both are near the wanted one). The
         # ball sweeps every direction between the two tangents there.
         if len(eng.kinks):
-            j = eng.kinks
+            inside = eng.kink_rows >= 0
             if indexed:
                 at = np.searchsorted(starts, eng.kink_rows, side="right") - 1
-                inside = (at >= 0) & (eng.kink_rows < ends[np.maximum(at, 0)]) if len(
-                    starts) else np.zeros(eng.kink_rows.shape, np.bool_)
-                j = j[(inside & (eng.kink_rows >= 0)).all(axis=1)]
-            ok, pts = _kernel.corner_glints(j, eng.start, eng.end, eng.centre, eng.radius,
-                                            eng.start_angle, eng.sweep, eng.direction, *tool)
-            paths.append(eng.path[j[ok]])
+                inside &= (at >= 0) & (eng.kink_rows < np.append(ends, 0)[at])
+            sel = inside.all(axis=1)
+            ok, pts = _kernel.corner_glints(eng.kink_rows[sel], eng.geometry, *tool)
+            paths.append(eng.path[eng.kinks[sel][ok]])
             points.append(pts[ok])
         rows = _kernel.expand(starts, ends)
         ok, pts = _kernel.arc_glints(rows, eng.geometry, *tool, iterations)
