@@ -39,21 +39,6 @@ def _h(gx: float, gy: float, gz: float, eye: np.ndarray, light: np.ndarray,
 
 
 @nb.njit(cache=True, inline="always")
-def _at(i: int, u: float, start: np.ndarray, end: np.ndarray, centre: np.ndarray,
-        radius: np.ndarray, start_angle: np.ndarray, sweep: np.ndarray,
-        direction: np.ndarray) -> tuple[float, float, float, float]:
-    """Point and unit tangent at parameter u of arc i."""
-    r = radius[i]
-    if r > 0.0:
-        ang = start_angle[i] + u * sweep[i]
-        c, s = math.cos(ang), math.sin(ang)
-        sg = 1.0 if sweep[i] > 0.0 else (-1.0 if sweep[i] < 0.0 else 0.0)
-        return centre[i, 0] + r * c, centre[i, 1] + r * s, -sg * s, sg * c
-    return (start[i, 0] + u * (end[i, 0] - start[i, 0]),
-            start[i, 1] + u * (end[i, 1] - start[i, 1]), direction[i, 0], direction[i, 1])
-
-
-@nb.njit(cache=True, inline="always")
 def _wall(px: float, py: float, radius: float, cz: float, eye: np.ndarray,
           light: np.ndarray, point: bool) -> tuple[float, float, float, float, float, float]:
     """Glint point on the ball-end wall about toolpath point p, and h there."""
@@ -67,22 +52,52 @@ def _wall(px: float, py: float, radius: float, cz: float, eye: np.ndarray,
 
 
 @nb.njit(cache=True, inline="always")
+def _wall_shift(px: float, py: float, reach: float, eye: np.ndarray, light: np.ndarray,
+                point: bool) -> float:
+    """A bound on how much h . t can change between toolpath point p and any
+    wall point within ``reach`` of it (what :func:`_wall` moves it by at most).
+
+    A unit vector u(a) moves by at most 2 |a - b| / |a| when a becomes b, and
+    h sums the unit vectors to the eye and to a point light; t is a unit
+    vector. The bound is doubled and padded far beyond rounding.
+    """
+    bx, by, bz = eye[0] - px, eye[1] - py, eye[2]
+    shift = 2.0 * reach / math.sqrt(bx * bx + by * by + bz * bz)
+    if point:
+        ax, ay, az = light[0] - px, light[1] - py, light[2]
+        shift += 2.0 * reach / math.sqrt(ax * ax + ay * ay + az * az)
+    return 2.0 * shift + 1e-12
+
+
+@nb.njit(cache=True, inline="always")
 def _tilt_ok(hx: float, hy: float, hz: float, cos_tilt: float) -> bool:
     return hz >= cos_tilt * math.sqrt(hx * hx + hy * hy + hz * hz)
 
 
+@nb.njit(cache=True, inline="always")
+def _at_row(geo: np.ndarray, i: int, u: float) -> tuple[float, float, float, float]:
+    """Point and unit tangent at parameter u of packed row i (see :func:`index_arcs`)."""
+    r = geo[i, 2]
+    if r > 0.0:
+        sweep = geo[i, 4]
+        ang = geo[i, 3] + u * sweep
+        c, s = math.cos(ang), math.sin(ang)
+        sg = 1.0 if sweep > 0.0 else (-1.0 if sweep < 0.0 else 0.0)
+        return geo[i, 0] + r * c, geo[i, 1] + r * s, -sg * s, sg * c
+    return (geo[i, 0] + u * (geo[i, 3] - geo[i, 0]), geo[i, 1] + u * (geo[i, 4] - geo[i, 1]),
+            geo[i, 5], geo[i, 6])
+
+
 @nb.njit(cache=True, parallel=True)
-def arc_glints(cand: np.ndarray, start: np.ndarray, end: np.ndarray, centre: np.ndarray,
-               radius: np.ndarray, start_angle: np.ndarray, sweep: np.ndarray,
-               direction: np.ndarray, tool_radius: float, depth: float, max_tilt: float,
-               eye: np.ndarray, light: np.ndarray, point: bool,
+def arc_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: float,
+               max_tilt: float, eye: np.ndarray, light: np.ndarray, point: bool,
                iterations: int) -> tuple[np.ndarray, np.ndarray]:
     """Glints on candidate arcs.
 
     Args:
-        cand: (m,) arc indices to test.
-        start, end, centre, radius, start_angle, sweep, direction: arc geometry
-            as in :class:`~specholo.simulation.glints.Engraved`.
+        rows: (m,) rows of ``geo`` to test, ascending (contiguous runs stream
+            from memory).
+        geo: (k, 7) packed arc geometry (see :func:`index_arcs`).
         tool_radius, depth: the ball-end tool.
         max_tilt: the walls' largest tilt, radians.
         eye: (3,) eye position.
@@ -91,39 +106,43 @@ def arc_glints(cand: np.ndarray, start: np.ndarray, end: np.ndarray, centre: np.
         iterations: regula falsi steps.
 
     Returns:
-        ok (m,) whether arc cand[j] glints, and points (m, 3) where.
+        ok (m,) whether row rows[j] glints, and points (m, 3) where.
     """
-    m = cand.size
+    m = rows.size
     ok = np.zeros(m, np.bool_)
-    pts = np.zeros((m, 3))
+    pts = np.empty((m, 3))
     cz = tool_radius - depth
     cos_tilt = math.cos(max_tilt)
+    reach = abs(cz) + tool_radius
     for j in nb.prange(m):
-        i = cand[j]
+        i = rows[j]
         # Screen on the toolpath: the wall shifts h by only ~R / distance radians.
-        px, py, tx, ty = _at(i, 0.0, start, end, centre, radius, start_angle, sweep, direction)
+        px, py, tx, ty = _at_row(geo, i, 0.0)
         hx, hy, hz = _h(px, py, 0.0, eye, light, point)
         s0 = hx * tx + hy * ty
         tol = SCREEN * math.sqrt(hx * hx + hy * hy + hz * hz)
-        px, py, tx, ty = _at(i, 1.0, start, end, centre, radius, start_angle, sweep, direction)
-        hx, hy, hz = _h(px, py, 0.0, eye, light, point)
-        s1 = hx * tx + hy * ty
+        qx, qy, rx, ry = _at_row(geo, i, 1.0)
+        hx, hy, hz = _h(qx, qy, 0.0, eye, light, point)
+        s1 = hx * rx + hy * ry
         if s0 * s1 > 0.0 and min(abs(s0), abs(s1)) >= tol:
             continue
-        px, py, tx, ty = _at(i, 0.0, start, end, centre, radius, start_angle, sweep, direction)
+        # Most arcs passing the screen still cannot bracket a root: if h . t
+        # keeps its sign at both ends by more than the wall can change it, the
+        # test below fails anyway, so skip the six h evaluations it costs.
+        if s0 * s1 > 0.0 and abs(s0) > _wall_shift(px, py, reach, eye, light, point) and abs(
+                s1) > _wall_shift(qx, qy, reach, eye, light, point):
+            continue
         _, _, _, hx, hy, hz = _wall(px, py, tool_radius, cz, eye, light, point)
         fa = hx * tx + hy * ty
-        px, py, tx, ty = _at(i, 1.0, start, end, centre, radius, start_angle, sweep, direction)
-        _, _, _, hx, hy, hz = _wall(px, py, tool_radius, cz, eye, light, point)
-        fb = hx * tx + hy * ty
+        _, _, _, hx, hy, hz = _wall(qx, qy, tool_radius, cz, eye, light, point)
+        fb = hx * rx + hy * ry
         # A root exactly on a shared vertex belongs to the arc that starts there.
         if not (fa == 0.0 or fa * fb < 0.0):
             continue
         a, b, side, u = 0.0, 1.0, 0.0, 0.0
         for _ in range(iterations):
             u = a if fa == fb else (a * fb - b * fa) / (fb - fa)
-            px, py, tx, ty = _at(i, u, start, end, centre, radius, start_angle, sweep,
-                                 direction)
+            px, py, tx, ty = _at_row(geo, i, u)
             _, _, _, hx, hy, hz = _wall(px, py, tool_radius, cz, eye, light, point)
             fu = hx * tx + hy * ty
             if fa * fu > 0.0:
@@ -137,7 +156,7 @@ def arc_glints(cand: np.ndarray, start: np.ndarray, end: np.ndarray, centre: np.
                     fa *= 0.5
                 side = -1.0
         u = min(max(u, 0.0), 1.0)
-        px, py, tx, ty = _at(i, u, start, end, centre, radius, start_angle, sweep, direction)
+        px, py, tx, ty = _at_row(geo, i, u)
         gx, gy, gz, hx, hy, hz = _wall(px, py, tool_radius, cz, eye, light, point)
         if _tilt_ok(hx, hy, hz, cos_tilt):
             ok[j] = True
@@ -146,12 +165,11 @@ def arc_glints(cand: np.ndarray, start: np.ndarray, end: np.ndarray, centre: np.
 
 
 @nb.njit(cache=True, parallel=True)
-def corner_glints(first: np.ndarray, start: np.ndarray, end: np.ndarray, centre: np.ndarray,
-                  radius: np.ndarray, start_angle: np.ndarray, sweep: np.ndarray,
-                  direction: np.ndarray, tool_radius: float, depth: float, max_tilt: float,
-                  eye: np.ndarray, light: np.ndarray,
+def corner_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: float,
+                  max_tilt: float, eye: np.ndarray, light: np.ndarray,
                   point: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Glints at the corners after arcs ``first`` (m,) (each joined to the next arc).
+    """Glints at corners: rows (m, 2) of ``geo`` holding each arc and the next
+    arc of its path.
 
     The ball sweeps every direction between the two tangents, so the corner
     glints when h . t changes sign across it. Arguments as :func:`arc_glints`.
@@ -159,16 +177,14 @@ def corner_glints(first: np.ndarray, start: np.ndarray, end: np.ndarray, centre:
     Returns:
         ok (m,) and points (m, 3).
     """
-    m = first.size
+    m = rows.shape[0]
     ok = np.zeros(m, np.bool_)
     pts = np.zeros((m, 3))
     cz = tool_radius - depth
     cos_tilt = math.cos(max_tilt)
     for j in nb.prange(m):
-        i = first[j]
-        px, py, tx, ty = _at(i, 1.0, start, end, centre, radius, start_angle, sweep, direction)
-        qx, qy, nx, ny = _at(i + 1, 0.0, start, end, centre, radius, start_angle, sweep,
-                             direction)
+        px, py, tx, ty = _at_row(geo, rows[j, 0], 1.0)
+        qx, qy, nx, ny = _at_row(geo, rows[j, 1], 0.0)
         hx, hy, hz = _h(px, py, 0.0, eye, light, point)
         e1 = hx * tx + hy * ty
         hx2, hy2, _ = _h(qx, qy, 0.0, eye, light, point)
@@ -183,6 +199,57 @@ def corner_glints(first: np.ndarray, start: np.ndarray, end: np.ndarray, centre:
             ok[j] = True
             pts[j, 0], pts[j, 1], pts[j, 2] = gx, gy, gz
     return ok, pts
+
+
+@nb.njit(cache=True, inline="always")
+def _arc(sx: float, sy: float, ex: float, ey: float, b: float,
+         line_bulge: float) -> tuple[float, float, float, float, float, float, float, float,
+                                     float]:
+    """One arc from its ends and bulge: centre x, y (the start for straight
+    segments), radius (0: straight), start angle, sweep, chord direction x, y,
+    chord length and the tangent's angle at the start."""
+    cx, cy = ex - sx, ey - sy
+    n = math.hypot(cx, cy)
+    dx = cx / n if n > 0.0 else cx
+    dy = cy / n if n > 0.0 else cy
+    r = n * (1.0 + b * b) / (4.0 * abs(b)) if b != 0.0 else math.inf
+    if abs(b) < line_bulge or not math.isfinite(r):
+        return sx, sy, 0.0, 0.0, 0.0, dx, dy, n, math.atan2(dy, dx)
+    offset = (1.0 - b * b) / (4.0 * b)
+    # The centre lies off the chord's middle, to its left for b > 0.
+    ox = 0.5 * (sx + ex) - cy * offset
+    oy = 0.5 * (sy + ey) + cx * offset
+    a0 = math.atan2(sy - oy, sx - ox)
+    return ox, oy, r, a0, 4.0 * math.atan(b), dx, dy, n, a0 + 0.5 * math.pi
+
+
+@nb.njit(cache=True, parallel=True)
+def _corners(t_start: np.ndarray, sweep: np.ndarray, path: np.ndarray, wide: float,
+             turn: np.ndarray) -> np.ndarray:
+    """Whether the path turns at the end of each arc (k,); sets ``turn`` to
+    infinity for arcs at a corner wider than ``wide``."""
+    # A corner sweeps every direction between its arcs' tangents: arcs at a
+    # corner wider than the index's margin are always tested.
+    k = t_start.size
+    kinked = np.zeros(k, np.bool_)
+    for i in nb.prange(k - 1):
+        d = t_start[i + 1] - (t_start[i] + sweep[i])
+        d = (d + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+        kinked[i] = path[i + 1] == path[i] and abs(d) > SMOOTH
+        corner = path[i + 1] == path[i] and abs(d) > wide
+        prev = False
+        if i > 0:
+            e = t_start[i] - (t_start[i - 1] + sweep[i - 1])
+            e = (e + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+            prev = path[i] == path[i - 1] and abs(e) > wide
+        if corner or prev:
+            turn[i] = math.inf
+    if k > 1:
+        e = t_start[k - 1] - (t_start[k - 2] + sweep[k - 2])
+        e = (e + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+        if path[k - 1] == path[k - 2] and abs(e) > wide:
+            turn[k - 1] = math.inf
+    return kinked
 
 
 @nb.njit(cache=True, parallel=True)
@@ -213,57 +280,167 @@ def prepare(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np.ndar
     chord = np.empty(k)
     t_start = np.empty(k)
     for i in nb.prange(k):
-        b = bulge[i]
-        cx, cy = end[i, 0] - start[i, 0], end[i, 1] - start[i, 1]
-        n = math.hypot(cx, cy)
-        chord[i] = n
-        direction[i, 0] = cx / n if n > 0.0 else cx
-        direction[i, 1] = cy / n if n > 0.0 else cy
-        r = n * (1.0 + b * b) / (4.0 * abs(b)) if b != 0.0 else math.inf
-        if abs(b) < line_bulge or not math.isfinite(r):
-            centre[i, 0], centre[i, 1] = start[i, 0], start[i, 1]
-            radius[i] = 0.0
-            sweep[i] = 0.0
-            start_angle[i] = 0.0
-            t_start[i] = math.atan2(direction[i, 1], direction[i, 0])
-        else:
-            offset = (1.0 - b * b) / (4.0 * b)
-            # The centre lies off the chord's middle, to its left for b > 0.
-            centre[i, 0] = 0.5 * (start[i, 0] + end[i, 0]) - cy * offset
-            centre[i, 1] = 0.5 * (start[i, 1] + end[i, 1]) + cx * offset
-            radius[i] = r
-            sweep[i] = 4.0 * math.atan(b)
-            start_angle[i] = math.atan2(start[i, 1] - centre[i, 1], start[i, 0] - centre[i, 0])
-            t_start[i] = start_angle[i] + 0.5 * math.pi
+        (centre[i, 0], centre[i, 1], radius[i], start_angle[i], sweep[i], direction[i, 0],
+         direction[i, 1], chord[i], t_start[i]) = _arc(start[i, 0], start[i, 1], end[i, 0],
+                                                        end[i, 1], bulge[i], line_bulge)
         mid_tangent[i] = t_start[i] + 0.5 * sweep[i]
         turn[i] = 0.5 * abs(sweep[i])
-    # A corner sweeps every direction between its arcs' tangents: arcs at a
-    # corner wider than the index's margin are always tested.
-    kinked = np.zeros(k, np.bool_)
-    for i in nb.prange(k - 1):
-        d = t_start[i + 1] - (t_start[i] + sweep[i])
-        d = (d + 0.5 * math.pi) % math.pi - 0.5 * math.pi
-        kinked[i] = path[i + 1] == path[i] and abs(d) > SMOOTH
-        corner = path[i + 1] == path[i] and abs(d) > wide
-        prev = False
-        if i > 0:
-            e = t_start[i] - (t_start[i - 1] + sweep[i - 1])
-            e = (e + 0.5 * math.pi) % math.pi - 0.5 * math.pi
-            prev = path[i] == path[i - 1] and abs(e) > wide
-        if corner or prev:
-            turn[i] = math.inf
-    if k > 1:
-        e = t_start[k - 1] - (t_start[k - 2] + sweep[k - 2])
-        e = (e + 0.5 * math.pi) % math.pi - 0.5 * math.pi
-        if path[k - 1] == path[k - 2] and abs(e) > wide:
-            turn[k - 1] = math.inf
+    kinked = _corners(t_start, sweep, path, wide, turn)
     return centre, radius, start_angle, sweep, direction, mid_tangent, turn, chord, kinked
 
 
+@nb.njit(cache=True)
+def arcs_of(offsets: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """The first vertex (k,) and path (k,) of every arc of paths ``offsets``
+    over m vertices, numbered as :meth:`~specholo.toolpaths.grooves.Grooves.segments`
+    numbers them (every vertex but a path's last starts one)."""
+    n_paths = offsets.size - 1
+    last = np.zeros(m, np.bool_)
+    for p in range(n_paths):
+        v = offsets[p + 1] - 1
+        last[v + m if v < 0 else v] = True
+    k = m - last.sum()
+    first = np.empty(k, np.int64)
+    path = np.empty(k, np.int64)
+    q = 0
+    for p in range(n_paths):
+        for v in range(offsets[p], offsets[p + 1]):
+            if not last[v]:
+                first[q], path[q] = v, p
+                q += 1
+    return first, path
+
+
 @nb.njit(cache=True, parallel=True)
-def sort_by_cell(cell: np.ndarray, angle: np.ndarray, n_cells: int) -> np.ndarray:
-    """Order (m,) sorting by cell, then by angle: a counting sort over cells and
-    one small sort per cell, the cells shared between cores."""
+def index_arcs(vertices: np.ndarray, bulges: np.ndarray, first: np.ndarray, path: np.ndarray,
+               line_bulge: float, wide: float, mid: np.ndarray,
+               geo: np.ndarray) -> tuple[np.ndarray, ...]:
+    """What :func:`prepare` gives the arc index, and the arcs' packed geometry,
+    straight from the vertices.
+
+    Args:
+        vertices: (m, 2) and bulges (m,) of the grooves.
+        first: (k,) first vertex of each arc; path (k,) its path (see :func:`arcs_of`).
+        line_bulge, wide: as :func:`prepare`.
+        mid: (k, 2) filled with the middle of each arc's chord.
+        geo: (k, 7) filled with each arc's geometry: centre x, y, radius, start
+            angle, sweep for arcs; start x, y, 0, end x, y, chord direction x, y
+            for straight segments (and arcs of radius 0), as :func:`prepare`
+            gives them.
+
+    Returns:
+        mid-arc tangent angle, half turn, chord length (k,) and whether the path
+        turns at the end of each arc (k,).
+    """
+    k = first.size
+    mid_tangent = np.empty(k)
+    turn = np.empty(k)
+    chord = np.empty(k)
+    t_start = np.empty(k)
+    sweep = np.empty(k)
+    for i in nb.prange(k):
+        v = first[i]
+        sx, sy, ex, ey = vertices[v, 0], vertices[v, 1], vertices[v + 1, 0], vertices[v + 1, 1]
+        ox, oy, r, a0, sw, dx, dy, chord[i], t_start[i] = _arc(sx, sy, ex, ey, bulges[v],
+                                                              line_bulge)
+        if r > 0.0:
+            geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3], geo[i, 4] = ox, oy, r, a0, sw
+            geo[i, 5], geo[i, 6] = 0.0, 0.0
+        else:
+            geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3], geo[i, 4] = sx, sy, 0.0, ex, ey
+            geo[i, 5], geo[i, 6] = dx, dy
+        sweep[i] = sw
+        mid[i, 0], mid[i, 1] = 0.5 * (sx + ex), 0.5 * (sy + ey)
+        mid_tangent[i] = t_start[i] + 0.5 * sw
+        turn[i] = 0.5 * abs(sw)
+    kinked = _corners(t_start, sweep, path, wide, turn)
+    return mid_tangent, turn, chord, kinked
+
+
+@nb.njit(cache=True, parallel=True)
+def extent(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower-left and upper-right corners (2,) of points (k, 2), k > 0, as
+    numpy's min and max along axis 0 give them (NaN if any coordinate is)."""
+    k = xy.shape[0]
+    chunks = min(k, 64)
+    lo = np.empty((chunks, 2))
+    hi = np.empty((chunks, 2))
+    for c in nb.prange(chunks):
+        a, b = c * k // chunks, (c + 1) * k // chunks
+        for d in range(2):
+            x0 = x1 = xy[a, d]
+            for i in range(a + 1, b):
+                x = xy[i, d]
+                # "not >=" is also true for NaN, which then sticks.
+                if x0 == x0 and not x >= x0:
+                    x0 = x
+                if x1 == x1 and not x <= x1:
+                    x1 = x
+            lo[c, d], hi[c, d] = x0, x1
+    out_lo, out_hi = lo[0].copy(), hi[0].copy()
+    for c in range(1, chunks):
+        for d in range(2):
+            if out_lo[d] == out_lo[d] and not lo[c, d] >= out_lo[d]:
+                out_lo[d] = lo[c, d]
+            if out_hi[d] == out_hi[d] and not hi[c, d] <= out_hi[d]:
+                out_hi[d] = hi[c, d]
+    return out_lo, out_hi
+
+
+@nb.njit(cache=True, parallel=True)
+def gather_rows(src: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
+    """out[p] = src[rows[p]] for (n,) rows of a (k, c) array."""
+    c = src.shape[1]
+    for p in nb.prange(rows.size):
+        i = rows[p]
+        for q in range(c):
+            out[p, q] = src[i, q]
+
+
+@nb.njit(cache=True, parallel=True)
+def cell_keys(mid: np.ndarray, tangent: np.ndarray, narrow: np.ndarray, origin: np.ndarray,
+              size: float) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Grid cell and tangent angle mod pi of arcs ``narrow`` (n,), with the
+    grid's columns and rows (cells of ``size`` mm from ``origin``)."""
+    n = narrow.size
+    ix = np.empty(n, np.int64)
+    cell = np.empty(n, np.int64)
+    angle = np.empty(n)
+    for j in nb.prange(n):
+        i = narrow[j]
+        ix[j] = np.int64(math.floor((mid[i, 0] - origin[0]) / size))
+        cell[j] = np.int64(math.floor((mid[i, 1] - origin[1]) / size))
+        # numpy's float mod: fmod, then shifted into [0, pi).
+        a = np.fmod(tangent[i], math.pi)
+        if a != 0.0:
+            if a < 0.0:
+                a += math.pi
+        else:
+            a = 0.0
+        angle[j] = a
+    nx = 1
+    ny = 1
+    if n:
+        nx = int(ix.max()) + 1
+        ny = int(cell.max()) + 1
+    for j in nb.prange(n):
+        cell[j] += ix[j] * ny
+    return cell, angle, nx, ny
+
+
+@nb.njit(cache=True, parallel=True)
+def sort_by_cell(cell: np.ndarray, angle: np.ndarray,
+                 n_cells: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sort (m,) by cell, then by angle in [0, pi).
+
+    A counting sort over cells, then in each cell (the cells shared between
+    cores) a counting sort over as many angle buckets as the cell has arcs and
+    a small sort per bucket: linear time however many arcs a cell holds.
+
+    Returns:
+        order (m,), keys (m,) cell * 4 + angle in that order, and the distinct
+        cells ascending.
+    """
     m = cell.size
     count = np.zeros(n_cells + 1, np.int64)
     for i in range(m):
@@ -275,9 +452,104 @@ def sort_by_cell(cell: np.ndarray, angle: np.ndarray, n_cells: int) -> np.ndarra
         c = cell[i]
         order[fill[c]] = i
         fill[c] += 1
+    keys = np.empty(m)
     for c in nb.prange(n_cells):
         lo, hi = first[c], first[c + 1]
-        if hi - lo > 1:
-            part = order[lo:hi]
-            order[lo:hi] = part[np.argsort(angle[part], kind="mergesort")]
-    return order
+        n = hi - lo
+        if n == 0:
+            continue
+        part = order[lo:hi].copy()
+        ang = angle[part]
+        scale = n / math.pi
+        bucket = np.empty(n, np.int64)
+        at = np.zeros(n + 1, np.int64)
+        for t in range(n):
+            # Monotone in the angle, so buckets in order sort the angles.
+            q = n - 1
+            if ang[t] >= 0.0:
+                q = min(int(ang[t] * scale), n - 1)
+            bucket[t] = q
+            at[q + 1] += 1
+        for q in range(n):
+            at[q + 1] += at[q]
+        put = at[:-1].copy()
+        sa = np.empty(n)
+        si = np.empty(n, np.int64)
+        for t in range(n):
+            q = bucket[t]
+            sa[put[q]], si[put[q]] = ang[t], part[t]
+            put[q] += 1
+        for q in range(n):
+            a, b = at[q], at[q + 1]
+            if b - a > 32:
+                o = np.argsort(sa[a:b], kind="mergesort")
+                ta, ti = sa[a:b][o], si[a:b][o]
+                sa[a:b] = ta
+                si[a:b] = ti
+            else:
+                for t in range(a + 1, b):
+                    x, y = sa[t], si[t]
+                    u = t - 1
+                    while u >= a and sa[u] > x:
+                        sa[u + 1], si[u + 1] = sa[u], si[u]
+                        u -= 1
+                    sa[u + 1], si[u + 1] = x, y
+        for t in range(n):
+            order[lo + t] = si[t]
+            keys[lo + t] = c * 4.0 + sa[t]
+    n_used = 0
+    for c in range(n_cells):
+        if first[c + 1] > first[c]:
+            n_used += 1
+    cells = np.empty(n_used, np.int64)
+    q = 0
+    for c in range(n_cells):
+        if first[c + 1] > first[c]:
+            cells[q] = c
+            q += 1
+    return order, keys, cells
+
+
+@nb.njit(cache=True)
+def merge_ranges(i0: np.ndarray, i1: np.ndarray, tail0: int,
+                 tail1: int) -> tuple[np.ndarray, np.ndarray]:
+    """The union of row ranges [i0, i1) (r, c), each column one cell's (cells
+    ascending, so a column's ranges follow the previous column's), and
+    [tail0, tail1) after them all, as sorted disjoint ranges."""
+    r, c = i0.shape
+    starts = np.empty(r * c + 1, np.int64)
+    ends = np.empty(r * c + 1, np.int64)
+    q = 0
+    for j in range(c):
+        lo = i0[:, j].copy()
+        hi = i1[:, j].copy()
+        o = np.argsort(lo)
+        for t in range(r):
+            a, b = lo[o[t]], hi[o[t]]
+            if b <= a:
+                continue
+            # Sorted by start throughout, so only the last range can meet this one.
+            if q > 0 and a <= ends[q - 1]:
+                if b > ends[q - 1]:
+                    ends[q - 1] = b
+            else:
+                starts[q], ends[q] = a, b
+                q += 1
+    if tail1 > tail0:
+        starts[q], ends[q] = tail0, tail1
+        q += 1
+    return starts[:q], ends[:q]
+
+
+@nb.njit(cache=True, parallel=True)
+def expand(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """All rows of the ranges [starts, ends) (r,), in order."""
+    r = starts.size
+    at = np.zeros(r + 1, np.int64)
+    for t in range(r):
+        at[t + 1] = at[t] + ends[t] - starts[t]
+    rows = np.empty(at[r], np.int64)
+    for t in nb.prange(r):
+        for q in range(ends[t] - starts[t]):
+            rows[at[t] + q] = starts[t] + q
+    return rows

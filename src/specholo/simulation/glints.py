@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -42,6 +43,8 @@ class ArcIndex:
         cells: (c,) distinct cells holding narrow arcs; centres (c, 2).
         wide: (w,) arcs turning more than WIDE radians: always candidates.
         half_length: half the longest narrow arc's chord, mm.
+        layout: (k',) the arc in each row of the index: ``order``, then ``wide``
+            (both are views of it).
     """
 
     cell_size: float
@@ -53,6 +56,7 @@ class ArcIndex:
     centres: np.ndarray
     wide: np.ndarray
     half_length: float
+    layout: np.ndarray
 
     WIDE = 0.01  # half-turn (radians) above which an arc is always tested
     CELL = 5.0  # mm
@@ -60,7 +64,7 @@ class ArcIndex:
     @property
     def size(self) -> int:
         """Number of arcs indexed (narrow and wide)."""
-        return len(self.order) + len(self.wide)
+        return len(self.layout)
 
     @classmethod
     def build(cls, mid: np.ndarray, tangent: np.ndarray, half_turn: np.ndarray,
@@ -68,33 +72,28 @@ class ArcIndex:
         """Index arcs by middle point (k, 2), tangent angle, half turn and chord (k,)."""
         narrow = np.flatnonzero(half_turn <= cls.WIDE)
         wide = np.flatnonzero(half_turn > cls.WIDE)
-        origin = mid.min(axis=0) if len(mid) else np.zeros(2)
+        origin, top = _kernel.extent(mid) if len(mid) else (np.zeros(2), np.zeros(2))
         # Cells of CELL mm, larger on a plate so wide the cells would outnumber
         # the arcs by far (the grid must fit in memory).
         size = cls.CELL
         if len(mid):
-            wx, wy = (float(v) for v in mid.max(axis=0) - origin)
+            wx, wy = (float(v) for v in top - origin)
             most = 4 * len(narrow) + 1024
             if (wx / size + 1.0) * (wy / size + 1.0) > most:
                 size = max(size, math.sqrt(wx * wy / most), (wx + wy) / most)
-        ij = np.floor((mid[narrow] - origin) / size).astype(np.int64)
-        ny = int(ij[:, 1].max()) + 1 if len(ij) else 1
-        cell = ij[:, 0] * ny + ij[:, 1]
-        angle = np.mod(tangent[narrow], np.pi)
-        nx = int(ij[:, 0].max()) + 1 if len(ij) else 1
-        order = _kernel.sort_by_cell(cell, angle, nx * ny)
-        sorted_cell = cell[order]
-        keys = sorted_cell * 4.0 + angle[order]
-        cells = sorted_cell[np.r_[True, sorted_cell[1:] != sorted_cell[:-1]]] if len(
-            order) else sorted_cell
+        cell, angle, nx, ny = _kernel.cell_keys(mid, tangent, narrow, origin, size)
+        order, keys, cells = _kernel.sort_by_cell(cell, angle, nx * ny)
+        del cell, angle
         centres = origin + (np.stack([cells // ny, cells % ny], axis=1) + 0.5) * size
         half_length = float(0.5 * chord[narrow].max()) if len(narrow) else 0.0
         # (half_turn is infinite for arcs at sharp corners: they join ``wide``.)
-        return cls(size, origin, ny, keys, narrow[order], cells, centres, wide,
-                   half_length)
+        layout = np.concatenate([narrow[order], wide])
+        return cls(size, origin, ny, keys, layout[:len(order)], cells, centres,
+                   layout[len(order):], half_length, layout)
 
-    def candidates(self, eye: np.ndarray, light: Light, reach: float) -> np.ndarray:
-        """Arcs that may glint for an eye, sorted.
+    def ranges(self, eye: np.ndarray, light: Light,
+               reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """Rows of :attr:`layout` holding the arcs that may glint for an eye.
 
         Args:
             eye: (3,) eye position.
@@ -103,10 +102,11 @@ class ArcIndex:
                 longest arc plus the wall offset.
 
         Returns:
-            (m,) arc indices.
+            starts (r,) and ends (r,): sorted disjoint ranges [start, end).
         """
+        n = len(self.order)
         if len(self.cells) == 0:
-            return np.sort(self.wide)
+            return np.array([n], np.int64), np.array([self.size], np.int64)
         c3 = np.concatenate([self.centres, np.zeros((len(self.cells), 1))], axis=1)
         h = normality(c3, light, eye)
         hxy = np.hypot(h[:, 0], h[:, 1])
@@ -122,69 +122,125 @@ class ArcIndex:
         want = np.mod(np.arctan2(h[:, 1], h[:, 0]) + 0.5 * np.pi, np.pi)
         lo, hi = want - delta, want + delta
         base = self.cells * 4.0
-        ranges = []
+        i0 = np.empty((3, len(self.cells)), np.int64)
+        i1 = np.empty_like(i0)
         # Intervals may wrap around 0 or pi: query each part separately.
-        for a, b in ((np.maximum(lo, 0.0), np.minimum(hi, np.pi)),
-                     (np.mod(lo, np.pi) * (lo < 0) + np.pi * (lo >= 0), np.full_like(lo, np.pi)),
-                     (np.zeros_like(hi), np.mod(hi, np.pi) * (hi > np.pi))):
-            i0 = np.searchsorted(self.keys, base + a, side="left")
-            i1 = np.searchsorted(self.keys, base + b, side="right")
-            ranges.append((i0, np.maximum(i1, i0)))
-        i0 = np.concatenate([r[0] for r in ranges])
-        i1 = np.concatenate([r[1] for r in ranges])
-        n = i1 - i0
-        pos = np.repeat(i0 - (np.cumsum(n) - n), n) + np.arange(n.sum())
-        # A mask, not np.unique: the wrapped queries may overlap, and sorting
-        # millions of indices costs more than one pass over a flag per arc.
-        keep = np.zeros(self.size, np.bool_)
-        keep[self.order[pos]] = True
-        keep[self.wide] = True
-        return np.flatnonzero(keep)
+        for r, (a, b) in enumerate((
+                (np.maximum(lo, 0.0), np.minimum(hi, np.pi)),
+                (np.mod(lo, np.pi) * (lo < 0) + np.pi * (lo >= 0), np.full_like(lo, np.pi)),
+                (np.zeros_like(hi), np.mod(hi, np.pi) * (hi > np.pi)))):
+            i0[r] = np.searchsorted(self.keys, base + a, side="left")
+            i1[r] = np.searchsorted(self.keys, base + b, side="right")
+        return _kernel.merge_ranges(i0, i1, n, self.size)
+
+    def candidates(self, eye: np.ndarray, light: Light, reach: float) -> np.ndarray:
+        """Arcs that may glint for an eye, sorted (arguments as :meth:`ranges`).
+
+        Returns:
+            (m,) arc indices.
+        """
+        return np.sort(self.layout[_kernel.expand(*self.ranges(eye, light, reach))])
 
 
 @dataclass(frozen=True)
 class Engraved:
-    """Groove geometry prepared for glint finding (one row per arc).
+    """Groove geometry prepared for glint finding.
+
+    The glint search reads the indexed arcs' geometry packed in index order;
+    the per-arc arrays in path order (``start`` to ``direction``) are worked
+    out on first use, so a verification of millions of arcs never holds both.
 
     Attributes:
         grooves: the grooves.
         tool: the cutting tool (its wall tilt bounds the glints).
+        path: (k,) path index of each arc.
+        dot_pos: (q, 2) dimples; dot_path (q,).
+        index: arcs sorted by plate cell and tangent direction (see :class:`ArcIndex`).
+        kinked: (k,) whether the path turns at the end of each arc (a corner).
+        geometry: (k', 7) the indexed arcs packed in index order (rows as
+            ``index.layout``; see :func:`~specholo.simulation._glint_kernel.index_arcs`).
+        kinks: (c,) arcs after which the path turns, ascending.
+        kink_rows: (c, 2) index rows of each such arc and the next (-1: not indexed).
         start, end: (k, 2) arc end points.
         centre: (k, 2) arc centres (start point for straight segments).
         radius: (k,) radii (0 for straight segments).
         start_angle, sweep: (k,) polar angle of the start about the centre, signed sweep.
         direction: (k, 2) unit direction of straight segments.
-        path: (k,) path index of each arc.
-        dot_pos: (q, 2) dimples; dot_path (q,).
-        index: arcs sorted by plate cell and tangent direction (see :class:`ArcIndex`).
-        kinked: (k,) whether the path turns at the end of each arc (a corner).
     """
 
     grooves: Grooves
     tool: Tool
-    start: np.ndarray
-    end: np.ndarray
-    centre: np.ndarray
-    radius: np.ndarray
-    start_angle: np.ndarray
-    sweep: np.ndarray
-    direction: np.ndarray
     path: np.ndarray
     dot_pos: np.ndarray
     dot_path: np.ndarray
     index: ArcIndex
     kinked: np.ndarray
+    geometry: np.ndarray
+    kinks: np.ndarray
+    kink_rows: np.ndarray
 
     @classmethod
     def from_grooves(cls, grooves: Grooves, tool: Tool) -> Engraved:
-        seg = grooves.segments()
-        (centre, radius, start_angle, sweep, direction, mid_tangent, turn,
-         chord, kinked) = _kernel.prepare(seg.start, seg.end, seg.bulge, seg.path, _LINE_BULGE,
-                                  ArcIndex.WIDE)
+        vertices = np.ascontiguousarray(grooves.vertices, dtype=float)
+        bulges = np.ascontiguousarray(grooves.bulges, dtype=float)
+        first, path = _kernel.arcs_of(np.asarray(grooves.offsets, np.int64), len(vertices))
+        # Large outputs are allocated here, by numpy, which asks for huge pages:
+        # their rows are then read in random order without a TLB miss each.
+        k = len(first)
+        mid, packed = np.empty((k, 2)), np.empty((k, 7))
+        mid_tangent, turn, chord, kinked = _kernel.index_arcs(
+            vertices, bulges, first, path, _LINE_BULGE, ArcIndex.WIDE, mid, packed)
+        del first
+        index = ArcIndex.build(mid, mid_tangent, turn, chord)
+        del mid, mid_tangent, turn, chord
+        geometry = np.empty((index.size, 7))
+        _kernel.gather_rows(packed, index.layout, geometry)
+        del packed
+        kinks = np.flatnonzero(kinked)
+        kink_rows = np.full((len(kinks), 2), -1, np.int64)
+        if len(kinks):
+            row = np.full(len(path), -1, np.int64)
+            row[index.layout] = np.arange(index.size)
+            kink_rows[:, 0], kink_rows[:, 1] = row[kinks], row[kinks + 1]
         dot_pos, dot_path = grooves.dots()
-        index = ArcIndex.build(0.5 * (seg.start + seg.end), mid_tangent, turn, chord)
-        return cls(grooves, tool, seg.start, seg.end, centre, radius, start_angle, sweep,
-                   direction, seg.path, dot_pos, dot_path, index, kinked)
+        return cls(grooves, tool, path, dot_pos, dot_path, index, kinked, geometry, kinks,
+                   kink_rows)
+
+    @cached_property
+    def _arcs(self) -> tuple[np.ndarray, ...]:
+        """start, end, centre, radius, start_angle, sweep, direction in path order."""
+        seg = self.grooves.segments()
+        centre, radius, start_angle, sweep, direction, *_ = _kernel.prepare(
+            seg.start, seg.end, seg.bulge, seg.path, _LINE_BULGE, ArcIndex.WIDE)
+        return seg.start, seg.end, centre, radius, start_angle, sweep, direction
+
+    @property
+    def start(self) -> np.ndarray:
+        return self._arcs[0]
+
+    @property
+    def end(self) -> np.ndarray:
+        return self._arcs[1]
+
+    @property
+    def centre(self) -> np.ndarray:
+        return self._arcs[2]
+
+    @property
+    def radius(self) -> np.ndarray:
+        return self._arcs[3]
+
+    @property
+    def start_angle(self) -> np.ndarray:
+        return self._arcs[4]
+
+    @property
+    def sweep(self) -> np.ndarray:
+        return self._arcs[5]
+
+    @property
+    def direction(self) -> np.ndarray:
+        return self._arcs[6]
 
     def at(self, idx: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points (k, 3) and unit tangents (k, 2) at parameters u in [0, 1] of arcs idx."""
@@ -276,26 +332,32 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
     k = len(eng.path)
     if k:
         reach = eng.index.half_length + eng.tool.radius
-        cand = eng.index.candidates(eye, light, reach) if indexed else np.arange(k)
+        if indexed:
+            starts, ends = eng.index.ranges(eye, light, reach)
+        else:
+            starts, ends = np.array([0]), np.array([eng.index.size])
         is_point = light.distance is not None
-        lvec = light.position if is_point else light.direction
-        geometry = (eng.start, eng.end, eng.centre, eng.radius, eng.start_angle, eng.sweep,
-                    eng.direction, eng.tool.radius, eng.tool.depth, max_tilt, eye,
-                    np.asarray(lvec, dtype=float), is_point)
+        lvec = np.asarray(light.position if is_point else light.direction, dtype=float)
+        tool = (eng.tool.radius, eng.tool.depth, max_tilt, eye, lvec, is_point)
         # Corners: consecutive arcs of one path, both candidates (a corner's
         # directions lie between theirs, so both are near the wanted one). The
         # ball sweeps every direction between the two tangents there.
-        nxt = np.searchsorted(cand, cand + 1)
-        has = nxt < cand.size
-        has[has] = cand[nxt[has]] == cand[has] + 1
-        j = cand[has]
-        j = j[eng.kinked[j]]
-        ok, pts = _kernel.corner_glints(j, *geometry)
-        paths.append(eng.path[j[ok]])
-        points.append(pts[ok])
-        ok, pts = _kernel.arc_glints(cand, *geometry, iterations)
-        paths.append(eng.path[cand[ok]])
-        points.append(pts[ok])
+        if len(eng.kinks):
+            inside = eng.kink_rows >= 0
+            if indexed:
+                at = np.searchsorted(starts, eng.kink_rows, side="right") - 1
+                inside &= (at >= 0) & (eng.kink_rows < np.append(ends, 0)[at])
+            sel = inside.all(axis=1)
+            ok, pts = _kernel.corner_glints(eng.kink_rows[sel], eng.geometry, *tool)
+            paths.append(eng.path[eng.kinks[sel][ok]])
+            points.append(pts[ok])
+        rows = _kernel.expand(starts, ends)
+        ok, pts = _kernel.arc_glints(rows, eng.geometry, *tool, iterations)
+        # Back to arc order, as the arcs were before the index sorted them.
+        arc = eng.index.layout[rows[ok]]
+        order = np.argsort(arc)
+        paths.append(eng.path[arc[order]])
+        points.append(pts[ok][order])
 
     # Dimples offer every normal up to the wall tilt.
     if len(eng.dot_path):
