@@ -283,10 +283,12 @@ def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
 
 
 @nb.njit(cache=True, parallel=True)
-def _arc_lengths(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray) -> float:
-    """Total length of all arcs, mm, from the vertex arrays (no per-arc copies)."""
+def _path_lengths(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """(n_paths,) length of each path's arcs, mm, from the vertex arrays (no
+    per-arc copies); summed by the caller, so the total does not depend on the
+    number of threads."""
     n_paths = offsets.size - 1
-    total = 0.0
+    out = np.zeros(n_paths)
     for j in nb.prange(n_paths):
         part = 0.0
         for i in range(offsets[j], offsets[j + 1] - 1):
@@ -294,8 +296,8 @@ def _arc_lengths(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray) 
                                vertices[i + 1, 1] - vertices[i, 1])
             sweep = 4.0 * math.atan(abs(bulges[i]))
             part += chord * sweep / (2.0 * math.sin(0.5 * sweep)) if sweep > 1e-12 else chord
-        total += part
-    return total
+        out[j] = part
+    return out
 
 
 @nb.njit(cache=True, parallel=True)
@@ -406,8 +408,8 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
         raise ValueError(f"groove width must be positive, got {width}")
     tolerance = min(tolerance, 0.25 * width)  # a groove finer than the slack itself
     f = np.ascontiguousarray
-    total = _arc_lengths(f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float),
-                         f(grooves.offsets, dtype=np.int64)) if grooves.n_paths else 0.0
+    total = float(_path_lengths(f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float),
+                                f(grooves.offsets, dtype=np.int64)).sum())
     fine = width / SAMPLES_PER_WIDTH
     if total / fine + len(grooves.vertices) > MAX_SAMPLES:
         return _large_overlaps(grooves, width, tolerance, total, fine, rng)
