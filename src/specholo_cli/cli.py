@@ -801,6 +801,69 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
     _preview_composed(d, out, frames)
 
 
+@cli.command()
+@click.argument("model", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(path_type=Path), required=True,
+              help="Output folder (written atomically).")
+@click.option("--size", type=float, default=40.0, show_default=True,
+              help="Largest side of the model's bounding box, mm.")
+@click.option("--center-z", type=float, default=0.0, show_default=True,
+              help="Depth of the model's box centre, mm (0 straddles the plate).")
+@click.option("--stipples", type=int, default=800, show_default=True, help="Number of stipples.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Stippling seed.")
+@click.option("--view-distance", type=float, default=600.0, show_default=True,
+              help="From the plate centre to the viewer's eyes, mm.")
+@click.option("--view-elevation", type=float, default=45.0, show_default=True,
+              help="The eyes' angle above the plate's plane, degrees.")
+@click.option("--ipd", type=float, default=64.0, show_default=True,
+              help="Interocular distance, mm.")
+@click.option("--light-height", type=float, default=None,
+              help="A point light on the turning axis this far in front, mm [distant].")
+@click.option("--walls", type=click.Choice(["one", "both"]), default="one", show_default=True,
+              help="one: a relief cut takes away each groove's other wall (no twin image); "
+              "both: plain grooves, which also show the scene mirrored through the plate.")
+@click.option("--no-occlusion", is_flag=True, help="Keep every groove whole.")
+@click.option("--tool-radius", type=float, default=0.25, show_default=True,
+              help="Ball radius, mm.")
+@click.option("--depth", type=float, default=0.08, show_default=True, help="Groove depth, mm.")
+@click.option("--step", type=float, default=5.0, show_default=True,
+              help="Step between verified plate angles, degrees.")
+@click.option("--frames", type=int, default=48, show_default=True,
+              help="Frames of preview.gif over one turn (0 for none).")
+def spin(model: Path, out: Path, size: float, center_z: float, stipples: int, seed: int,
+         view_distance: float, view_elevation: float, ipd: float, light_height: float | None,
+         walls: str, no_occlusion: bool, tool_radius: float, depth: float, step: float,
+         frames: int) -> None:
+    """Design a hologram of MODEL for a plate turning about its normal (a turntable or
+    wall spinner) under a light on the axis: one closed groove per stipple, the scene
+    turning rigidly with the plate through 360 degrees; then verify it over the turn."""
+    from rich.console import Console
+
+    from specholo.setup import Tool
+    from specholo.spin import SpinConfig, design_spin, write_spin
+    from specholo.toolpaths.spinning import SpinSetup
+
+    if not (math.isfinite(step) and 0.5 <= step <= 90.0):
+        raise SpecholoError(f"step must be in [0.5, 90] degrees, got {step}")
+    if not 0 <= frames <= 1000:
+        raise SpecholoError(f"frames must be in [0, 1000], got {frames}")
+    _check_out(out)
+    setup = SpinSetup(distance=view_distance, elevation=math.radians(view_elevation), ipd=ipd,
+                      light_height=light_height, walls=walls)
+    config = SpinConfig(size=size, center_z=center_z, stipples=stipples, seed=seed,
+                        occlusion=not no_occlusion, setup=setup,
+                        tool=Tool(tool_radius, depth))
+    with Console(stderr=True).status("designing closed grooves and verifying the turn..."):
+        job = design_spin(model, config)
+        summary = write_spin(job, out, step, frames)
+    g = job.design.grooves
+    click.echo(f"{len(job.design.points)} stipples, {g.n_paths} paths, "
+               f"{g.total_length() / 1000:.2f} m of groove -> {out}")
+    click.echo(f"over the turn (every {step:g} deg): worst p95 {summary['worst_p95_mm']:.3f} mm, "
+               f"depth p95 {summary['worst_depth_p95_mm']:.3f} mm, lowest visibility "
+               f"{summary['lowest_visibility']:.3f}, stray glints {summary['stray']}")
+
+
 def _preview_composed(d: Any, out: Path, frames: int) -> None:
     """preview.png (start, middle and end of the motion) and preview.gif."""
     from PIL import Image

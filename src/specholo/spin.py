@@ -1,0 +1,254 @@
+"""The whole job for a plate turning about its normal: a model in; closed grooves,
+G-code, SVG, a verification over the turn and a preview out.
+
+The scene turns with the plate, so a viewer standing still sees it turn rigidly
+through 360 degrees. See :mod:`specholo.toolpaths.spinning` for the optics and
+the README's "Rotating plates" for the figures.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from specholo.errors import SpecholoError
+from specholo.setup import Machining, Tool
+from specholo.simulation.spinning import SpinReport, find_spin_glints, verify_spinning
+from specholo.toolpaths.spinning import (
+    SpinDesign,
+    SpinSetup,
+    design_spinning,
+    relief_grooves,
+    rotate_z,
+    vertex_angles,
+)
+
+
+@dataclass(frozen=True)
+class SpinConfig:
+    """A turning-plate hologram: the model's placement, stippling, optics and tool.
+
+    Attributes:
+        size: largest side of the model's bounding box, mm.
+        center_z: depth of the box centre, mm (0 straddles the plate).
+        stipples: number of stipples.
+        seed: stippling seed.
+        occlusion: crop each groove to the plate angles where its point is not
+            hidden by the model.
+        setup: the viewer, light and groove shape.
+        tool: the ball-end cutter.
+        machining: feeds and heights.
+    """
+
+    size: float = 40.0
+    center_z: float = 0.0
+    stipples: int = 800
+    seed: int = 0
+    occlusion: bool = True
+    setup: SpinSetup = field(default_factory=SpinSetup)
+    tool: Tool = field(default_factory=Tool)
+    machining: Machining = field(default_factory=Machining)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.size) and self.size > 0):
+            raise SpecholoError(f"size must be positive, got {self.size}")
+        if not math.isfinite(self.center_z):
+            raise SpecholoError(f"center z must be finite, got {self.center_z}")
+        if not 1 <= self.stipples <= 200_000:
+            raise SpecholoError(f"stipples must be in [1, 200000], got {self.stipples}")
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["setup"]["elevation_deg"] = math.degrees(d["setup"].pop("elevation"))
+        return d
+
+
+@dataclass(frozen=True)
+class SpinJob:
+    """A designed turning-plate hologram and what is needed to check it."""
+
+    config: SpinConfig
+    design: SpinDesign
+    mesh: Any
+    normals: np.ndarray | None
+
+
+def _cyclops(setup: SpinSetup, phi: np.ndarray) -> np.ndarray:
+    """(k, 3) the point between the eyes in the plate frame at plate angles phi."""
+    return rotate_z(np.broadcast_to(setup.world_eyes().mean(axis=0), (len(phi), 3)), -phi)
+
+
+def shown_at(job: SpinJob | Any, points: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """(n, k) bool: stipple i is not hidden by the model at plate angle phi_j."""
+    from specholo.visibility.occlusion import visible
+
+    n, k = len(points), len(phi)
+    if job.mesh is None or not job.config.occlusion or n == 0:
+        return np.ones((n, k), dtype=bool)
+    eyes = _cyclops(job.config.setup, phi)
+    pts = np.repeat(points, k, axis=0)
+    nrm = None if job.normals is None else np.repeat(job.normals, k, axis=0)
+    return visible(job.mesh, pts, nrm, np.tile(eyes, (n, 1))).reshape(n, k)
+
+
+def design_spin(model_path: str | os.PathLike[str], config: SpinConfig,
+                rng: np.random.Generator | None = None) -> SpinJob:
+    """Stipple the model, crop to its visible views, and design the closed grooves."""
+    from specholo.scene.loading import load_model
+    from specholo.scene.placement import place
+    from specholo.scene.stippling import stipple
+
+    model = place(load_model(model_path), config.size, config.center_z)
+    rng = rng if rng is not None else np.random.default_rng(config.seed)
+    st = stipple(model, rng, count=config.stipples)
+    setup = config.setup
+    job0 = SpinJob(config, None, model.mesh, st.normals)  # type: ignore[arg-type]
+    keep = None
+    if model.mesh is not None and config.occlusion:
+        from specholo.toolpaths.spinning import fit_grooves
+
+        coef, _ = fit_grooves(st.points, setup)
+        phi = np.linspace(0.0, 2.0 * np.pi, setup.angles, endpoint=False)
+        vis = shown_at(job0, st.points, phi)
+        j = np.rint(vertex_angles(coef, setup) / (2.0 * np.pi / setup.angles)).astype(int)
+        keep = np.take_along_axis(vis, j % setup.angles, axis=1)
+    design = design_spinning(st.points, setup, config.tool, visible=keep)
+    return SpinJob(config, design, model.mesh, st.normals)
+
+
+def verify_spin(job: SpinJob, step_deg: float = 5.0) -> list[SpinReport]:
+    """Verify over a whole turn every ``step_deg`` degrees."""
+    angles = np.arange(0.0, 360.0, step_deg)
+    shown = shown_at(job, job.design.points, np.radians(angles))
+    return verify_spinning(job.design, job.config.tool, angles, shown)
+
+
+def summarise(reports: list[SpinReport]) -> dict[str, float]:
+    """Worst figures over the turn."""
+    def worst(key: str) -> float:
+        vals = [getattr(r, key) for r in reports if not math.isnan(getattr(r, key))]
+        return max(vals) if vals else math.nan
+
+    return {"worst_p95_mm": worst("p95_mm"), "worst_depth_p95_mm": worst("depth_p95_mm"),
+            "worst_median_mm": worst("median_mm"),
+            "lowest_visibility": min((r.visibility for r in reports), default=math.nan),
+            "stray": int(sum(r.stray for r in reports))}
+
+
+def preview_frames(job: SpinJob, frames: int, size: tuple[int, int] = (360, 360)
+                   ) -> list[np.ndarray]:
+    """Frames of one turn as the left eye sees it (glints found on the grooves).
+
+    Returns:
+        (H, W, 3) uint8 frames.
+    """
+    from PIL import Image, ImageDraw, ImageFilter
+
+    d = job.design
+    setup = d.setup
+    eye_w = setup.world_eyes()[0]
+    fwd = -eye_w / np.linalg.norm(eye_w)
+    right = np.array([1.0, 0.0, 0.0]) - fwd[0] * fwd
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    verts = d.grooves.vertices
+    rad = float(np.abs(verts).max()) + 5.0 if len(verts) else 20.0
+    w, h = size
+    f = 0.45 * min(w, h) / math.atan(rad / np.linalg.norm(eye_w))
+
+    def project(p: np.ndarray) -> np.ndarray:
+        v = p - eye_w
+        z = v @ fwd
+        return np.stack([w / 2 + f * (v @ right) / z, h / 2 - f * (v @ up) / z], axis=-1)
+
+    ring = np.linspace(0, 2 * np.pi, 97)
+    out = []
+    for phi in np.linspace(0.0, 2.0 * np.pi, frames, endpoint=False):
+        eye_p = rotate_z(eye_w, -phi)
+        gl = find_spin_glints(d, eye_p, job.config.tool)
+        world = rotate_z(gl.point, phi)
+        img = Image.new("RGB", size, (10, 11, 14))
+        draw = ImageDraw.Draw(img)
+        edge = project(np.stack([rad * np.cos(ring), rad * np.sin(ring), 0 * ring], -1))
+        draw.polygon([tuple(q) for q in edge], fill=(24, 26, 31), outline=(60, 64, 72))
+        mark = project(rotate_z(np.array([[0.0, rad - 3.0, 0.0], [0.0, rad, 0.0]]), phi))
+        draw.line([tuple(q) for q in mark], fill=(120, 120, 130), width=2)
+        spots = Image.new("L", size, 0)
+        sd = ImageDraw.Draw(spots)
+        for x, y in project(world):
+            sd.ellipse([x - 1.2, y - 1.2, x + 1.2, y + 1.2], fill=255)
+        glow = spots.filter(ImageFilter.GaussianBlur(1.2))
+        base = np.asarray(img, dtype=np.float32)
+        s = np.asarray(glow, dtype=np.float32)[..., None] / 255.0
+        s = np.minimum(1.0, 2.5 * s)
+        pix = base * (1 - s) + s * np.array([255.0, 244.0, 214.0])
+        out.append(pix.clip(0, 255).astype(np.uint8))
+    return out
+
+
+def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
+               frames: int = 48) -> dict[str, Any]:
+    """Write the folder atomically: hologram.json, grooves.npz, stipples.npz,
+    hologram.gcode (and relief.gcode for one-sided walls), hologram.svg,
+    verify.json and preview.gif.
+
+    Returns:
+        The summary of the verification.
+    """
+    from specholo.fabrication.atomic import atomic_open
+    from specholo.fabrication.gcode import write_gcode
+    from specholo.fabrication.svg import write_svg
+    from specholo.pipeline import staged_output
+    from specholo.preview.motion import write_animation
+
+    d, cfg = job.design, job.config
+    if d.grooves.n_paths == 0:
+        raise SpecholoError("no stipple is visible at any plate angle: nothing to cut")
+    reports = verify_spin(job, step_deg)
+    summary = summarise(reports)
+    stale = ("relief.gcode", "preview.gif", "verify.json")
+    with staged_output(out, stale=stale) as tmp:
+        tmp = Path(tmp)
+        with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
+            g = d.grooves
+            np.savez_compressed(fh, vertices=g.vertices, bulges=g.bulges, offsets=g.offsets,
+                                stipple=g.stipple)
+        with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
+            np.savez_compressed(fh, points=d.points, coef=d.coef, side=d.side,
+                                path_side=d.path_side)
+        header = {"design": "turning plate, closed grooves",
+                  "walls": cfg.setup.walls}
+        gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
+                             header=header)
+        meta: dict[str, Any] = {
+            "design": "spinning", "config": cfg.as_dict(),
+            "tilts_deg": [math.degrees(t) for t in d.tilts],
+            "paths": d.grooves.n_paths, "groove_length_mm": d.grooves.total_length(),
+            "gcode": {"lines": gstats.lines, "paths": gstats.paths},
+            "verify": summary,
+        }
+        if cfg.setup.walls == "one":
+            relief, depth = relief_grooves(d, cfg.tool)
+            if relief.n_paths:
+                rhead = {"design": "relief cut: takes away each groove's other wall",
+                         "tool": "V-bit, 30 deg included angle, tip on the groove's edge"}
+                write_gcode(tmp / "relief.gcode", relief, cfg.tool, cfg.machining,
+                            header=rhead, depth=depth)
+            meta["relief"] = {"depth_mm": depth, "v_bit_included_deg": 30.0,
+                              "other_wall_keeps_tilts_below_deg":
+                                  math.degrees(d.relief_tilt)}
+        write_svg(tmp / "hologram.svg", d.grooves, cfg.tool)
+        with atomic_open(tmp / "verify.json") as fh:
+            json.dump({"step_deg": step_deg, "summary": summary,
+                       "angles": [r.as_dict() for r in reports]}, fh, indent=1)
+        with atomic_open(tmp / "hologram.json") as fh:
+            json.dump(meta, fh, indent=1, sort_keys=True)
+        if frames:
+            write_animation(preview_frames(job, frames), tmp / "preview.gif", fps=12)
+    return summary
