@@ -71,30 +71,36 @@ class SpinConfig:
 
 @dataclass(frozen=True)
 class SpinJob:
-    """A designed turning-plate hologram and what is needed to check it."""
+    """A designed turning-plate hologram and what is needed to check it.
+
+    Attributes:
+        config: the settings.
+        design: the grooves.
+        mesh: the placed model (None for a point cloud), which hides stipples.
+        normals: (n, 3) the stipples' face normals, or None.
+        keep: (n, samples) the groove vertices kept by the occlusion crop, or None.
+    """
 
     config: SpinConfig
     design: SpinDesign
     mesh: Any
     normals: np.ndarray | None
-
-
-def _cyclops(setup: SpinSetup, phi: np.ndarray) -> np.ndarray:
-    """(k, 3) the point between the eyes in the plate frame at plate angles phi."""
-    return rotate_z(np.broadcast_to(setup.world_eyes().mean(axis=0), (len(phi), 3)), -phi)
+    keep: np.ndarray | None = None
 
 
 def shown_at(job: SpinJob | Any, points: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """(n, k) bool: stipple i is not hidden by the model at plate angle phi_j."""
+    """(2, n, k) bool: stipple i is not hidden by the model from the left (0) or
+    right (1) eye at plate angle phi_j."""
     from specholo.visibility.occlusion import visible
 
     n, k = len(points), len(phi)
     if job.mesh is None or not job.config.occlusion or n == 0:
-        return np.ones((n, k), dtype=bool)
-    eyes = _cyclops(job.config.setup, phi)
+        return np.ones((2, n, k), dtype=bool)
     pts = np.repeat(points, k, axis=0)
     nrm = None if job.normals is None else np.repeat(job.normals, k, axis=0)
-    return visible(job.mesh, pts, nrm, np.tile(eyes, (n, 1))).reshape(n, k)
+    eyes = job.config.setup.eyes(phi)
+    return np.stack([visible(job.mesh, pts, nrm, np.tile(e, (n, 1))).reshape(n, k)
+                     for e in eyes])
 
 
 def design_spin(model_path: str | os.PathLike[str], config: SpinConfig,
@@ -116,10 +122,14 @@ def design_spin(model_path: str | os.PathLike[str], config: SpinConfig,
         coef, _ = fit_grooves(st.points, setup)
         phi = np.linspace(0.0, 2.0 * np.pi, setup.angles, endpoint=False)
         vis = shown_at(job0, st.points, phi)
-        j = np.rint(vertex_angles(coef, setup) / (2.0 * np.pi / setup.angles)).astype(int)
-        keep = np.take_along_axis(vis, j % setup.angles, axis=1)
+        # a vertex serves each eye at its own angle; keep it only where neither
+        # eye would see a hidden point there
+        keep = np.ones((len(st.points), setup.samples), dtype=bool)
+        for e in range(2):
+            j = np.rint(vertex_angles(coef, setup, e) / (2.0 * np.pi / setup.angles))
+            keep &= np.take_along_axis(vis[e], j.astype(int) % setup.angles, axis=1)
     design = design_spinning(st.points, setup, config.tool, visible=keep)
-    return SpinJob(config, design, model.mesh, st.normals)
+    return SpinJob(config, design, model.mesh, st.normals, keep)
 
 
 def verify_spin(job: SpinJob, step_deg: float = 5.0) -> list[SpinReport]:

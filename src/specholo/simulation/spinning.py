@@ -151,8 +151,9 @@ def verify_spinning(design: SpinDesign, tool: Tool, angles_deg: np.ndarray,
             the serving wall of each path, which says which wall the cut kept).
         tool: the ball.
         angles_deg: (k,) plate angles, degrees.
-        shown: optional (n, k) bool, stipple i meant to be seen at angle j
-            (not hidden); default all.
+        shown: optional (2, n, k) bool, stipple i not hidden from the left (0)
+            or right (1) eye at angle j; default all. A glint of a hidden
+            stipple is stray; visibility counts the stipples neither eye has hidden.
         walls: override the design's walls ("one" or "both").
 
     Returns:
@@ -163,13 +164,15 @@ def verify_spinning(design: SpinDesign, tool: Tool, angles_deg: np.ndarray,
     phis = np.radians(np.asarray(angles_deg, dtype=float))
     eyes = design.setup.eyes(phis)  # (2, k, 3)
     for j, phi in enumerate(phis):
-        meant = np.ones(n, dtype=bool) if shown is None else np.asarray(shown)[:, j]
+        sees = np.ones((2, n), dtype=bool) if shown is None else np.asarray(shown)[:, :, j]
+        meant = sees[0] & sees[1]
         hits = []
         stray = 0
         for e in range(2):
             gl = find_spin_glints(design, eyes[e, j], tool, walls)
             stray += int((~gl.serving).sum())
             s = gl.stipple[gl.serving]
+            stray += int((~sees[e][s]).sum())
             count = np.bincount(s, minlength=n)
             stray += int(np.maximum(count - 1, 0).sum())
             first = np.full(n, -1)
@@ -177,7 +180,6 @@ def verify_spinning(design: SpinDesign, tool: Tool, angles_deg: np.ndarray,
             first[s[order]] = order  # any one glint per stipple
             hits.append((first, gl.point[gl.serving]))
         both = (hits[0][0] >= 0) & (hits[1][0] >= 0)
-        stray += int((both & ~meant).sum())
         sel = np.flatnonzero(both & meant)
         if len(sel):
             x1 = hits[0][1][hits[0][0][sel]]

@@ -68,7 +68,9 @@ class SpinSetup:
         ipd: interocular distance, mm.
         light_height: a point light on the axis this far in front of the plate,
             mm; None for a distant light along the axis.
-        harmonics: harmonics of each groove's support function.
+        harmonics: harmonics of each groove's support function (1: a circle with
+            its centre and radius fitted; more measured no better, as the closure
+            argument above says).
         angles: plate angles over the turn that the fit uses.
         samples: vertices of each closed groove.
         walls: "one" (the unused wall cut away) or "both" (a plain groove).
@@ -78,7 +80,7 @@ class SpinSetup:
     elevation: float = math.radians(45.0)
     ipd: float = 64.0
     light_height: float | None = None
-    harmonics: int = 6
+    harmonics: int = 1
     angles: int = 144
     samples: int = 192
     walls: str = "one"
@@ -243,7 +245,8 @@ def _psi(setup: SpinSetup, x: np.ndarray, eyes: np.ndarray) -> np.ndarray:
 
 
 def design_spinning(points: np.ndarray, setup: SpinSetup, tool: Tool,
-                    visible: np.ndarray | None = None) -> SpinDesign:
+                    visible: np.ndarray | None = None,
+                    coef: np.ndarray | None = None) -> SpinDesign:
     """Design one closed groove per stipple for a turning plate.
 
     Args:
@@ -253,6 +256,8 @@ def design_spinning(points: np.ndarray, setup: SpinSetup, tool: Tool,
         visible: optional (n, samples) bool: vertex k of stipple i's groove is
             kept (its point is not hidden for the plate angle that vertex serves,
             see :func:`vertex_angles`); None keeps every groove whole.
+        coef: optional (n, 2K+1) support-function coefficients to use instead of
+            the fit (for example :func:`classic_circles`, to compare).
 
     Returns:
         The design; stipples on the plate's plane (|z| < 1e-6 mm) get a dimple.
@@ -263,7 +268,8 @@ def design_spinning(points: np.ndarray, setup: SpinSetup, tool: Tool,
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     if len(points) and not np.all(np.isfinite(points)):
         raise SpecholoError("stipples must be finite")
-    coef, tilts = fit_grooves(points, setup)
+    fitted, tilts = fit_grooves(points, setup)
+    coef = fitted if coef is None else np.asarray(coef, dtype=float)
     offered = max_wall_tilt(tool)
     if len(points) and tilts[1] > offered:
         raise SpecholoError(
@@ -334,14 +340,13 @@ def _runs(xy: np.ndarray, keep: np.ndarray, rows: np.ndarray) -> list[tuple[int,
     return out
 
 
-def vertex_angles(coef: np.ndarray, setup: SpinSetup) -> np.ndarray:
-    """The plate angle (n, samples) at which each groove vertex glints for the
-    point between the eyes, radians in [0, 2 pi)."""
+def vertex_angles(coef: np.ndarray, setup: SpinSetup, eye: int) -> np.ndarray:
+    """The plate angle (n, samples) at which each groove vertex glints for one
+    eye (0 left, 1 right), radians in [0, 2 pi)."""
     k = setup.samples
     psi = np.linspace(0.0, 2.0 * np.pi, k, endpoint=False)
     phi = np.linspace(0.0, 2.0 * np.pi, setup.angles, endpoint=False)
-    mid = setup.world_eyes().mean(axis=0)
-    eyes = rotate_z(np.broadcast_to(mid, (len(phi), 3)), -phi)
+    eyes = setup.eyes(phi)[eye]
     n = len(coef)
     out = np.zeros((n, k))
     for lo in range(0, n, 2048):
@@ -415,3 +420,14 @@ def relief_grooves(design: SpinDesign, tool: Tool) -> tuple[Grooves, float]:
     return Grooves(off[mask], np.zeros(int(mask.sum())),
                    np.concatenate([[0], np.cumsum(new_sizes)]).astype(np.int64),
                    g.stipple[keep]), depth
+
+
+def classic_circles(points: np.ndarray, setup: SpinSetup) -> np.ndarray:
+    """Coefficients (n, 2K+1) of the classic turntable grooves: circles about each
+    stipple's foot, radius |z| cot(elevation), exact only for a distant viewer."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    coef = np.zeros((len(points), 2 * setup.harmonics + 1))
+    coef[:, 0] = -points[:, 2] / math.tan(setup.elevation)
+    coef[:, 1] = points[:, 0]
+    coef[:, 2] = points[:, 1]
+    return coef
