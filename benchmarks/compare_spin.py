@@ -4,7 +4,8 @@ The bunny, 40 mm, straddling the plate, 800 stipples cropped to their visible
 plate angles; eyes 64 mm apart at 45 degrees' elevation; a distant light on
 the axis. For each viewer distance: the classic circle about each stipple's
 foot (radius |z| cot elevation), a support function with six harmonics
-fitted, and the default: a circle with its centre and radius fitted, each verified by the simulator every 5 degrees over the turn.
+fitted, and the default: a circle with its centre and radius fitted, each
+verified by the simulator every 5 degrees over the turn.
 Prints the 95th-percentile error (depth part in brackets) every 45 degrees,
 the worst over the turn, stray glints, and the design and verification speed.
 
