@@ -221,3 +221,19 @@ def test_rotation_is_rigid_in_the_world() -> None:
         t = eye_w[2] / (eye_w[2] - p_w[:, 2])
         cross = eye_w + (p_w - eye_w) * t[:, None]
         np.testing.assert_allclose(world, cross, atol=0.01)
+
+
+def test_stipple_on_the_plate_gets_a_dimple_seen_in_place() -> None:
+    """A point on the plate's plane needs no disparity: a dimple, seen by both
+    eyes at the point itself at every angle, beside ordinary grooves."""
+    pts = np.array([[5.0, -3.0, 0.0], [10.0, 4.0, -6.0]])
+    setup = SpinSetup()
+    d = design_spinning(pts, setup, TOOL)
+    assert d.grooves.is_dot.tolist() == [True, False]
+    reps = verify_spinning(d, TOOL, np.arange(0, 360, 30.0))
+    assert all(r.visibility == 1.0 and r.stray == 0 for r in reps)
+    for phi in (0.0, 1.0):
+        for eye in setup.eyes(np.array([phi]))[:, 0]:
+            gl = find_spin_glints(d, eye, TOOL)
+            dot = gl.point[gl.stipple == 0]
+            np.testing.assert_allclose(dot, [[5.0, -3.0, 0.0]], atol=1e-12)
