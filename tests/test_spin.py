@@ -237,3 +237,23 @@ def test_stipple_on_the_plate_gets_a_dimple_seen_in_place() -> None:
             gl = find_spin_glints(d, eye, TOOL)
             dot = gl.point[gl.stipple == 0]
             np.testing.assert_allclose(dot, [[5.0, -3.0, 0.0]], atol=1e-12)
+
+
+def test_folder_reverifies_and_other_commands_refuse(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "spin"
+    assert main(["spin", str(BUNNY), "--out", str(out), "--stipples", "120", "--frames", "0",
+                 "--step", "15"]) == 0
+    first = json.loads((out / "verify.json").read_text())["summary"]
+    capsys.readouterr()
+    assert main(["verify", str(out), "--step", "5"]) == 0
+    again = json.loads((out / "verify.json").read_text())
+    assert len(again["angles"]) == 72
+    # the folder alone reproduces the design's figures (15 deg is every third angle)
+    p95 = [a["p95_mm"] for a in again["angles"][::3]]
+    assert max(p95) == pytest.approx(first["worst_p95_mm"], abs=1e-12)
+    for cmd in ("render", "report", "view", "stereo", "animate"):
+        rc = main([cmd, str(out)])
+        err = capsys.readouterr().err.strip()
+        assert rc != 0 and "turning-plate" in err and len(err.splitlines()) == 1
+    assert main(["verify", str(out), "--cut"]) != 0

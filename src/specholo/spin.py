@@ -222,7 +222,8 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
         raise SpecholoError("no stipple is visible at any plate angle: nothing to cut")
     reports = verify_spin(job, step_deg)
     summary = summarise(reports)
-    stale = ("relief.gcode", "preview.gif", "verify.json")
+    stale = ("relief.gcode", "preview.gif", "verify.json", "model.ply", "verify.png",
+             "verify_cut.json", "preview.png", "run.json", "hologram.dxf", "report.html")
     with staged_output(out, stale=stale) as tmp:
         tmp = Path(tmp)
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
@@ -231,7 +232,11 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                                 stipple=g.stipple)
         with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
             np.savez_compressed(fh, points=d.points, coef=d.coef, side=d.side,
-                                path_side=d.path_side)
+                                path_side=d.path_side, normals=np.zeros((0, 3))
+                                if job.normals is None else job.normals)
+        if job.mesh is not None:
+            with atomic_open(tmp / "model.ply", "wb", encoding=None) as fh:
+                fh.write(job.mesh.export(file_type="ply"))
         header = {"design": "turning plate, closed grooves",
                   "walls": cfg.setup.walls}
         gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
@@ -239,6 +244,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
         meta: dict[str, Any] = {
             "design": "spinning", "config": cfg.as_dict(),
             "tilts_deg": [math.degrees(t) for t in d.tilts],
+            "relief_tilt_deg": math.degrees(d.relief_tilt),
             "paths": d.grooves.n_paths, "groove_length_mm": d.grooves.total_length(),
             "gcode": {"lines": gstats.lines, "paths": gstats.paths},
             "verify": summary,
@@ -254,11 +260,64 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                               "other_wall_keeps_tilts_below_deg":
                                   math.degrees(d.relief_tilt)}
         write_svg(tmp / "hologram.svg", d.grooves, cfg.tool)
-        with atomic_open(tmp / "verify.json") as fh:
-            json.dump({"step_deg": step_deg, "summary": summary,
-                       "angles": [r.as_dict() for r in reports]}, fh, indent=1)
+        write_spin_verification(reports, tmp, step_deg)
         with atomic_open(tmp / "hologram.json") as fh:
             json.dump(meta, fh, indent=1, sort_keys=True)
         if frames:
             write_animation(preview_frames(job, frames), tmp / "preview.gif", fps=12)
     return summary
+
+
+def write_spin_verification(reports: list[SpinReport], folder: str | os.PathLike[str],
+                            step_deg: float) -> dict[str, Any]:
+    """Write ``verify.json`` atomically; returns the summary."""
+    from specholo.fabrication.atomic import atomic_open
+
+    summary = summarise(reports)
+    with atomic_open(Path(folder) / "verify.json") as fh:
+        json.dump({"step_deg": step_deg, "summary": summary,
+                   "angles": [r.as_dict() for r in reports]}, fh, indent=1)
+    return summary
+
+
+def is_spin_folder(folder: str | os.PathLike[str]) -> bool:
+    """True if ``folder`` holds a turning-plate design written by :func:`write_spin`."""
+    try:
+        meta = json.loads((Path(folder) / "hologram.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(meta, dict) and meta.get("design") == "spinning"
+
+
+def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:
+    """Read a folder written by :func:`write_spin` back into a job."""
+    import trimesh
+
+    from specholo.toolpaths.grooves import Grooves
+
+    folder = Path(folder)
+    try:
+        meta = json.loads((folder / "hologram.json").read_text())
+        c = dict(meta["config"])
+        st = dict(c.pop("setup"))
+        st["elevation"] = math.radians(st.pop("elevation_deg"))
+        cfg = SpinConfig(setup=SpinSetup(**st), tool=Tool(**c.pop("tool")),
+                         machining=Machining(**c.pop("machining")), **c)
+        grooves = Grooves.load(str(folder / "grooves.npz"))
+        with np.load(folder / "stipples.npz") as data:
+            points, coef = data["points"], data["coef"]
+            side, path_side = data["side"], data["path_side"]
+            normals = data["normals"] if len(data["normals"]) else None
+        mesh = None
+        if (folder / "model.ply").is_file():
+            mesh = trimesh.load(folder / "model.ply", force="mesh", process=False)
+        tilts = tuple(math.radians(t) for t in meta["tilts_deg"])
+        design = SpinDesign(cfg.setup, points, coef, side, grooves, path_side,
+                            (tilts[0], tilts[1]), math.radians(meta["relief_tilt_deg"]))
+    except SpecholoError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError, IndexError) as exc:
+        raise SpecholoError(f"cannot read turning-plate design in {folder}: {exc}") from exc
+    if grooves.n_paths != len(path_side) or len(points) != len(coef):
+        raise SpecholoError(f"cannot read turning-plate design in {folder}: files disagree")
+    return SpinJob(cfg, design, mesh, normals)

@@ -301,7 +301,14 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
     if not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
         raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
     from specholo.compose import is_composed_folder
+    from specholo.spin import is_spin_folder
 
+    if is_spin_folder(folder):
+        if from_gcode or cut:
+            raise SpecholoError("a turning-plate design is verified on its grooves; "
+                                "--from-gcode and --cut are for flat-plate designs")
+        _verify_spin(folder, step)
+        return
     if is_composed_folder(folder):
         if from_gcode or cut:
             raise SpecholoError("a composed design is verified on its grooves; --from-gcode "
@@ -452,6 +459,11 @@ def _check_folder(folder: Path) -> None:
         raise SpecholoError(f"design folder {folder} does not exist")
     if not folder.is_dir():
         raise SpecholoError(f"{folder} is not a folder")
+    from specholo.spin import is_spin_folder
+
+    if is_spin_folder(folder):  # the commands that call this read flat-plate designs
+        raise SpecholoError(f"{folder} holds a turning-plate design: its pictures are "
+                            "preview.gif; `specholo verify` checks it")
 
 
 def _design_folder(folder: Path) -> Any:
@@ -682,6 +694,8 @@ def report(folder: Path) -> None:
     from specholo.pipeline import load_design
     from specholo.preview.report import write_report
 
+    if Path(folder).is_dir():
+        _check_folder(folder)  # a turning-plate folder gets its own message
     load_design(folder)  # a clear error if this is not a design folder
     verify_file = Path(folder) / "verify.json"
     try:
@@ -862,6 +876,24 @@ def spin(model: Path, out: Path, size: float, center_z: float, stipples: int, se
     click.echo(f"over the turn (every {step:g} deg): worst p95 {summary['worst_p95_mm']:.3f} mm, "
                f"depth p95 {summary['worst_depth_p95_mm']:.3f} mm, lowest visibility "
                f"{summary['lowest_visibility']:.3f}, stray glints {summary['stray']}")
+
+
+def _verify_spin(folder: Path, step: float) -> None:
+    """Verify a turning-plate folder over one turn, every ``step`` degrees."""
+    from rich.console import Console
+
+    from specholo.spin import load_spin_folder, verify_spin, write_spin_verification
+
+    job = load_spin_folder(folder)
+    with Console(stderr=True).status("turning the plate..."):
+        reports = verify_spin(job, step)
+    s = write_spin_verification(reports, folder, step)
+    for r in reports[::max(1, len(reports) // 8)]:
+        click.echo(f"plate {r.angle_deg:6.1f} deg: p95 {r.p95_mm:.3f} mm (depth "
+                   f"{r.depth_p95_mm:.3f}), visibility {r.visibility:.3f}, stray {r.stray}")
+    click.echo(f"worst p95 {s['worst_p95_mm']:.3f} mm, depth {s['worst_depth_p95_mm']:.3f} mm, "
+               f"lowest visibility {s['lowest_visibility']:.3f}, stray glints {s['stray']} "
+               f"-> {folder / 'verify.json'}")
 
 
 def _preview_composed(d: Any, out: Path, frames: int) -> None:
