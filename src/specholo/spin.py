@@ -24,6 +24,7 @@ from specholo.toolpaths.spinning import (
     SpinDesign,
     SpinSetup,
     design_spinning,
+    fit_grooves,
     relief_grooves,
     rotate_z,
     vertex_angles,
@@ -88,19 +89,19 @@ class SpinJob:
     keep: np.ndarray | None = None
 
 
-def shown_at(job: SpinJob | Any, points: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """(2, n, k) bool: stipple i is not hidden by the model from the left (0) or
-    right (1) eye at plate angle phi_j."""
+def shown_at(config: SpinConfig, mesh: Any, normals: np.ndarray | None, points: np.ndarray,
+             phi: np.ndarray) -> np.ndarray:
+    """(2, n, k) bool: stipple i (points (n, 3), their face normals) is not hidden
+    by ``mesh`` from the left (0) or right (1) eye at plate angle phi_j (k,)."""
     from specholo.visibility.occlusion import visible
 
     n, k = len(points), len(phi)
-    if job.mesh is None or not job.config.occlusion or n == 0:
+    if mesh is None or not config.occlusion or n == 0:
         return np.ones((2, n, k), dtype=bool)
     pts = np.repeat(points, k, axis=0)
-    nrm = None if job.normals is None else np.repeat(job.normals, k, axis=0)
-    eyes = job.config.setup.eyes(phi)
-    return np.stack([visible(job.mesh, pts, nrm, np.tile(e, (n, 1))).reshape(n, k)
-                     for e in eyes])
+    nrm = None if normals is None else np.repeat(normals, k, axis=0)
+    return np.stack([visible(mesh, pts, nrm, np.tile(e, (n, 1))).reshape(n, k)
+                     for e in config.setup.eyes(phi)])
 
 
 def design_spin(model_path: str | os.PathLike[str], config: SpinConfig,
@@ -114,28 +115,25 @@ def design_spin(model_path: str | os.PathLike[str], config: SpinConfig,
     rng = rng if rng is not None else np.random.default_rng(config.seed)
     st = stipple(model, rng, count=config.stipples)
     setup = config.setup
-    job0 = SpinJob(config, None, model.mesh, st.normals)  # type: ignore[arg-type]
+    fitted = fit_grooves(st.points, setup)
     keep = None
     if model.mesh is not None and config.occlusion:
-        from specholo.toolpaths.spinning import fit_grooves
-
-        coef, _ = fit_grooves(st.points, setup)
         phi = np.linspace(0.0, 2.0 * np.pi, setup.angles, endpoint=False)
-        vis = shown_at(job0, st.points, phi)
+        vis = shown_at(config, model.mesh, st.normals, st.points, phi)
         # a vertex serves each eye at its own angle; keep it only where neither
         # eye would see a hidden point there
         keep = np.ones((len(st.points), setup.samples), dtype=bool)
         for e in range(2):
-            j = np.rint(vertex_angles(coef, setup, e) / (2.0 * np.pi / setup.angles))
+            j = np.rint(vertex_angles(fitted[0], setup, e) / (2.0 * np.pi / setup.angles))
             keep &= np.take_along_axis(vis[e], j.astype(int) % setup.angles, axis=1)
-    design = design_spinning(st.points, setup, config.tool, visible=keep)
+    design = design_spinning(st.points, setup, config.tool, visible=keep, fitted=fitted)
     return SpinJob(config, design, model.mesh, st.normals, keep)
 
 
 def verify_spin(job: SpinJob, step_deg: float = 5.0) -> list[SpinReport]:
     """Verify over a whole turn every ``step_deg`` degrees."""
     angles = np.arange(0.0, 360.0, step_deg)
-    shown = shown_at(job, job.design.points, np.radians(angles))
+    shown = shown_at(job.config, job.mesh, job.normals, job.design.points, np.radians(angles))
     return verify_spinning(job.design, job.config.tool, angles, shown)
 
 

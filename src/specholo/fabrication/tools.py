@@ -24,19 +24,13 @@ import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.errors import positive as _positive
 from specholo.setup import Light, Tool, Viewer
 
 #: Tolerance when comparing a needed tilt with a facet's, radians (~0.06 degrees).
 TILT_TOLERANCE = 1e-3
 #: Names accepted by :func:`make_cutter`.
 KINDS = ("ball", "vbit", "drag", "scriber", "laser")
-
-
-def _positive(name: str, value: float) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise SpecholoError(f"{name} must be a positive number, got {value}")
-    return value
 
 
 @dataclass(frozen=True)

@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.errors import positive as _positive
 from specholo.fabrication.atomic import atomic_open
 from specholo.setup import Light, Setup, Tool
 from specholo.simulation import _cut_kernel as _k
@@ -225,13 +226,6 @@ def as_profile(tool: Any, depth: float) -> ToolProfile:
         else:
             hi = mid
     return ToolProfile.from_function(fn, lo if lo > 0 else hi)
-
-
-def _positive(name: str, value: float) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise SpecholoError(f"{name} must be a positive number, got {value}")
-    return value
 
 
 # ---------------------------------------------------------------------------

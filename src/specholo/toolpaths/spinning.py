@@ -42,19 +42,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from specholo.errors import SpecholoError
+from specholo.errors import SpecholoError, positive
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves
 
 #: Walls a spinning groove may keep.
 WALLS = ("one", "both")
-
-
-def _positive(name: str, value: float) -> float:
-    v = float(value)
-    if not (math.isfinite(v) and v > 0):
-        raise SpecholoError(f"{name} must be a positive number, got {value!r}")
-    return v
 
 
 @dataclass(frozen=True)
@@ -86,8 +79,8 @@ class SpinSetup:
     walls: str = "one"
 
     def __post_init__(self) -> None:
-        _positive("viewer distance", self.distance)
-        _positive("ipd", self.ipd)
+        positive("viewer distance", self.distance)
+        positive("ipd", self.ipd)
         el = float(self.elevation)
         if not (math.isfinite(el) and math.radians(5.0) <= el <= math.radians(85.0)):
             raise SpecholoError(f"viewer elevation must be in [5, 85] degrees, got "
@@ -96,7 +89,7 @@ class SpinSetup:
             raise SpecholoError(f"ipd {self.ipd:g} mm must be below the viewer distance "
                                 f"{self.distance:g} mm")
         if self.light_height is not None:
-            _positive("light height", self.light_height)
+            positive("light height", self.light_height)
         if not 1 <= int(self.harmonics) <= 32:
             raise SpecholoError(f"harmonics must be in [1, 32], got {self.harmonics}")
         if not 16 <= int(self.angles) <= 3600:
@@ -246,7 +239,9 @@ def _psi(setup: SpinSetup, x: np.ndarray, eyes: np.ndarray) -> np.ndarray:
 
 def design_spinning(points: np.ndarray, setup: SpinSetup, tool: Tool,
                     visible: np.ndarray | None = None,
-                    coef: np.ndarray | None = None) -> SpinDesign:
+                    coef: np.ndarray | None = None,
+                    fitted: tuple[np.ndarray, tuple[float, float]] | None = None
+                    ) -> SpinDesign:
     """Design one closed groove per stipple for a turning plate.
 
     Args:
@@ -258,6 +253,8 @@ def design_spinning(points: np.ndarray, setup: SpinSetup, tool: Tool,
             see :func:`vertex_angles`); None keeps every groove whole.
         coef: optional (n, 2K+1) support-function coefficients to use instead of
             the fit (for example :func:`classic_circles`, to compare).
+        fitted: what :func:`fit_grooves` returned for these points and setup,
+            if the caller already has it.
 
     Returns:
         The design; stipples on the plate's plane (|z| < 1e-6 mm) get a dimple.
@@ -268,8 +265,8 @@ def design_spinning(points: np.ndarray, setup: SpinSetup, tool: Tool,
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     if len(points) and not np.all(np.isfinite(points)):
         raise SpecholoError("stipples must be finite")
-    fitted, tilts = fit_grooves(points, setup)
-    coef = fitted if coef is None else np.asarray(coef, dtype=float)
+    fit_coef, tilts = fit_grooves(points, setup) if fitted is None else fitted
+    coef = fit_coef if coef is None else np.asarray(coef, dtype=float)
     offered = max_wall_tilt(tool)
     if len(points) and tilts[1] > offered:
         raise SpecholoError(
