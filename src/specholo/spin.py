@@ -42,6 +42,11 @@ class SpinConfig:
         seed: stippling seed.
         occlusion: crop each groove to the plate angles where its point is not
             hidden by the model.
+        turns: circuits of the view about the scene per plate turn. 1: the
+            scene turns with the plate (closed grooves); 2 or more: the scene
+            turns faster and the stipples slide over it (open grooves, see
+            :mod:`specholo.toolpaths.sliding`), one model for all the circuits or
+            one model per circuit.
         setup: the viewer, light and groove shape.
         tool: the ball-end cutter.
         machining: feeds and heights.
@@ -52,6 +57,7 @@ class SpinConfig:
     stipples: int = 800
     seed: int = 0
     occlusion: bool = True
+    turns: int = 1
     setup: SpinSetup = field(default_factory=SpinSetup)
     tool: Tool = field(default_factory=Tool)
     machining: Machining = field(default_factory=Machining)
@@ -63,6 +69,8 @@ class SpinConfig:
             raise SpecholoError(f"center z must be finite, got {self.center_z}")
         if not 1 <= self.stipples <= 200_000:
             raise SpecholoError(f"stipples must be in [1, 200000], got {self.stipples}")
+        if not 1 <= self.turns <= 8:
+            raise SpecholoError(f"turns must be in [1, 8], got {self.turns}")
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -104,15 +112,25 @@ def shown_at(config: SpinConfig, mesh: Any, normals: np.ndarray | None, points: 
                      for e in config.setup.eyes(phi)])
 
 
-def design_spin(model_path: str | os.PathLike[str], config: SpinConfig,
-                rng: np.random.Generator | None = None) -> SpinJob:
-    """Stipple the model, crop to its visible views, and design the closed grooves."""
+def design_spin(model_path: str | os.PathLike[str] | list[str | os.PathLike[str]],
+                config: SpinConfig, rng: np.random.Generator | None = None) -> SpinJob:
+    """Stipple the model, crop to its visible views, and design the grooves.
+
+    With ``config.turns`` > 1, ``model_path`` may list one model per circuit of
+    the view; the stipples then slide over the turning scenes.
+    """
     from specholo.scene.loading import load_model
     from specholo.scene.placement import place
     from specholo.scene.stippling import stipple
 
-    model = place(load_model(model_path), config.size, config.center_z)
+    paths = list(model_path) if isinstance(model_path, list | tuple) else [model_path]
     rng = rng if rng is not None else np.random.default_rng(config.seed)
+    if config.turns == 1 and len(paths) != 1:
+        raise SpecholoError(f"one model for a single turn of the view, got {len(paths)}; "
+                            "several models need --turns equal to their number")
+    if config.turns > 1:
+        return _design_sliding(paths, config, rng)
+    model = place(load_model(paths[0]), config.size, config.center_z)
     st = stipple(model, rng, count=config.stipples)
     setup = config.setup
     fitted = fit_grooves(st.points, setup)
@@ -130,9 +148,29 @@ def design_spin(model_path: str | os.PathLike[str], config: SpinConfig,
     return SpinJob(config, design, model.mesh, st.normals, keep)
 
 
+def _design_sliding(paths: list[str | os.PathLike[str]], config: SpinConfig,
+                    rng: np.random.Generator) -> SpinJob:
+    from specholo.scene.loading import load_model
+    from specholo.scene.placement import place
+    from specholo.toolpaths.sliding import design_sliding, slide_tracks
+
+    if len(paths) not in (1, config.turns):
+        raise SpecholoError(f"give one model, or one per turn of the view ({config.turns}); "
+                            f"got {len(paths)}")
+    meshes = [place(load_model(p), config.size, config.center_z).mesh for p in paths]
+    tracks = slide_tracks(meshes, config.setup, config.turns, config.stipples, rng,
+                          occlusion=config.occlusion)
+    if not len(tracks):
+        raise SpecholoError("no stipple stays in view long enough to be served: nothing to cut")
+    design = design_sliding(tracks, config.setup, config.tool)
+    return SpinJob(config, design, None, None)
+
+
 def verify_spin(job: SpinJob, step_deg: float = 5.0) -> list[SpinReport]:
     """Verify over a whole turn every ``step_deg`` degrees."""
     angles = np.arange(0.0, 360.0, step_deg)
+    if job.design.tracks is not None:  # sliding stipples carry when they are shown
+        return verify_spinning(job.design, job.config.tool, angles)
     shown = shown_at(job.config, job.mesh, job.normals, job.design.points, np.radians(angles))
     return verify_spinning(job.design, job.config.tool, angles, shown)
 
@@ -145,7 +183,8 @@ def summarise(reports: list[SpinReport]) -> dict[str, float]:
 
     return {"worst_p95_mm": worst("p95_mm"), "worst_depth_p95_mm": worst("depth_p95_mm"),
             "worst_median_mm": worst("median_mm"),
-            "lowest_visibility": min((r.visibility for r in reports), default=math.nan),
+            "lowest_visibility": min((r.visibility for r in reports
+                                      if not math.isnan(r.visibility)), default=math.nan),
             "stray": int(sum(r.stray for r in reports))}
 
 
@@ -228,15 +267,23 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
             g = d.grooves
             np.savez_compressed(fh, vertices=g.vertices, bulges=g.bulges, offsets=g.offsets,
                                 stipple=g.stipple)
+        extra: dict[str, Any] = {}
+        if d.tracks is not None:
+            t = d.tracks
+            extra = {"track_phi": t.phi, "track_position": t.position,
+                     "track_alive": t.alive, "track_scene": t.scene,
+                     "track_shown": t.alive if t.shown is None else t.shown,
+                     "window": d.window if d.window is not None else np.zeros((0, 2))}
         with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
-            np.savez_compressed(fh, points=d.points, coef=d.coef, side=d.side,
-                                path_side=d.path_side, normals=np.zeros((0, 3))
-                                if job.normals is None else job.normals)
+            extra.update(points=d.points, coef=d.coef, side=d.side, path_side=d.path_side,
+                         normals=np.zeros((0, 3)) if job.normals is None else job.normals)
+            np.savez_compressed(fh, **extra)
         if job.mesh is not None:
             with atomic_open(tmp / "model.ply", "wb", encoding=None) as fh:
                 fh.write(job.mesh.export(file_type="ply"))
-        header = {"design": "turning plate, closed grooves",
-                  "walls": cfg.setup.walls}
+        header = {"design": "turning plate, closed grooves" if d.tracks is None else
+                  f"turning plate, open grooves: the view circles the scene {cfg.turns} "
+                  "times per turn", "walls": cfg.setup.walls}
         gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
                              header=header)
         meta: dict[str, Any] = {
@@ -247,6 +294,14 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
             "gcode": {"lines": gstats.lines, "paths": gstats.paths},
             "verify": summary,
         }
+        if d.tracks is not None:
+            per = d.tracks.shown.sum(axis=0) if d.tracks.shown is not None else \
+                d.tracks.alive.sum(axis=0)
+            meta["sliding"] = {"tracks": len(d.tracks), "turns": cfg.turns,
+                               "scenes": int(d.tracks.scene.max()) + 1 if len(d.tracks) else 0,
+                               "shown_per_angle": {"min": int(per.min()),
+                                                   "mean": float(per.mean()),
+                                                   "max": int(per.max())}}
         if cfg.setup.walls == "one":
             relief, depth = relief_grooves(d, cfg.tool)
             if relief.n_paths:
@@ -302,20 +357,31 @@ def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:
         cfg = SpinConfig(setup=SpinSetup(**st), tool=Tool(**c.pop("tool")),
                          machining=Machining(**c.pop("machining")), **c)
         grooves = Grooves.load(str(folder / "grooves.npz"))
+        tracks = window = None
         with np.load(folder / "stipples.npz") as data:
             points, coef = data["points"], data["coef"]
             side, path_side = data["side"], data["path_side"]
             normals = data["normals"] if len(data["normals"]) else None
+            if "track_position" in data:
+                from specholo.toolpaths.sliding import Tracks
+
+                tracks = Tracks(cfg.turns, data["track_phi"], data["track_position"],
+                                data["track_alive"].astype(bool), data["track_scene"],
+                                data["track_shown"].astype(bool))
+                window = data["window"]
         mesh = None
         if (folder / "model.ply").is_file():
             mesh = trimesh.load(folder / "model.ply", force="mesh", process=False)
         tilts = tuple(math.radians(t) for t in meta["tilts_deg"])
         design = SpinDesign(cfg.setup, points, coef, side, grooves, path_side,
-                            (tilts[0], tilts[1]), math.radians(meta["relief_tilt_deg"]))
+                            (tilts[0], tilts[1]), math.radians(meta["relief_tilt_deg"]),
+                            tracks=tracks, window=window)
     except SpecholoError:
         raise
     except (OSError, KeyError, ValueError, TypeError, IndexError) as exc:
         raise SpecholoError(f"cannot read turning-plate design in {folder}: {exc}") from exc
-    if grooves.n_paths != len(path_side) or len(points) != len(coef):
+    if grooves.n_paths != len(path_side) or len(points) != len(coef) or (
+            tracks is not None and (cfg.turns < 2 or tracks.position.shape[:2] != tracks.alive.shape
+                                    or len(tracks) != len(points))):
         raise SpecholoError(f"cannot read turning-plate design in {folder}: files disagree")
     return SpinJob(cfg, design, mesh, normals)

@@ -816,14 +816,18 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
 
 
 @cli.command()
-@click.argument("model", type=click.Path(path_type=Path))
+@click.argument("model", type=click.Path(path_type=Path), nargs=-1, required=True)
 @click.option("--out", type=click.Path(path_type=Path), required=True,
               help="Output folder (written atomically).")
 @click.option("--size", type=float, default=40.0, show_default=True,
               help="Largest side of the model's bounding box, mm.")
 @click.option("--center-z", type=float, default=0.0, show_default=True,
               help="Depth of the model's box centre, mm (0 straddles the plate).")
-@click.option("--stipples", type=int, default=800, show_default=True, help="Number of stipples.")
+@click.option("--turns", type=int, default=None,
+              help="Circuits of the view about the scene per plate turn [the number of "
+              "models]. 2 with two models: a different scene on each circuit.")
+@click.option("--stipples", type=int, default=800, show_default=True,
+              help="Number of stipples (with --turns 2 or more: shown at once).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Stippling seed.")
 @click.option("--view-distance", type=float, default=600.0, show_default=True,
               help="From the plate centre to the viewer's eyes, mm.")
@@ -844,13 +848,18 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
               help="Step between verified plate angles, degrees.")
 @click.option("--frames", type=int, default=48, show_default=True,
               help="Frames of preview.gif over one turn (0 for none).")
-def spin(model: Path, out: Path, size: float, center_z: float, stipples: int, seed: int,
+def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns: int | None,
+         stipples: int, seed: int,
          view_distance: float, view_elevation: float, ipd: float, light_height: float | None,
          walls: str, no_occlusion: bool, tool_radius: float, depth: float, step: float,
          frames: int) -> None:
     """Design a hologram of MODEL for a plate turning about its normal (a turntable or
-    wall spinner) under a light on the axis: one closed groove per stipple, the scene
-    turning rigidly with the plate through 360 degrees; then verify it over the turn."""
+    wall spinner) under a light on the axis, then verify it over the turn.
+
+    One model: one closed groove per stipple, the scene turning rigidly with the
+    plate through 360 degrees. Several models (or --turns N): the view circles the
+    scene N times per plate turn, each model on its own circuit (720 degrees for
+    two), with stipples sliding over the turning scene on open grooves."""
     from rich.console import Console
 
     from specholo.setup import Tool
@@ -864,14 +873,19 @@ def spin(model: Path, out: Path, size: float, center_z: float, stipples: int, se
     _check_out(out)
     setup = SpinSetup(distance=view_distance, elevation=math.radians(view_elevation), ipd=ipd,
                       light_height=light_height, walls=walls)
+    turns = len(model) if turns is None else turns
     config = SpinConfig(size=size, center_z=center_z, stipples=stipples, seed=seed,
-                        occlusion=not no_occlusion, setup=setup,
+                        occlusion=not no_occlusion, turns=turns, setup=setup,
                         tool=Tool(tool_radius, depth))
-    with Console(stderr=True).status("designing closed grooves and verifying the turn..."):
-        job = design_spin(model, config)
+    what = "closed grooves" if turns == 1 else "stipples sliding over the turning scene"
+    with Console(stderr=True).status(f"designing {what} and verifying the turn..."):
+        job = design_spin(list(model), config)
         summary = write_spin(job, out, step, frames)
     g = job.design.grooves
-    click.echo(f"{len(job.design.points)} stipples, {g.n_paths} paths, "
+    tracks = job.design.tracks
+    shown = "" if tracks is None else \
+        f" (about {tracks.shown.sum(axis=0).mean():.0f} shown at once)"
+    click.echo(f"{len(job.design.points)} stipples{shown}, {g.n_paths} paths, "
                f"{g.total_length() / 1000:.2f} m of groove -> {out}")
     click.echo(f"over the turn (every {step:g} deg): worst p95 {summary['worst_p95_mm']:.3f} mm, "
                f"depth p95 {summary['worst_depth_p95_mm']:.3f} mm, lowest visibility "

@@ -7,7 +7,8 @@ interpolation, its wall read from the side h leans to, and kept if that wall
 exists (``walls``: with the relief cut, the other wall keeps only its shallow
 floor) and its tilt is one the ball offers. Each stipple's glints
 for the two eyes are triangulated and compared with the stipple, which is
-fixed in the plate frame when the scene turns with the plate. Glints on a wall
+fixed in the plate frame when the scene turns with the plate, and otherwise
+where its track has it at that angle (:mod:`specholo.toolpaths.sliding`). Glints on a wall
 that does not serve (the twin) are counted as stray.
 """
 
@@ -124,8 +125,10 @@ class SpinReport:
         median_mm, p95_mm: error of the triangulated point against the stipple.
         depth_p95_mm: the same for its z alone.
         visibility: share of the stipples meant to be seen (not hidden at this
-            angle) that both eyes see.
+            angle) that both eyes see; NaN where none is meant (a hand-over
+            between scenes).
         stray: glints on walls that do not serve, or extra glints on a groove.
+        shown: stipples meant to be seen by both eyes.
     """
 
     angle_deg: float
@@ -134,11 +137,12 @@ class SpinReport:
     depth_p95_mm: float
     visibility: float
     stray: int
+    shown: int = 0
 
     def as_dict(self) -> dict[str, float]:
         return {"angle_deg": self.angle_deg, "median_mm": self.median_mm,
                 "p95_mm": self.p95_mm, "depth_p95_mm": self.depth_p95_mm,
-                "visibility": self.visibility, "stray": self.stray}
+                "visibility": self.visibility, "stray": self.stray, "shown": self.shown}
 
 
 def verify_spinning(design: SpinDesign, tool: Tool, angles_deg: np.ndarray,
@@ -163,9 +167,16 @@ def verify_spinning(design: SpinDesign, tool: Tool, angles_deg: np.ndarray,
     out = []
     phis = np.radians(np.asarray(angles_deg, dtype=float))
     eyes = design.setup.eyes(phis)  # (2, k, 3)
+    targets = meant_all = None
+    if design.tracks is not None:  # sliding stipples: where each should be, when
+        targets, live, meant_all = design.tracks.at(phis)
+        if shown is None:
+            shown = np.stack([live, live])
     for j, phi in enumerate(phis):
         sees = np.ones((2, n), dtype=bool) if shown is None else np.asarray(shown)[:, :, j]
         meant = sees[0] & sees[1]
+        if meant_all is not None:  # one eye may see a live stipple its partner does not
+            meant &= meant_all[:, j]
         hits = []
         stray = 0
         for e in range(2):
@@ -187,12 +198,14 @@ def verify_spinning(design: SpinDesign, tool: Tool, angles_deg: np.ndarray,
             e1 = np.broadcast_to(eyes[0, j], x1.shape)
             e2 = np.broadcast_to(eyes[1, j], x2.shape)
             p = triangulate(e1, x1, e2, x2)
-            err = np.linalg.norm(p - design.points[sel], axis=1)
-            dz = np.abs(p[:, 2] - design.points[sel, 2])
+            want = design.points[sel] if targets is None else targets[sel, j]
+            err = np.linalg.norm(p - want, axis=1)
+            dz = np.abs(p[:, 2] - want[:, 2])
             med, p95, dp95 = (float(np.median(err)), float(np.percentile(err, 95)),
                               float(np.percentile(dz, 95)))
         else:
             med = p95 = dp95 = math.nan
-        vis = len(sel) / max(int(meant.sum()), 1)
-        out.append(SpinReport(float(math.degrees(phi)), med, p95, dp95, vis, stray))
+        n_meant = int(meant.sum())
+        vis = len(sel) / n_meant if n_meant else math.nan
+        out.append(SpinReport(float(math.degrees(phi)), med, p95, dp95, vis, stray, n_meant))
     return out

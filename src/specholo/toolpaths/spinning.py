@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -178,6 +179,11 @@ class SpinDesign:
         tilts: (lo, hi) tilts of h over every glint the fit asks for, radians.
         relief_tilt: with ``walls="one"`` the other wall keeps only tilts below
             this (radians); the relief cut removes the rest.
+        tracks: for a view circling the scene several times per turn, the
+            stipples sliding over it (:mod:`specholo.toolpaths.sliding`); then
+            ``coef`` holds each open groove's Chebyshev coefficients over its
+            ``window`` (n, 2) of normal directions. None for fixed stipples.
+        window: see ``tracks``.
     """
 
     setup: SpinSetup
@@ -188,6 +194,8 @@ class SpinDesign:
     path_side: np.ndarray
     tilts: tuple[float, float]
     relief_tilt: float
+    tracks: Any = None
+    window: np.ndarray | None = None
 
 
 #: The relief cut leaves the other wall's tilts this far below the lowest needed.
