@@ -309,6 +309,14 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
                                 "--from-gcode and --cut are for flat-plate designs")
         _verify_spin(folder, step)
         return
+    from specholo.steady import is_steady_folder
+
+    if is_steady_folder(folder):
+        if from_gcode or cut:
+            raise SpecholoError("a steady-image design is verified on its cuts; "
+                                "--from-gcode and --cut are for flat-plate designs")
+        _verify_steady(folder, step)
+        return
     if is_composed_folder(folder):
         if from_gcode or cut:
             raise SpecholoError("a composed design is verified on its grooves; --from-gcode "
@@ -464,6 +472,11 @@ def _check_folder(folder: Path) -> None:
     if is_spin_folder(folder):  # the commands that call this read flat-plate designs
         raise SpecholoError(f"{folder} holds a turning-plate design: its pictures are "
                             "preview.gif; `specholo verify` checks it")
+    from specholo.steady import is_steady_folder
+
+    if is_steady_folder(folder):
+        raise SpecholoError(f"{folder} holds a steady-image design (scoops); "
+                            "`specholo verify` checks it")
 
 
 def _design_folder(folder: Path) -> Any:
@@ -890,6 +903,73 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
     click.echo(f"over the turn (every {step:g} deg): worst p95 {summary['worst_p95_mm']:.3f} mm, "
                f"depth p95 {summary['worst_depth_p95_mm']:.3f} mm, lowest visibility "
                f"{summary['lowest_visibility']:.3f}, stray glints {summary['stray']}")
+
+
+@cli.command()
+@click.argument("model", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(path_type=Path), required=True,
+              help="Output folder (written atomically).")
+@click.option("--size", type=float, default=40.0, show_default=True,
+              help="Largest side of the model's bounding box, mm.")
+@click.option("--center-z", type=float, default=-20.0, show_default=True,
+              help="Depth of the model's box centre, mm (negative: behind the plate).")
+@click.option("--stipples", type=int, default=300, show_default=True,
+              help="Number of stipples (those hidden from an eye are dropped).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Stippling seed.")
+@click.option("--view-distance", type=float, default=600.0, show_default=True,
+              help="From the plate centre to the viewer's eyes, mm (straight in front).")
+@click.option("--ipd", type=float, default=64.0, show_default=True,
+              help="Interocular distance, mm.")
+@click.option("--light-elevation", type=float, default=45.0, show_default=True,
+              help="The sun's middle elevation, degrees.")
+@click.option("--light-range", type=float, default=5.0, show_default=True,
+              help="The sun moves this far either way, degrees.")
+@click.option("--shape", type=click.Choice(["scoop", "flat"]), default="scoop",
+              show_default=True, help="scoop: steady; flat: plain grooves, to compare.")
+@click.option("--tool-radius", type=float, default=0.05, show_default=True,
+              help="Ball radius, mm.")
+@click.option("--depth", type=float, default=0.02, show_default=True, help="Cut depth, mm.")
+@click.option("--step", type=float, default=1.0, show_default=True,
+              help="Step between verified light elevations, degrees.")
+def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, seed: int,
+           view_distance: float, ipd: float, light_elevation: float, light_range: float,
+           shape: str, tool_radius: float, depth: float, step: float) -> None:
+    """Design a hologram of MODEL for a viewer standing still whose image stays put
+    while the sun moves a little in elevation: for each stipple and eye, a scoop
+    whose glint does not move with the light. Then verify it over the range."""
+    from specholo.setup import Tool
+    from specholo.steady import SteadyConfig, design_steady_job, write_steady
+    from specholo.toolpaths.steady import SteadySetup
+
+    if not (math.isfinite(step) and 0.05 <= step <= 10.0):
+        raise SpecholoError(f"step must be in [0.05, 10] degrees, got {step}")
+    _check_out(out)
+    setup = SteadySetup(distance=view_distance, ipd=ipd,
+                        elevation=math.radians(light_elevation),
+                        half_range=math.radians(light_range))
+    config = SteadyConfig(size=size, center_z=center_z, stipples=stipples, seed=seed,
+                          shape=shape, setup=setup, tool=Tool(tool_radius, depth))
+    design = design_steady_job(model, config)
+    s = write_steady(design, config, out, step)
+    click.echo(f"{len(design.points)} stipples, {design.n_cuts} {shape}s -> {out}")
+    click.echo(f"light {light_elevation - light_range:g} to {light_elevation + light_range:g} "
+               f"deg: worst p95 {s['worst_p95_mm']:.3f} mm, image drift p95 "
+               f"{s['worst_drift_p95_mm']:.3f} mm, lowest visibility "
+               f"{s['lowest_visibility']:.3f}, stray glints {s['stray']}")
+
+
+def _verify_steady(folder: Path, step: float) -> None:
+    """Verify a steady-image folder over its light range, every ``step`` degrees."""
+    from specholo.steady import load_steady_folder, verify_steady_folder
+
+    design, config = load_steady_folder(folder)
+    reports, s = verify_steady_folder(design, config, folder, step)
+    for r in reports[::max(1, len(reports) // 8)]:
+        click.echo(f"light {r.elevation_deg:5.1f} deg: p95 {r.p95_mm:.3f} mm, drift "
+                   f"{r.drift_p95_mm:.3f} mm, visibility {r.visibility:.3f}, stray {r.stray}")
+    click.echo(f"worst p95 {s['worst_p95_mm']:.3f} mm, drift {s['worst_drift_p95_mm']:.3f} mm, "
+               f"lowest visibility {s['lowest_visibility']:.3f}, stray glints {s['stray']} "
+               f"-> {folder / 'verify.json'}")
 
 
 def _verify_spin(folder: Path, step: float) -> None:

@@ -73,8 +73,8 @@ THIN_LIFE = math.radians(30.0)
 #: Candidates traced at once (each holds a (K, 3) track and normals).
 MAX_BATCH = 6000
 #: Chebyshev degree of a groove per radian of its window, and the bounds.
-DEGREE_PER_RAD = 6.0
-DEGREE_RANGE = (6, 24)
+DEGREE_PER_RAD = 15.0
+DEGREE_RANGE = (6, 48)
 #: Margin inside the normal directions both eyes serve, radians.
 SERVE_MARGIN = math.radians(0.25)
 
@@ -252,12 +252,14 @@ def slide_tracks(meshes: list[Any], setup: SpinSetup, turns: int, count: int,
     k_grid = int(round(2.0 * math.pi / step))
     phi = np.arange(k_grid) * (2.0 * math.pi / k_grid)
     gap = int(math.ceil(eye_gap(setup) / (2.0 * math.pi / k_grid)))
-    spans = _intervals(len(meshes), k_grid, gap)
+    # lives reach past the hand-over by the eye gap, the serving margin and a step
+    margin = gap + int(math.ceil(2.0 * SERVE_MARGIN / (2.0 * math.pi / k_grid))) + 1
+    spans = _intervals(len(meshes), k_grid, margin)
     eyes = setup.eyes(phi)  # (2, K, 3)
     parts: list[tuple[np.ndarray, np.ndarray, int]] = []
     for s, (mesh, span) in enumerate(zip(meshes, spans, strict=True)):
         a, b, wrap = span
-        nominal = (b - a) if wrap else (b - a - 2 * gap)
+        nominal = (b - a) if wrap else (b - a - 2 * margin)
         got_pos: list[np.ndarray] = []
         got_alive: list[np.ndarray] = []
         live_sum = 0.0  # mean stipples shown per angle of the interval so far
@@ -370,7 +372,7 @@ class ArcFit:
     tilts: tuple[float, float]
 
 
-def fit_arcs(tracks: Tracks, setup: SpinSetup, chunk: int = 256) -> ArcFit:
+def fit_arcs(tracks: Tracks, setup: SpinSetup, chunk: int = 128) -> ArcFit:
     """Fit one open groove per track for both eyes over its life."""
     n, k_grid = tracks.alive.shape
     eyes = setup.eyes(tracks.phi)  # (2, K, 3)
@@ -408,10 +410,12 @@ def fit_arcs(tracks: Tracks, setup: SpinSetup, chunk: int = 256) -> ArcFit:
         m = deg + 1
         for _ in range(3):
             a = _basis(psi, mid[:, None], half[:, None], deg)  # (c, 2J, 2, m)
-            ata = np.einsum("nk,nkdm,nkdl->nml", w, a, a) + 1e-9 * np.eye(m)
-            atb = np.einsum("nk,nkdm,nkd->nm", w, a, target[..., :2])
-            c = np.linalg.solve(ata, atb[..., None])[..., 0]
-            x = np.einsum("nkdm,nm->nkd", a, c)
+            aw = (a * w[..., None, None]).reshape(len(rows), -1, m)
+            flat = a.reshape(len(rows), -1, m)
+            ata = np.matmul(aw.transpose(0, 2, 1), flat) + 1e-9 * np.eye(m)
+            atb = np.matmul(aw.transpose(0, 2, 1), target[..., :2].reshape(len(rows), -1, 1))
+            c = np.linalg.solve(ata, atb)[..., 0]
+            x = np.matmul(flat, c[..., None]).reshape(a.shape[:3])
             x3 = np.concatenate([x, np.zeros(x.shape[:-1] + (1,))], axis=-1)
             psi = psi + _wrap(_half_psi(setup, x3, e) - psi)
             psi = np.clip(psi, (mid - half)[:, None], (mid + half)[:, None])

@@ -1,0 +1,219 @@
+"""The whole job for a still viewer under a sun that moves a little: a model in;
+scoops, G-code and a verification over the light's range out.
+
+See :mod:`specholo.toolpaths.steady` for the optics and the README's "A steady
+image under a moving light" for the figures.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from specholo.errors import SpecholoError
+from specholo.setup import Machining, Tool
+from specholo.simulation.steady import SteadyReport, verify_steady
+from specholo.toolpaths.steady import SteadyDesign, SteadySetup, design_steady, tool_tips
+
+
+@dataclass(frozen=True)
+class SteadyConfig:
+    """Placement, stippling, optics and tool of a steady-image hologram.
+
+    Attributes:
+        size: largest side of the model's bounding box, mm.
+        center_z: depth of the box centre, mm (negative: behind the plate).
+        stipples: number of stipples (those hidden from either eye are dropped).
+        seed: stippling seed.
+        shape: "scoop" (steady) or "flat" (plain grooves, for comparison).
+        setup: the viewer and the light's range.
+        tool: the ball-end cutter.
+        machining: feeds and heights.
+    """
+
+    size: float = 40.0
+    center_z: float = -20.0
+    stipples: int = 300
+    seed: int = 0
+    shape: str = "scoop"
+    setup: SteadySetup = field(default_factory=SteadySetup)
+    tool: Tool = field(default_factory=lambda: Tool(0.05, 0.02))
+    machining: Machining = field(default_factory=Machining)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.size) and self.size > 0):
+            raise SpecholoError(f"size must be positive, got {self.size}")
+        if not math.isfinite(self.center_z):
+            raise SpecholoError(f"center z must be finite, got {self.center_z}")
+        if not 1 <= self.stipples <= 200_000:
+            raise SpecholoError(f"stipples must be in [1, 200000], got {self.stipples}")
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        st = d["setup"]
+        st["elevation_deg"] = math.degrees(st.pop("elevation"))
+        st["half_range_deg"] = math.degrees(st.pop("half_range"))
+        return d
+
+
+def design_steady_job(model_path: str | os.PathLike[str], config: SteadyConfig,
+                      rng: np.random.Generator | None = None) -> SteadyDesign:
+    """Stipple the model, keep the stipples both eyes see, and design their cuts."""
+    from specholo.scene.loading import load_model
+    from specholo.scene.placement import place
+    from specholo.scene.stippling import stipple
+    from specholo.visibility.occlusion import visible
+
+    model = place(load_model(model_path), config.size, config.center_z)
+    rng = rng if rng is not None else np.random.default_rng(config.seed)
+    st = stipple(model, rng, count=config.stipples)
+    keep = np.ones(len(st.points), dtype=bool)
+    if model.mesh is not None:
+        for eye in config.setup.eyes():
+            keep &= visible(model.mesh, st.points, st.normals, eye)
+    if not keep.any():
+        raise SpecholoError("no stipple is visible to both eyes: nothing to cut")
+    return design_steady(st.points[keep], config.setup, config.tool, config.shape)
+
+
+def light_steps(setup: SteadySetup, step_deg: float) -> np.ndarray:
+    """Light elevations (degrees) over the range, every ``step_deg``, ends included."""
+    mid, half = math.degrees(setup.elevation), math.degrees(setup.half_range)
+    k = max(int(round(2 * half / step_deg)), 1)
+    return np.linspace(mid - half, mid + half, k + 1)
+
+
+def summarise(reports: list[SteadyReport]) -> dict[str, float]:
+    """Worst figures over the light's range."""
+    def worst(key: str) -> float:
+        vals = [getattr(r, key) for r in reports if not math.isnan(getattr(r, key))]
+        return max(vals) if vals else math.nan
+
+    return {"worst_p95_mm": worst("p95_mm"), "worst_depth_p95_mm": worst("depth_p95_mm"),
+            "worst_drift_p95_mm": worst("drift_p95_mm"),
+            "lowest_visibility": min((r.visibility for r in reports), default=math.nan),
+            "stray": int(sum(r.stray for r in reports))}
+
+
+def write_path_gcode(path: Path, design: SteadyDesign, tool: Tool, machining: Machining,
+                     header: dict[str, str]) -> int:
+    """G-code for the cuts, atomically: a vertical ball-end tool whose tip follows
+    each cut's centre path R lower, in X, Y and Z. Returns the number of lines."""
+    from specholo.fabrication.atomic import atomic_open
+
+    def f(v: float) -> str:
+        s = f"{v:.5f}"
+        return "0.00000" if s == "-0.00000" else s
+
+    tips = tool_tips(design, tool)
+    lines = ["(specholo: scoops for a steady image under a moving light)"]
+    lines += [f"({k}: {v})" for k, v in header.items()]
+    lines.append("G21 G90 G17 G94")
+    if machining.spindle > 0:
+        lines.append(f"M3 S{machining.spindle:.0f}")
+    safe = machining.safe_z
+    lines.append(f"G0 Z{f(safe)}")
+    for c in range(design.n_cuts):
+        tip = tips[design.offsets[c]:design.offsets[c + 1]]
+        lines.append(f"(stipple {int(design.stipple[c])} eye {'LR'[int(design.eye[c])]})")
+        lines.append(f"G0 X{f(tip[0, 0])} Y{f(tip[0, 1])}")
+        lines.append(f"G1 Z{f(tip[0, 2])} F{machining.plunge:.1f}")
+        lines.append(f"F{machining.feed:.1f}")
+        lines.extend(f"G1 X{f(x)} Y{f(y)} Z{f(z)}" for x, y, z in tip[1:])
+        lines.append(f"G0 Z{f(safe)}")
+    if machining.spindle > 0:
+        lines.append("M5")
+    lines.append("M2")
+    with atomic_open(path) as fh:
+        fh.write("\n".join(lines) + "\n")
+    return len(lines)
+
+
+def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathLike[str],
+                 step_deg: float = 1.0) -> dict[str, Any]:
+    """Write the folder atomically: hologram.gcode, stipples.npz, verify.json and
+    hologram.json. Returns the verification summary."""
+    from specholo.fabrication.atomic import atomic_open
+    from specholo.pipeline import staged_output
+
+    reports = verify_steady(design, config.tool, light_steps(config.setup, step_deg))
+    summary = summarise(reports)
+    if design.n_cuts == 0:
+        raise SpecholoError("no stipple can be given a scoop: nothing to cut")
+    with staged_output(out, stale=("verify.json", "preview.gif", "preview.png")) as tmp:
+        tmp = Path(tmp)
+        lines = write_path_gcode(tmp / "hologram.gcode", design, config.tool, config.machining,
+                                 {"design": f"{design.shape}s, one per stipple and eye",
+                                  "tool": f"ball end, radius {config.tool.radius:g} mm"})
+        with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
+            np.savez_compressed(fh, points=design.points, centres=design.centres,
+                                offsets=design.offsets, stipple=design.stipple,
+                                eye=design.eye, radius=design.radius,
+                                dropped=np.array(design.dropped))
+        _write_verification(reports, tmp, step_deg)
+        meta = {"design": "steady", "config": config.as_dict(), "cuts": design.n_cuts,
+                "stipples": len(design.points), "stipples_dropped": design.dropped,
+                "gcode_lines": lines, "verify": summary,
+                "scoop_radius_mm": {"median": float(np.median(design.radius))}
+                if design.shape == "scoop" else None}
+        with atomic_open(tmp / "hologram.json") as fh:
+            json.dump(meta, fh, indent=1, sort_keys=True)
+    return summary
+
+
+def _write_verification(reports: list[SteadyReport], folder: Path, step_deg: float
+                        ) -> dict[str, Any]:
+    from specholo.fabrication.atomic import atomic_open
+
+    summary = summarise(reports)
+    with atomic_open(folder / "verify.json") as fh:
+        json.dump({"step_deg": step_deg, "summary": summary,
+                   "elevations": [r.as_dict() for r in reports]}, fh, indent=1)
+    return summary
+
+
+def is_steady_folder(folder: str | os.PathLike[str]) -> bool:
+    """True if ``folder`` holds a design written by :func:`write_steady`."""
+    try:
+        meta = json.loads((Path(folder) / "hologram.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(meta, dict) and meta.get("design") == "steady"
+
+
+def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, SteadyConfig]:
+    """Read a folder written by :func:`write_steady` back."""
+    folder = Path(folder)
+    try:
+        meta = json.loads((folder / "hologram.json").read_text())
+        c = dict(meta["config"])
+        st = dict(c.pop("setup"))
+        st["elevation"] = math.radians(st.pop("elevation_deg"))
+        st["half_range"] = math.radians(st.pop("half_range_deg"))
+        config = SteadyConfig(setup=SteadySetup(**st), tool=Tool(**c.pop("tool")),
+                              machining=Machining(**c.pop("machining")), **c)
+        with np.load(folder / "stipples.npz") as data:
+            design = SteadyDesign(config.setup, data["points"], data["centres"],
+                                  data["offsets"], data["stipple"], data["eye"],
+                                  data["radius"], config.shape, int(data["dropped"]))
+    except SpecholoError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError, IndexError) as exc:
+        raise SpecholoError(f"cannot read steady-image design in {folder}: {exc}") from exc
+    if design.offsets[-1] != len(design.centres) or len(design.stipple) != design.n_cuts:
+        raise SpecholoError(f"cannot read steady-image design in {folder}: files disagree")
+    return design, config
+
+
+def verify_steady_folder(design: SteadyDesign, config: SteadyConfig,
+                         folder: str | os.PathLike[str], step_deg: float
+                         ) -> tuple[list[SteadyReport], dict[str, Any]]:
+    """Verify over the light's range every ``step_deg`` and rewrite verify.json."""
+    reports = verify_steady(design, config.tool, light_steps(config.setup, step_deg))
+    return reports, _write_verification(reports, Path(folder), step_deg)
