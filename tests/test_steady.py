@@ -1,0 +1,131 @@
+"""A still viewer under a sun that moves a little: scoops whose glints stay put."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_gcode import needs_rs274, run_rs274
+
+from specholo.setup import Tool
+from specholo.simulation.steady import find_steady_glints, verify_steady
+from specholo.steady import SteadyConfig, design_steady_job, load_steady_folder, write_steady
+from specholo.toolpaths.steady import SteadySetup, design_steady, tool_tips, unit_half
+from specholo_cli.cli import main
+
+BUNNY = Path(__file__).resolve().parent.parent / "examples" / "bunny.obj"
+TOOL = Tool(0.05, 0.02)
+
+
+def _points(n: int, rng: np.random.Generator) -> np.ndarray:
+    return np.stack([rng.uniform(-20, 20, n), rng.uniform(-20, 20, n),
+                     rng.uniform(-30, -5, n)], axis=1)
+
+
+def test_scoop_glint_stays_put_and_mirrors_the_light() -> None:
+    rng = np.random.default_rng(0)
+    pts = _points(80, rng)
+    setup = SteadySetup()
+    d = design_steady(pts, setup, TOOL)
+    assert d.dropped == 0 and d.n_cuts == 160
+    eyes = setup.eyes()
+    for e in range(2):
+        ref = None
+        for el in np.radians([40.0, 42.5, 45.0, 47.5, 50.0]):
+            light = setup.light(el)
+            g = find_steady_glints(d, eyes[e], light, TOOL)
+            own = d.eye[g.cut] == e
+            assert own.all() and len(g.cut) == len(pts)  # one glint per stipple, its own
+            order = np.argsort(d.stipple[g.cut])
+            x = g.point[order]
+            # the wall's normal there is h: the light reflects into the eye
+            n = unit_half(x, eyes[e], light)
+            out = 2 * (n @ light)[:, None] * n - light
+            to_eye = (eyes[e] - x) / np.linalg.norm(eyes[e] - x, axis=1, keepdims=True)
+            np.testing.assert_allclose(out, to_eye, atol=1e-9)
+            assert np.all(x[:, 2] < 0)  # on a wall inside the cut
+            if ref is None:
+                ref = x
+            # from 40 to 50 degrees of light the glint moves by a tenth of a millimetre
+            assert np.percentile(np.linalg.norm(x - ref, axis=1), 95) < 0.15
+    # at the middle of the range both glints lie on the sightlines through the stipple
+    reps = verify_steady(d, TOOL, np.array([45.0]))
+    assert reps[0].p95_mm < 1e-3 and reps[0].stray == 0
+
+
+def test_flat_grooves_drift_and_scoops_do_not() -> None:
+    rng = np.random.default_rng(1)
+    pts = _points(60, rng)
+    setup = SteadySetup()
+    els = np.array([44.0, 45.0, 46.0])
+    scoop = verify_steady(design_steady(pts, setup, TOOL), TOOL, els)
+    flat = verify_steady(design_steady(pts, setup, TOOL, "flat"), TOOL, els)
+    assert max(r.drift_p95_mm for r in scoop) < 0.2
+    assert all(r.stray == 0 and r.visibility == 1.0 for r in scoop)
+    # the plain groove's glint runs along it: the image moves by millimetres or is lost
+    lost_or_moved = [r.visibility < 0.5 or r.drift_p95_mm > 2.0 for r in flat[::2]]
+    assert all(lost_or_moved)
+
+
+def test_over_the_range_no_eye_sees_the_others_scoops() -> None:
+    rng = np.random.default_rng(2)
+    setup = SteadySetup(half_range=math.radians(8.0))
+    d = design_steady(_points(100, rng), setup, TOOL)
+    reps = verify_steady(d, TOOL, np.linspace(37.0, 53.0, 9))
+    assert sum(r.stray for r in reps) == 0
+    assert min(r.visibility for r in reps) == 1.0
+    assert d.dropped < 10
+
+
+@needs_rs274
+def test_folder_gcode_cuts_the_scoops_and_reverifies(tmp_path: Path) -> None:
+    cfg = SteadyConfig(stipples=80)
+    d = design_steady_job(BUNNY, cfg, np.random.default_rng(0))
+    out = tmp_path / "out"
+    s = write_steady(d, cfg, out, 2.5)
+    assert s["stray"] == 0
+    canon = run_rs274(out / "hologram.gcode")
+    feeds = [args for name, args in canon if name == "STRAIGHT_FEED"]
+    nums = np.array([[float(v) for v in re.split(r",\s*", a)[:3]] for a in feeds])
+    tips = tool_tips(d, cfg.tool)
+    # every feed move ends on a tool-tip vertex of a cut, and all of them are cut
+    assert len(nums) == len(tips)
+    np.testing.assert_allclose(nums, tips, atol=2e-4)
+    assert tips[:, 2].min() > -0.1 and np.all(tips[d.offsets[:-1], 2] > -1e-3)
+    again, cfg2 = load_steady_folder(out)
+    from specholo.steady import light_steps, summarise
+
+    rep = summarise(verify_steady(again, cfg2.tool, light_steps(cfg2.setup, 2.5)))
+    assert rep == pytest.approx(s)
+
+
+def test_cli_writes_a_verified_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                      ) -> None:
+    out = tmp_path / "steady"
+    assert main(["steady", str(BUNNY), "--out", str(out), "--stipples", "60",
+                 "--light-range", "3"]) == 0
+    ver = json.loads((out / "verify.json").read_text())
+    assert len(ver["elevations"]) == 7 and ver["summary"]["stray"] == 0
+    assert ver["summary"]["worst_drift_p95_mm"] < 0.5
+    assert main(["verify", str(out)]) == 0
+    assert "drift" in capsys.readouterr().out
+    assert main(["render", str(out)]) != 0
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--light-range", "30"], "light range"),
+    (["--light-elevation", "0"], "light elevation"),
+    (["--depth", "0.001"], "cut deeper"),
+    (["--step", "0"], "step"),
+])
+def test_cli_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str],
+                       message: str) -> None:
+    out = tmp_path / "steady"
+    rc = main(["steady", str(BUNNY), "--out", str(out), "--stipples", "30", *args])
+    err = capsys.readouterr().err.strip()
+    assert rc != 0 and message in err and len(err.splitlines()) == 1
+    assert not out.exists()
