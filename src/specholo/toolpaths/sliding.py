@@ -511,6 +511,12 @@ def design_sliding(tracks: Tracks, setup: SpinSetup, tool: Tool,
         np.zeros((0, 3))
     relief = max(tilts[0] - RELIEF_MARGIN, 0.0)
     # what the verification expects: each stipple where both eyes are served
+    shown = fit.shown & tracks.alive
+    n_scenes = int(tracks.scene.max()) + 1 if len(tracks) else 1
+    if n_scenes > 1:  # each model is meant for its own part of the turn only
+        k_grid = len(tracks.phi)
+        part = np.arange(k_grid) * n_scenes // k_grid  # (K,) the scene meant at each angle
+        shown &= part[None, :] == tracks.scene[:, None]
     return SpinDesign(setup, points, fit.coef, side, grooves,
                       np.asarray(sides, dtype=np.int64), tilts, relief,
-                      tracks=replace(tracks, shown=fit.shown & tracks.alive), window=fit.window)
+                      tracks=replace(tracks, shown=shown), window=fit.window)
