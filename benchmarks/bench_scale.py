@@ -38,7 +38,7 @@ STAGES = ("stippling", "occlusion", "toolpaths", "design", "verify", "still", "g
           "dxf", "cut")
 #: Peak memory per stipple of the stages that still hold per-arc arrays, bytes
 #: (measured at 10^5 stipples); a size that would not fit is not run for them.
-STAGE_BYTES = {"verify": 36_000, "still": 36_000, "cut": 92_000}
+STAGE_BYTES = {"verify": 9_000, "still": 36_000, "cut": 92_000}
 #: Stages timed inside the design itself ("design" is the whole of it, overlaps included).
 DESIGN_STAGES = ("stippling", "occlusion", "toolpaths", "design")
 

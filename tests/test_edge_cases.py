@@ -207,3 +207,21 @@ def test_a_model_in_front_of_the_plate_shows_with_reversed_parallax() -> None:
 def test_a_model_reaching_toward_the_eyes_is_refused() -> None:
     with pytest.raises(SpecholoError, match="too close to the eyes"):
         design(BUNNY, DesignConfig(stipples=10, center_z=400.0, size=60.0))
+
+
+def test_verification_in_stipple_chunks_gives_the_same_figures() -> None:
+    """Large designs are verified a chunk of stipples at a time: every glint
+    belongs to one stipple, so the figures must not change at all."""
+    from specholo.visibility.occlusion import visible
+
+    d = design(BUNNY, DesignConfig(stipples=300, seed=4))
+    setup = d.config.setup()
+
+    def vis(points: np.ndarray, eyes: np.ndarray) -> np.ndarray:
+        return visible(d.model.mesh, points, d.normals, eyes)
+
+    az = np.radians([-30.0, 0.0, 20.0])
+    whole = verify(d.grooves, d.points, setup, vis, az)
+    parts = verify(d.grooves, d.points, setup, vis, az, chunk_vertices=2_000)
+    assert whole == parts
+    assert whole[1].stipples_seen > 100 and whole[1].p95_error < 0.3

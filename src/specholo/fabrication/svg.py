@@ -150,30 +150,9 @@ def plan_layers(grooves: Grooves, tool: Tool, depths: np.ndarray | None = None) 
     return layers
 
 
-def path_rows(offsets: np.ndarray, paths: np.ndarray) -> np.ndarray:
-    """Vertex indices of the given paths, path after path.
-
-    Args:
-        offsets: (n + 1,) path offsets of the grooves.
-        paths: (k,) path indices.
-
-    Returns:
-        (sum of the paths' sizes,) indices into the vertices.
-    """
-    starts = offsets[paths]
-    sizes = offsets[paths + 1] - starts
-    first = np.cumsum(sizes) - sizes  # where each path begins in the output
-    return np.repeat(starts - first, sizes) + np.arange(int(sizes.sum()), dtype=np.int64)
-
-
 def take_paths(grooves: Grooves, paths: np.ndarray) -> Grooves:
     """The given paths (k,) of the grooves, in that order, as grooves of their own."""
-    offsets = np.asarray(grooves.offsets, dtype=np.int64)
-    idx = path_rows(offsets, paths)
-    sizes = offsets[paths + 1] - offsets[paths]
-    return Grooves(grooves.vertices[idx], grooves.bulges[idx],
-                   np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
-                   grooves.stipple[paths])
+    return grooves.take(paths)
 
 
 @nb.njit(cache=True)

@@ -103,9 +103,29 @@ def stereo_errors(points: np.ndarray, left: Glints, right: Glints, eye_l: np.nda
     return worst[ids], depth[ids]
 
 
+#: Groove vertices simulated at once; bigger designs are verified in stipple
+#: chunks, which gives the same figures (every glint belongs to one stipple).
+CHUNK_VERTICES = 12_000_000
+
+
+def _chunks(grooves: Grooves, n: int, budget: int) -> list[tuple[int, int, np.ndarray]]:
+    """Stipple ranges [lo, hi) with their paths, each holding about ``budget`` vertices."""
+    per = np.bincount(grooves.stipple, weights=grooves.path_sizes, minlength=n) if n else \
+        np.zeros(0)
+    if n == 0 or per.sum() <= budget:
+        return [(0, n, np.arange(grooves.n_paths))]
+    edges = np.searchsorted(np.cumsum(per), np.arange(budget, per.sum(), budget))
+    bounds = np.unique(np.concatenate([[0], edges + 1, [n]]).clip(0, n))
+    order = np.argsort(grooves.stipple, kind="stable")
+    cut = np.searchsorted(grooves.stipple[order], bounds)
+    return [(int(bounds[i]), int(bounds[i + 1]), order[cut[i]:cut[i + 1]])
+            for i in range(len(bounds) - 1)]
+
+
 def verify(grooves: Grooves, points: np.ndarray, setup: Setup,
            visible: VisibilityFn | None = None,
-           azimuths: np.ndarray | None = None) -> list[ViewReport]:
+           azimuths: np.ndarray | None = None,
+           chunk_vertices: int = CHUNK_VERTICES) -> list[ViewReport]:
     """Simulate stereo eye pairs along the arc and measure what they see.
 
     Args:
@@ -114,6 +134,7 @@ def verify(grooves: Grooves, points: np.ndarray, setup: Setup,
         setup: light, viewer and tool.
         visible: occlusion test; None means every stipple is unoccluded.
         azimuths: head azimuths in radians; default every <= 5 degrees over the range.
+        chunk_vertices: groove vertices simulated at once (memory grows with it).
 
     Returns:
         One report per azimuth.
@@ -122,33 +143,52 @@ def verify(grooves: Grooves, points: np.ndarray, setup: Setup,
     n = len(points)
     if azimuths is None:
         azimuths = view_azimuths(setup.viewer.half_range)
-    eng = Engraved.from_grooves(grooves, setup.tool)
+    k = len(azimuths)
+    errs: list[list[np.ndarray]] = [[] for _ in range(k)]
+    depths: list[list[np.ndarray]] = [[] for _ in range(k)]
+    counts = np.zeros((k, 4), dtype=np.int64)  # seen, both, hidden, false
+    eyes = [setup.viewer.stereo(np.array([theta])) for theta in azimuths]
+    # occlusion for every stipple first (2 k n booleans): the test sees all points
+    shown = np.ones((k, 2, n), dtype=bool)
+    if visible is not None and n:
+        for j, (eyes_l, eyes_r) in enumerate(eyes):
+            shown[j, 0] = visible(points, np.broadcast_to(eyes_l[0], (n, 3)))
+            shown[j, 1] = visible(points, np.broadcast_to(eyes_r[0], (n, 3)))
+    for lo, hi, paths in _chunks(grooves, n, chunk_vertices):
+        part = grooves.take(paths) if len(paths) != grooves.n_paths else grooves
+        if lo:
+            part = Grooves(part.vertices, part.bulges, part.offsets, part.stipple - lo)
+        pts = points[lo:hi]
+        m = hi - lo
+        eng = Engraved.from_grooves(part, setup.tool)
+        for j, (eyes_l, eyes_r) in enumerate(eyes):
+            eye_l, eye_r = eyes_l[0], eyes_r[0]
+            gl = find_glints(eng, eye_l, setup.light)
+            gr = find_glints(eng, eye_r, setup.light)
+            vis_l, vis_r = shown[j, 0, lo:hi], shown[j, 1, lo:hi]
+            lit_l = np.bincount(gl.stipple, minlength=m) > 0
+            lit_r = np.bincount(gr.stipple, minlength=m) > 0
+            seen = vis_l & vis_r
+            both = np.flatnonzero(seen & lit_l & lit_r)
+            err, depth = stereo_errors(pts, gl, gr, eye_l, eye_r, both)
+            errs[j].append(err)
+            depths[j].append(depth)
+            counts[j] += (int(seen.sum()), both.size, int((~vis_l).sum() + (~vis_r).sum()),
+                          int((~vis_l & lit_l).sum() + (~vis_r & lit_r).sum()))
+        del eng
     reports = []
-    for theta in azimuths:
-        eyes_l, eyes_r = setup.viewer.stereo(np.array([theta]))
-        eye_l, eye_r = eyes_l[0], eyes_r[0]
-        gl = find_glints(eng, eye_l, setup.light)
-        gr = find_glints(eng, eye_r, setup.light)
-        if visible is None or n == 0:
-            vis_l = vis_r = np.ones(n, dtype=bool)
-        else:
-            vis_l = visible(points, np.broadcast_to(eye_l, (n, 3)))
-            vis_r = visible(points, np.broadcast_to(eye_r, (n, 3)))
-        lit_l = np.bincount(gl.stipple, minlength=n) > 0
-        lit_r = np.bincount(gr.stipple, minlength=n) > 0
-        seen = vis_l & vis_r
-        both = np.flatnonzero(seen & lit_l & lit_r)
-        err, depth = stereo_errors(points, gl, gr, eye_l, eye_r, both)
-        hidden = int((~vis_l).sum() + (~vis_r).sum())
-        false = int((~vis_l & lit_l).sum() + (~vis_r & lit_r).sum())
+    for j, theta in enumerate(azimuths):
+        err = np.concatenate(errs[j]) if errs[j] else np.zeros(0)
+        depth = np.concatenate(depths[j]) if depths[j] else np.zeros(0)
+        n_seen, n_both, hidden, false = (int(v) for v in counts[j])
         reports.append(ViewReport(
             azimuth=math.degrees(theta),
-            stipples_seen=int(seen.sum()),
+            stipples_seen=n_seen,
             median_error=float(np.median(err)) if err.size else math.nan,
             p95_error=float(np.percentile(err, 95)) if err.size else math.nan,
             p95_depth_error=float(np.percentile(np.abs(depth), 95)) if err.size else math.nan,
             max_error=float(err.max()) if err.size else math.nan,
-            visibility=float(both.size / seen.sum()) if seen.any() else math.nan,
+            visibility=float(n_both / n_seen) if n_seen else math.nan,
             false_glints=float(false / hidden) if hidden else 0.0,
         ))
     return reports

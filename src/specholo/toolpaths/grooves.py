@@ -224,6 +224,18 @@ class Grooves:
         return _extent(f(self.vertices, dtype=float), f(self.bulges, dtype=float),
                        f(self.offsets, dtype=np.int64), chunks)
 
+    def take(self, paths: np.ndarray) -> Grooves:
+        """The given paths (k,), in that order, as grooves of their own."""
+        paths = np.asarray(paths, dtype=np.int64)
+        offsets = np.asarray(self.offsets, dtype=np.int64)
+        starts = offsets[paths]
+        sizes = offsets[paths + 1] - starts
+        first = np.cumsum(sizes) - sizes  # where each path begins in the output
+        idx = np.repeat(starts - first, sizes) + np.arange(int(sizes.sum()), dtype=np.int64)
+        return Grooves(self.vertices[idx], self.bulges[idx],
+                       np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                       self.stipple[paths])
+
     def save(self, path: str) -> None:
         """Write to an ``.npz`` file (the caller makes the write atomic)."""
         with open(path, "wb") as fh:
