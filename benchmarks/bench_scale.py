@@ -38,7 +38,7 @@ STAGES = ("stippling", "occlusion", "toolpaths", "design", "verify", "still", "g
           "dxf", "cut")
 #: Peak memory per stipple of the stages that still hold per-arc arrays, bytes
 #: (measured at 10^5 stipples); a size that would not fit is not run for them.
-STAGE_BYTES = {"verify": 9_000, "still": 36_000, "cut": 92_000}
+STAGE_BYTES = {"verify": 9_000, "still": 9_000, "cut": 92_000}
 #: Stages timed inside the design itself ("design" is the whole of it, overlaps included).
 DESIGN_STAGES = ("stippling", "occlusion", "toolpaths", "design")
 
@@ -120,10 +120,15 @@ def _stage(stage: str, folder: Path) -> dict[str, float]:
         row["sample_worst_p95_mm"] = s["worst_p95_error"]
     elif stage == "still":
         from specholo.preview.render import Engraved, design_camera, render_still
+        from specholo.simulation.verify import CHUNK_VERTICES
 
-        eng, row["still_prepare_s"] = _timed(lambda: Engraved.from_grooves(grooves, setup.tool))
         cam = design_camera(setup, grooves, width=1024, height=1024)
-        _, row["still_s"] = _timed(lambda: render_still(grooves, setup, cam, engraved=eng))
+        if len(grooves.vertices) > CHUNK_VERTICES:  # prepared a run of paths at a time
+            _, row["still_s"] = _timed(lambda: render_still(grooves, setup, cam))
+        else:
+            eng, row["still_prepare_s"] = _timed(
+                lambda: Engraved.from_grooves(grooves, setup.tool))
+            _, row["still_s"] = _timed(lambda: render_still(grooves, setup, cam, engraved=eng))
     elif stage == "cut":
         from specholo.simulation.cut import cut_surface
 

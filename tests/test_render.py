@@ -251,3 +251,19 @@ def test_library_refuses_bad_values(loaded: Loaded, tmp_path: Path):
         side_by_side(np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2, 3), np.uint8), "anaglyph")
     with pytest.raises(SpecholoError, match="one size"):
         anaglyph(np.zeros((2, 2, 3), np.uint8), np.zeros((2, 3, 3), np.uint8))
+
+
+def test_a_big_design_renders_a_run_of_paths_at_a_time(loaded: Loaded,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past the chunk size a still finds its glints a run of paths at a time; each
+    glint lies on one path, so the picture is the same."""
+    import specholo.simulation.verify as verify_module
+
+    setup = loaded.config.setup()
+    cam = design_camera(setup, loaded.grooves, width=320, height=240)
+    whole = render_still(loaded.grooves, setup, cam)
+    monkeypatch.setattr(verify_module, "CHUNK_VERTICES", max(len(loaded.grooves.vertices) // 7,
+                                                             10))
+    parts = render_still(loaded.grooves, setup, cam)
+    assert np.abs(whole.astype(int) - parts.astype(int)).max() <= 1
+    assert luminance(whole).max() > 150  # there are glints to compare

@@ -437,15 +437,30 @@ def render_still(grooves: Grooves, setup: Setup, camera: Camera,
     Returns:
         (H, W, 3) uint8 RGB image.
     """
+    from specholo.simulation.verify import CHUNK_VERTICES
+
     _check_roughness(roughness)
     light = light if light is not None else setup.light
-    eng = engraved if engraved is not None else Engraved.from_grooves(grooves, setup.tool)
+    chunked = engraved is None and not grooves_overlay and len(grooves.vertices) > CHUNK_VERTICES
+    eng = engraved if engraved is not None or chunked else \
+        Engraved.from_grooves(grooves, setup.tool)
 
     def glints() -> tuple[np.ndarray, float]:
-        g = find_glints(eng, camera.position(), light)
-        return g.point, spot_sigma(setup, roughness)
+        if eng is not None:
+            return find_glints(eng, camera.position(), light).point, spot_sigma(setup, roughness)
+        # a big design a run of paths at a time: each glint lies on one path
+        sizes = np.cumsum(grooves.path_sizes)
+        cuts = np.searchsorted(sizes, np.arange(CHUNK_VERTICES, sizes[-1], CHUNK_VERTICES))
+        bounds = np.unique(np.concatenate([[0], cuts + 1, [grooves.n_paths]]))
+        points = []
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            part = Engraved.from_grooves(grooves.take(np.arange(a, b)), setup.tool)
+            points.append(find_glints(part, camera.position(), light).point)
+            del part
+        return np.concatenate(points), spot_sigma(setup, roughness)
 
     def overlay() -> np.ndarray:
+        assert eng is not None  # an overlay is never chunked
         return _groove_layer(camera, eng)
 
     return draw_glints(camera, plate_bounds(grooves), light, glints, roughness, ghost, bloom,
