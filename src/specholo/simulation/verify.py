@@ -105,7 +105,7 @@ def stereo_errors(points: np.ndarray, left: Glints, right: Glints, eye_l: np.nda
 
 #: Groove vertices simulated at once; bigger designs are verified in stipple
 #: chunks, which gives the same figures (every glint belongs to one stipple).
-CHUNK_VERTICES = 12_000_000
+CHUNK_VERTICES = 6_000_000
 
 
 def _chunks(grooves: Grooves, n: int, budget: int) -> list[tuple[int, int, np.ndarray]]:
