@@ -433,11 +433,9 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str]) -> dict[st
 
 
 def is_composed_folder(folder: str | os.PathLike[str]) -> bool:
-    p = Path(folder) / "hologram.json"
-    try:
-        return bool(json.loads(p.read_text()).get("design") == "conforming")
-    except (OSError, ValueError, AttributeError):
-        return False
+    from specholo.folder import design_kind
+
+    return design_kind(folder) == "conforming"
 
 
 def load_composition_folder(folder: str | os.PathLike[str]) -> ComposedDesign:

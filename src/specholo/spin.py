@@ -324,22 +324,18 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
 def write_spin_verification(reports: list[SpinReport], folder: str | os.PathLike[str],
                             step_deg: float) -> dict[str, Any]:
     """Write ``verify.json`` atomically; returns the summary."""
-    from specholo.fabrication.atomic import atomic_open
+    from specholo.folder import write_verify_json
 
     summary = summarise(reports)
-    with atomic_open(Path(folder) / "verify.json") as fh:
-        json.dump({"step_deg": step_deg, "summary": summary,
-                   "angles": [r.as_dict() for r in reports]}, fh, indent=1)
+    write_verify_json(folder, step_deg, summary, "angles", [r.as_dict() for r in reports])
     return summary
 
 
 def is_spin_folder(folder: str | os.PathLike[str]) -> bool:
     """True if ``folder`` holds a turning-plate design written by :func:`write_spin`."""
-    try:
-        meta = json.loads((Path(folder) / "hologram.json").read_text())
-    except (OSError, ValueError):
-        return False
-    return isinstance(meta, dict) and meta.get("design") == "spinning"
+    from specholo.folder import design_kind
+
+    return design_kind(folder) == "spinning"
 
 
 def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:

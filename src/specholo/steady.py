@@ -169,22 +169,18 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
 
 def _write_verification(reports: list[SteadyReport], folder: Path, step_deg: float
                         ) -> dict[str, Any]:
-    from specholo.fabrication.atomic import atomic_open
+    from specholo.folder import write_verify_json
 
     summary = summarise(reports)
-    with atomic_open(folder / "verify.json") as fh:
-        json.dump({"step_deg": step_deg, "summary": summary,
-                   "elevations": [r.as_dict() for r in reports]}, fh, indent=1)
+    write_verify_json(folder, step_deg, summary, "elevations", [r.as_dict() for r in reports])
     return summary
 
 
 def is_steady_folder(folder: str | os.PathLike[str]) -> bool:
     """True if ``folder`` holds a design written by :func:`write_steady`."""
-    try:
-        meta = json.loads((Path(folder) / "hologram.json").read_text())
-    except (OSError, ValueError):
-        return False
-    return isinstance(meta, dict) and meta.get("design") == "steady"
+    from specholo.folder import design_kind
+
+    return design_kind(folder) == "steady"
 
 
 def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, SteadyConfig]:

@@ -302,33 +302,23 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
         raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
     from specholo.compose import is_composed_folder
     from specholo.spin import is_spin_folder
-
-    if is_spin_folder(folder):
-        if from_gcode or cut:
-            raise SpecholoError("a turning-plate design is verified on its grooves; "
-                                "--from-gcode and --cut are for flat-plate designs")
-        _verify_spin(folder, step)
-        return
     from specholo.steady import is_steady_folder
 
-    if is_steady_folder(folder):
-        if from_gcode or cut:
-            raise SpecholoError("a steady-image design is verified on its cuts; "
-                                "--from-gcode and --cut are for flat-plate designs")
-        _verify_steady(folder, step)
-        return
-    if is_composed_folder(folder):
-        if from_gcode or cut:
-            raise SpecholoError("a composed design is verified on its grooves; --from-gcode "
-                                "and --cut are for flat-plate designs")
-        _verify_composed(folder, step)
-        return
-    if is_ridged_folder(folder):
-        if from_gcode or cut:
-            raise SpecholoError("a ridged design is verified on its height field (plate.npz); "
-                                "--from-gcode and --cut are for grooves")
-        _verify_ridged(folder, step)
-        return
+    # designs that own their folders: each is verified on its own geometry
+    others = ((is_spin_folder, "a turning-plate design is verified on its grooves; "
+               "--from-gcode and --cut are for flat-plate designs", _verify_spin),
+              (is_steady_folder, "a steady-image design is verified on its cuts; "
+               "--from-gcode and --cut are for flat-plate designs", _verify_steady),
+              (is_composed_folder, "a composed design is verified on its grooves; --from-gcode "
+               "and --cut are for flat-plate designs", _verify_composed),
+              (is_ridged_folder, "a ridged design is verified on its height field (plate.npz); "
+               "--from-gcode and --cut are for grooves", _verify_ridged))
+    for holds, refusal, verify_other in others:
+        if holds(folder):
+            if from_gcode or cut:
+                raise SpecholoError(refusal)
+            verify_other(folder, step)
+            return
     loaded = load_design(folder, from_gcode=from_gcode or cut)
     with Console(stderr=True).status("simulating eye pairs..."):
         reports = verify_design(loaded, step)

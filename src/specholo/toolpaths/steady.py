@@ -161,7 +161,7 @@ def design_steady(points: np.ndarray, setup: SteadySetup, tool: Tool,
     for e in range(2):  # two eyes: the work inside is over all stipples at once
         eye, other = eyes[e], eyes[1 - e]
         # the glinting ball point P on the sightline, at the depth its wall reaches
-        p_pt = _crossing(eye, points)
+        p_pt = _at_depth(eye, points, 0.0)
         for _ in range(3):
             h = unit_half(p_pt, eye, light)
             depth = d - r_ball * (1.0 - h[:, 2])  # P's depth below the plate
@@ -263,10 +263,6 @@ def _choose_scoop(h: np.ndarray, dh: np.ndarray, depth: np.ndarray, r_ball: floa
     best = np.argmin(drift, axis=1)
     rows = np.arange(len(h))
     return t[rows, best], rp[rows, best], np.isfinite(drift[rows, best])
-
-
-def _crossing(eye: np.ndarray, points: np.ndarray) -> np.ndarray:
-    return _at_depth(eye, points, 0.0)
 
 
 def _at_depth(eye: np.ndarray, points: np.ndarray, z: np.ndarray | float) -> np.ndarray:
