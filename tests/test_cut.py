@@ -268,3 +268,33 @@ def test_verify_cut_covers_the_view_range() -> None:
     setup = Setup(light=SUN, viewer=Viewer(half_range=math.radians(10.0)), tool=TOOL)
     reports = verify_cut(hf, np.array([[0.0, 0.0, -40.0]]), setup)
     assert len(reports) == 5 and all(r.stipples_seen == 1 for r in reports)
+
+
+def test_cut_in_chunks_is_the_same_plate(small_design: Path,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """A program cut a run of paths at a time: the same field, labels, walls and glints."""
+    import specholo.simulation.cut as cut_module
+    from specholo.pipeline import load_design
+
+    loaded = load_design(small_design)
+    grooves, setup = loaded.grooves, loaded.config.setup()
+    whole = cut_surface(grooves, setup.tool, setup.tool.depth, resolution=0.02)
+    monkeypatch.setattr(cut_module, "CHUNK_VERTICES", max(len(grooves.vertices) // 7, 2))
+    parts = cut_surface(grooves, setup.tool, setup.tool.depth, resolution=0.02)
+    # Seven chunks; only moves that cut some sample deepest are kept.
+    assert len(parts.program) < len(whole.program)
+    assert np.array_equal(parts.z, whole.z)
+    assert np.array_equal(parts.labels, whole.labels)
+    cut = whole.moves >= 0
+    assert np.array_equal(parts.moves >= 0, cut)
+    assert np.array_equal(parts.program.geo[parts.moves[cut]], whole.program.geo[whole.moves[cut]])
+    rng = np.random.default_rng(5)
+    lo, hi = whole.bounds
+    xy = rng.uniform(lo, hi, size=(2000, 2))
+    for a, b in zip(parts.surface(xy), whole.surface(xy), strict=True):
+        assert np.array_equal(a, b)
+    eye = np.array([300.0, setup.viewer.height, setup.viewer.eye_radius])
+    ga = find_cut_glints(parts, eye, setup.light).glints
+    gb = find_cut_glints(whole, eye, setup.light).glints
+    assert len(gb.path) > 0
+    assert np.array_equal(ga.path, gb.path) and np.array_equal(ga.point, gb.point)

@@ -122,7 +122,7 @@ def _clip(k: float, c: float, lo: float, hi: float, a: float, b: float) -> tuple
 def sweep(geo: np.ndarray, kind: np.ndarray, box: np.ndarray, shape: np.ndarray,
           band_ptr: np.ndarray, band_moves: np.ndarray, band_rows: int, x0: float, y0: float,
           res: float, depth: float, r_cut: float, step: float, height: np.ndarray,
-          slope: np.ndarray, z: np.ndarray, move: np.ndarray) -> None:
+          slope: np.ndarray, base: int, z: np.ndarray, move: np.ndarray) -> None:
     """Cut every move into the height field z (ny, nx), recording the deepest move.
 
     Each move visits, row by row, only the columns inside its ``shape``: a
@@ -141,6 +141,7 @@ def sweep(geo: np.ndarray, kind: np.ndarray, box: np.ndarray, shape: np.ndarray,
         depth: tip depth below the plate, mm.
         r_cut: distance from the toolpath beyond which the tool is above the plate.
         step, height, slope: the profile table.
+        base: number of the first move (moves are recorded as base + row).
         z: (ny, nx) float32 heights, updated in place (start at 0).
         move: (ny, nx) int32 deepest move per cell, updated in place (start at -1).
     """
@@ -171,13 +172,14 @@ def sweep(geo: np.ndarray, kind: np.ndarray, box: np.ndarray, shape: np.ndarray,
                 i0 = max(box[m, 0], int(math.ceil((xa - x0) / res)))
                 i1 = min(box[m, 1], int(math.floor((xb - x0) / res)))
                 _sweep_row(geo, kind, m, i0, i1, j, x0, y, res, depth, r_cut, step, height,
-                           slope, z, move)
+                           slope, base, z, move)
 
 
 @nb.njit(cache=True, inline="always")
 def _sweep_row(geo: np.ndarray, kind: np.ndarray, m: int, i0: int, i1: int, j: int,
                x0: float, y: float, res: float, depth: float, r_cut: float, step: float,
-               height: np.ndarray, slope: np.ndarray, z: np.ndarray, move: np.ndarray) -> None:
+               height: np.ndarray, slope: np.ndarray, base: int, z: np.ndarray,
+               move: np.ndarray) -> None:
     """Cut samples i0..i1 of row j (at height y) with move m (the sweep's inner loop)."""
     k = kind[m]
     sx, sy, ex, ey = geo[m, SX], geo[m, SY], geo[m, EX], geo[m, EY]
@@ -225,7 +227,7 @@ def _sweep_row(geo: np.ndarray, kind: np.ndarray, m: int, i0: int, i1: int, j: i
         v -= depth
         if v < z[j, i]:
             z[j, i] = v
-            move[j, i] = m
+            move[j, i] = base + m
 
 
 @nb.njit(cache=True)

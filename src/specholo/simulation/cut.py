@@ -70,6 +70,10 @@ BAND_ROWS = 16
 MAX_SAMPLES = 600_000_000
 #: Default triangle budget of :func:`write_stl`.
 STL_FACES = 4_000_000
+#: Groove vertices swept at a time: past this the program is built and cut a
+#: run of paths at a time, and only the moves that still cut some sample
+#: deepest are kept, so memory follows the field, not the program.
+CHUNK_VERTICES = 4_000_000
 
 _LINE_BULGE = 1e-9
 
@@ -304,6 +308,14 @@ class Moves:
         flags[corner + 1] |= _k.CORNER_START
         return cls(np.ascontiguousarray(geo), kind, flags, path, path_ptr, grooves)
 
+    @classmethod
+    def from_rows(cls, geo: np.ndarray, kind: np.ndarray, flags: np.ndarray, path: np.ndarray,
+                  grooves: Grooves) -> Moves:
+        """Some moves of ``grooves``' program, rows in program order (path sorted)."""
+        path = np.asarray(path, dtype=np.int64)
+        path_ptr = np.searchsorted(path, np.arange(grooves.n_paths + 1)).astype(np.int64)
+        return cls(np.ascontiguousarray(geo), kind, flags, path, path_ptr, grooves)
+
     def __len__(self) -> int:
         return len(self.kind)
 
@@ -471,31 +483,63 @@ def cut_surface(grooves: Grooves, tool_profile: ToolProfile | Tool | Any, depth:
         raise SpecholoError(f"a {nx} x {ny} height field is too large (at most "
                             f"{MAX_SAMPLES:,} samples): crop the bounds or coarsen the "
                             f"resolution {res:g} mm")
-    program = Moves.from_grooves(grooves)
     x0, y0 = bounds[0]
     z = np.zeros((ny, nx), np.float32)
     move = np.full((ny, nx), -1, np.int32)
-    if len(program):
-        ext = program.boxes()
-        box = np.empty((len(program), 4), np.int64)
-        box[:, 0] = np.maximum(np.ceil((ext[:, 0] - r_cut - x0) / res), 0)
-        box[:, 1] = np.minimum(np.floor((ext[:, 1] + r_cut - x0) / res), nx - 1)
-        box[:, 2] = np.maximum(np.ceil((ext[:, 2] - r_cut - y0) / res), 0)
-        box[:, 3] = np.minimum(np.floor((ext[:, 3] + r_cut - y0) / res), ny - 1)
-        live = np.flatnonzero((box[:, 1] >= box[:, 0]) & (box[:, 3] >= box[:, 2]))
-        b0 = box[live, 2] // BAND_ROWS
-        nb = box[live, 3] // BAND_ROWS - b0 + 1
-        which = np.repeat(live, nb)
-        band = np.repeat(b0, nb) + (np.arange(int(nb.sum())) - np.repeat(np.cumsum(nb) - nb, nb))
-        order = np.argsort(band, kind="stable")  # keeps program order within a band
-        n_bands = (ny + BAND_ROWS - 1) // BAND_ROWS
-        band_ptr = np.searchsorted(band[order], np.arange(n_bands + 1)).astype(np.int64)
-        _k.sweep(program.geo, program.kind, box, program.shapes(r_cut, res), band_ptr,
-                 which[order].astype(np.int64), BAND_ROWS, float(x0), float(y0), res, depth,
-                 r_cut, profile.step, profile.height, profile.slope, z, move)
+    grid = (float(x0), float(y0), res, nx, ny)
+    offsets = np.asarray(grooves.offsets, dtype=np.int64)
+    cuts = np.searchsorted(offsets, np.arange(CHUNK_VERTICES, int(offsets[-1]), CHUNK_VERTICES))
+    cuts = np.unique(np.clip(cuts, 1, grooves.n_paths - 1)) if grooves.n_paths > 1 else cuts[:0]
+    if len(cuts) == 0:
+        program = Moves.from_grooves(grooves)
+        _sweep(program, 0, grid, depth, r_cut, profile, z, move)
+    else:
+        # Chunks in program order, and the kernel's strict "deeper" keeps the
+        # first of equally deep moves: the same field as one sweep.
+        kept: list[np.ndarray] | None = None
+        for chunk in np.split(np.arange(grooves.n_paths), cuts):
+            part = Moves.from_grooves(grooves.take(chunk))
+            rows = [part.geo, part.kind, part.flags, part.path + chunk[0]]
+            base = 0 if kept is None else len(kept[1])
+            _sweep(part, base, grid, depth, r_cut, profile, z, move)
+            if kept is not None:
+                rows = [np.concatenate([a, b]) for a, b in zip(kept, rows, strict=True)]
+            # Drop the moves no sample is cut deepest by any more.
+            used = np.bincount(move[move >= 0], minlength=len(rows[1])) > 0
+            renumber = (np.cumsum(used) - 1).astype(np.int32)
+            cut = move >= 0
+            move[cut] = renumber[move[cut]]
+            kept = [a[used] for a in rows]
+        assert kept is not None
+        program = Moves.from_rows(*kept, grooves)
     # move -1 (uncut) picks the appended -1
     labels = np.append(program.path.astype(np.int32), np.int32(-1))[move]
     return HeightField(z, bounds[0].copy(), res, labels, move, program, profile, depth)
+
+
+def _sweep(program: Moves, base: int, grid: tuple[float, float, float, int, int], depth: float,
+           r_cut: float, profile: ToolProfile, z: np.ndarray, move: np.ndarray) -> None:
+    """Cut a program's moves into z and move (numbered from ``base``), in place."""
+    if not len(program):
+        return
+    x0, y0, res, nx, ny = grid
+    ext = program.boxes()
+    box = np.empty((len(program), 4), np.int64)
+    box[:, 0] = np.maximum(np.ceil((ext[:, 0] - r_cut - x0) / res), 0)
+    box[:, 1] = np.minimum(np.floor((ext[:, 1] + r_cut - x0) / res), nx - 1)
+    box[:, 2] = np.maximum(np.ceil((ext[:, 2] - r_cut - y0) / res), 0)
+    box[:, 3] = np.minimum(np.floor((ext[:, 3] + r_cut - y0) / res), ny - 1)
+    live = np.flatnonzero((box[:, 1] >= box[:, 0]) & (box[:, 3] >= box[:, 2]))
+    b0 = box[live, 2] // BAND_ROWS
+    nb = box[live, 3] // BAND_ROWS - b0 + 1
+    which = np.repeat(live, nb)
+    band = np.repeat(b0, nb) + (np.arange(int(nb.sum())) - np.repeat(np.cumsum(nb) - nb, nb))
+    order = np.argsort(band, kind="stable")  # keeps program order within a band
+    n_bands = (ny + BAND_ROWS - 1) // BAND_ROWS
+    band_ptr = np.searchsorted(band[order], np.arange(n_bands + 1)).astype(np.int64)
+    _k.sweep(program.geo, program.kind, box, program.shapes(r_cut, res), band_ptr,
+             which[order].astype(np.int64), BAND_ROWS, x0, y0, res, depth, r_cut,
+             profile.step, profile.height, profile.slope, base, z, move)
 
 
 def cut_design(loaded: Any, resolution: float = 0.02,
