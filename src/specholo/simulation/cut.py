@@ -511,7 +511,7 @@ def cut_surface(grooves: Grooves, tool_profile: ToolProfile | Tool | Any, depth:
             move[cut] = renumber[move[cut]]
             kept = [a[used] for a in rows]
         assert kept is not None
-        program = Moves.from_rows(*kept, grooves)
+        program = Moves.from_rows(kept[0], kept[1], kept[2], kept[3], grooves)
     # move -1 (uncut) picks the appended -1
     labels = np.append(program.path.astype(np.int32), np.int32(-1))[move]
     return HeightField(z, bounds[0].copy(), res, labels, move, program, profile, depth)
