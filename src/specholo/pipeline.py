@@ -401,15 +401,17 @@ def groove_extent(grooves: Grooves) -> np.ndarray:
     return grooves.extent()
 
 
-def plate_rect(grooves: Grooves, width: float, config: DesignConfig) -> np.ndarray:
+def plate_rect(grooves: Grooves, width: float, config: DesignConfig,
+               extent: np.ndarray | None = None) -> np.ndarray:
     """The plate's corners (2, 2), centred on the plate origin; refuse one too small.
 
     Args:
         grooves: the design's grooves.
         width: groove width, mm (grooves reach half of it past their centrelines).
         config: plate_width / plate_height, or None to fit the grooves with a margin.
+        extent: the grooves' :func:`groove_extent`, if already known.
     """
-    lo, hi = groove_extent(grooves)
+    lo, hi = groove_extent(grooves) if extent is None else extent
     reach = np.maximum(np.abs(lo), np.abs(hi)) + 0.5 * width
     need = 2.0 * reach
     size = np.array([config.plate_width or 0.0, config.plate_height or 0.0])
@@ -550,9 +552,10 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     grooves, dropped = design_runs(runs, config)
     timings["toolpaths"] = time.perf_counter() - t0
     section = cutter.section(config.depth_mm)
-    plate = plate_rect(grooves, section.width, config)
+    extent = groove_extent(grooves)  # one pass over the arcs, for the plate and the overlaps
+    plate = plate_rect(grooves, section.width, config, extent)
     t0 = time.perf_counter()
-    overlaps = groove_overlaps(grooves, section.width) if check_overlaps else None
+    overlaps = groove_overlaps(grooves, section.width, extent=extent) if check_overlaps else None
     timings["overlaps"] = time.perf_counter() - t0
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
                   views, overlaps, plate)

@@ -385,7 +385,8 @@ def _windowed(grooves: Grooves, width: float, step: float, total: float, lo: np.
 
 def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
                     sample: int | None = 20_000,
-                    rng: np.random.Generator | None = None) -> Overlaps:
+                    rng: np.random.Generator | None = None,
+                    extent: np.ndarray | None = None) -> Overlaps:
     """Measure where grooves of a given width cut into each other.
 
     Consecutive paths of one stipple are its neighbouring stripes (the only ones
@@ -400,6 +401,7 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
             and crossed length are estimated from this many random samples
             (the stipple's own stripes are always checked in full); None for all.
         rng: random generator for that sample; default seeded with 0.
+        extent: (2, 2) the grooves' ``extent()``, if already known.
 
     Returns:
         The overlap figures.
@@ -412,7 +414,8 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
                                 f(grooves.offsets, dtype=np.int64)).sum())
     fine = width / SAMPLES_PER_WIDTH
     if total / fine + len(grooves.vertices) > MAX_SAMPLES:
-        return _large_overlaps(grooves, width, tolerance, total, fine, rng)
+        return _large_overlaps(grooves, width, tolerance, total, fine, rng,
+                               grooves.extent() if extent is None else extent)
     step = fine
     pts, path, share = sample_centrelines(grooves, step)
     if len(pts) == 0:
@@ -445,7 +448,8 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
 
 
 def _large_overlaps(grooves: Grooves, width: float, tolerance: float, total: float,
-                    step: float, rng: np.random.Generator | None) -> Overlaps:
+                    step: float, rng: np.random.Generator | None,
+                    extent: np.ndarray) -> Overlaps:
     """:func:`groove_overlaps` for a design too large to sample whole.
 
     A stipple's neighbouring stripes are compared vertex to vertex (the
@@ -458,7 +462,7 @@ def _large_overlaps(grooves: Grooves, width: float, tolerance: float, total: flo
     gaps = _neighbour_gaps(f(grooves.vertices, dtype=float), f(grooves.offsets, dtype=np.int64),
                            stipple, 1)
     near = (gaps < width - tolerance) & (gaps > RETRACE)
-    lo, hi = grooves.extent()
+    lo, hi = extent
     area = float((hi[0] - lo[0] + width) * (hi[1] - lo[1] + width))
     crossings, crossed = _windowed(grooves, width - tolerance, step, total, lo, hi,
                                    rng if rng is not None else np.random.default_rng(0))
