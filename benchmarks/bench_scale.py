@@ -2,7 +2,7 @@
 
 Usage: python benchmarks/bench_scale.py [--sizes 10000 100000 1000000]
        [--stages stippling ... cut] [--csv benchmarks/results/scale.csv]
-       [--plot benchmarks/results/scale.png]
+       [--plot benchmarks/results/scale.png] [--keep OLD.csv]
 
 Each size is designed in a fresh process on the bundled bunny (striped design
 with occlusion, defaults: stippling, occlusion and toolpaths are its stages,
@@ -197,10 +197,14 @@ def run_size(n: int, stages: tuple[str, ...], room: int | None) -> dict[str, flo
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
+    ap.add_argument("--sizes", type=int, nargs="*", default=[10_000, 100_000, 1_000_000],
+                    help="stipple counts to run (none: only write the CSV and plot of --keep)")
     ap.add_argument("--csv", type=Path, default=ROOT / "benchmarks" / "results" / "scale.csv")
     ap.add_argument("--plot", type=Path, default=ROOT / "benchmarks" / "results" / "scale.png")
     ap.add_argument("--stages", nargs="+", default=list(STAGES), choices=STAGES)
+    ap.add_argument("--keep", type=Path, metavar="CSV",
+                    help="start from this CSV's figures; those measured now replace theirs "
+                         "(to rerun some sizes or stages)")
     ap.add_argument("--design", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--stage", help=argparse.SUPPRESS)
     ap.add_argument("--dir", type=Path, help=argparse.SUPPRESS)
@@ -240,6 +244,13 @@ def main() -> None:
               f"{r.get('sample_worst_p95_mm', math.nan):>10.3f}", flush=True)
         print("          peak MB by stage: " + ", ".join(
             f"{k[:-8]} {v:,.0f}" for k, v in r.items() if k.endswith("_peak_mb")), flush=True)
+    if args.keep is not None:
+        with open(args.keep, newline="") as fh:
+            merged = {int(float(r["stipples"])): {k: float(v) for k, v in r.items() if v != ""}
+                      for r in csv.DictReader(fh)}
+        for r in rows:
+            merged.setdefault(int(r["stipples"]), {}).update(r)
+        rows = [merged[n] for n in sorted(merged)]
     args.csv.parent.mkdir(parents=True, exist_ok=True)
     keys = sorted({k for r in rows for k in r})
     with open(args.csv, "w", newline="") as fh:
@@ -253,9 +264,11 @@ def main() -> None:
 
     done = [r for r in rows if "design_s" in r]
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for s in stages:
+    for s in STAGES:
         have = [r for r in done if f"{s}_s" in r]
-        ax.loglog([r["stipples"] for r in have], [r[f"{s}_s"] for r in have], "o-", label=s)
+        if have:
+            ax.loglog([r["stipples"] for r in have], [r[f"{s}_s"] for r in have], "o-",
+                      label=s)
     ax.set_xlabel("stipples")
     ax.set_ylabel("seconds")
     ax.set_title("specholo: time per stage against size (2 cores)")

@@ -117,21 +117,31 @@ def plan_layers(grooves: Grooves, tool: Tool, depths: np.ndarray | None = None) 
     """
     n = grooves.n_paths
     r = tool.radius
-    if depths is None:
-        d = np.full(n, tool.depth)
-    else:
-        d = np.asarray(depths, dtype=float)
-        if d.shape != (n,):
-            raise SpecholoError(f"depths must hold one depth per path ({n}), got shape {d.shape}")
-        bad = ~((d > 0.0) & (d <= r))  # also catches NaN
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise SpecholoError(
-                f"depth of path {i} must be in (0, tool radius {r:g}] mm, got {d[i]:g}")
     scale = 10**LAYER_DECIMALS
+    if depths is None:
+        # One depth class: no per-path depths to sort (38 million paths at 10^6 stipples).
+        return _layers(grooves, tool, np.rint([tool.depth * scale]).astype(np.int64),
+                       np.array([tool.depth]), np.zeros(n, dtype=np.int8))
+    d = np.asarray(depths, dtype=float)
+    if d.shape != (n,):
+        raise SpecholoError(f"depths must hold one depth per path ({n}), got shape {d.shape}")
+    bad = ~((d > 0.0) & (d <= r))  # also catches NaN
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise SpecholoError(
+            f"depth of path {i} must be in (0, tool radius {r:g}] mm, got {d[i]:g}")
     keys, cls = np.unique(np.rint(d * scale).astype(np.int64), return_inverse=True)
     count = np.bincount(cls, minlength=len(keys))
     mean = np.bincount(cls, weights=d, minlength=len(keys)) / np.maximum(count, 1)
+    return _layers(grooves, tool, keys, mean, cls)
+
+
+def _layers(grooves: Grooves, tool: Tool, keys: np.ndarray, mean: np.ndarray,
+            cls: np.ndarray) -> list[Layer]:
+    """Layers of paths by kind and depth class: class c (of ``cls`` (n,)) has the
+    rounded depth keys[c] (um) and the mean depth mean[c] (mm)."""
+    scale = 10**LAYER_DECIMALS
+    r = tool.radius
     widths = surface_width(r, mean)
     dot = grooves.is_dot
     radius = format_number(r, LAYER_DECIMALS)

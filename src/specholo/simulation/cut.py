@@ -71,9 +71,9 @@ MAX_SAMPLES = 600_000_000
 #: Default triangle budget of :func:`write_stl`.
 STL_FACES = 4_000_000
 #: Groove vertices swept at a time: past this the program is built and cut a
-#: run of paths at a time, and only the moves that still cut some sample
-#: deepest are kept, so memory follows the field, not the program.
-CHUNK_VERTICES = 4_000_000
+#: run of paths at a time, and only the moves that cut some sample deepest are
+#: kept, so memory follows the field, not the program.
+CHUNK_VERTICES = 1_000_000
 
 _LINE_BULGE = 1e-9
 
@@ -494,27 +494,47 @@ def cut_surface(grooves: Grooves, tool_profile: ToolProfile | Tool | Any, depth:
         program = Moves.from_grooves(grooves)
         _sweep(program, 0, grid, depth, r_cut, profile, z, move)
     else:
-        # Chunks in program order, and the kernel's strict "deeper" keeps the
-        # first of equally deep moves: the same field as one sweep.
-        kept: list[np.ndarray] | None = None
-        for chunk in np.split(np.arange(grooves.n_paths), cuts):
-            part = Moves.from_grooves(grooves.take(chunk))
-            rows = [part.geo, part.kind, part.flags, part.path + chunk[0]]
-            base = 0 if kept is None else len(kept[1])
-            _sweep(part, base, grid, depth, r_cut, profile, z, move)
-            if kept is not None:
-                rows = [np.concatenate([a, b]) for a, b in zip(kept, rows, strict=True)]
-            # Drop the moves no sample is cut deepest by any more.
-            used = np.bincount(move[move >= 0], minlength=len(rows[1])) > 0
-            renumber = (np.cumsum(used) - 1).astype(np.int32)
-            cut = move >= 0
-            move[cut] = renumber[move[cut]]
-            kept = [a[used] for a in rows]
-        assert kept is not None
-        program = Moves.from_rows(kept[0], kept[1], kept[2], kept[3], grooves)
+        program = _sweep_chunks(grooves, np.split(np.arange(grooves.n_paths), cuts), grid, depth,
+                                r_cut, profile, z, move)
     # move -1 (uncut) picks the appended -1
     labels = np.append(program.path.astype(np.int32), np.int32(-1))[move]
     return HeightField(z, bounds[0].copy(), res, labels, move, program, profile, depth)
+
+
+def _sweep_chunks(grooves: Grooves, chunks: list[np.ndarray],
+                  grid: tuple[float, float, float, int, int], depth: float, r_cut: float,
+                  profile: ToolProfile, z: np.ndarray, move: np.ndarray) -> Moves:
+    """Cut the program a run of paths at a time; the moves that cut some sample deepest.
+
+    The chunks go in program order and the kernel keeps the first of equally
+    deep moves, so the field is that of one sweep. Moves are numbered across
+    the chunks, then renumbered among those kept, which are built again chunk
+    by chunk: no table of the whole program is ever held.
+    """
+    # A path of k vertices makes at most k moves.
+    if len(grooves.vertices) > np.iinfo(np.int32).max:
+        raise SpecholoError(f"the program has up to {len(grooves.vertices):,} moves, more than "
+                            "a height field can number: simulate fewer paths at a time")
+    first = [0]
+    for chunk in chunks:
+        part = Moves.from_grooves(grooves.take(chunk))
+        _sweep(part, first[-1], grid, depth, r_cut, profile, z, move)
+        first.append(first[-1] + len(part))
+    cut = move >= 0
+    used, renumber = np.unique(move[cut], return_inverse=True)
+    move[cut] = renumber
+    geo = np.empty((len(used), _k.N_GEO))
+    kind, flags = np.empty(len(used), np.int8), np.empty(len(used), np.int8)
+    path = np.empty(len(used), np.int64)
+    ends = np.searchsorted(used, first)
+    for chunk, lo, a, b in zip(chunks, first[:-1], ends[:-1], ends[1:], strict=True):
+        if a == b:
+            continue
+        part = Moves.from_grooves(grooves.take(chunk))
+        rows = used[a:b] - lo
+        geo[a:b], kind[a:b], flags[a:b] = part.geo[rows], part.kind[rows], part.flags[rows]
+        path[a:b] = part.path[rows] + chunk[0]
+    return Moves.from_rows(geo, kind, flags, path, grooves)
 
 
 def _sweep(program: Moves, base: int, grid: tuple[float, float, float, int, int], depth: float,
