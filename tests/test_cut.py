@@ -280,6 +280,7 @@ def test_cut_in_chunks_is_the_same_plate(small_design: Path,
     grooves, setup = loaded.grooves, loaded.config.setup()
     whole = cut_surface(grooves, setup.tool, setup.tool.depth, resolution=0.02)
     monkeypatch.setattr(cut_module, "CHUNK_VERTICES", max(len(grooves.vertices) // 7, 2))
+    monkeypatch.setattr(cut_module, "CHUNK_FROM", 0)
     parts = cut_surface(grooves, setup.tool, setup.tool.depth, resolution=0.02)
     # Seven chunks; only moves that cut some sample deepest are kept.
     assert len(parts.program) < len(whole.program)

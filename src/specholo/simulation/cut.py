@@ -70,10 +70,11 @@ BAND_ROWS = 16
 MAX_SAMPLES = 600_000_000
 #: Default triangle budget of :func:`write_stl`.
 STL_FACES = 4_000_000
-#: Groove vertices swept at a time: past this the program is built and cut a
-#: run of paths at a time, and only the moves that cut some sample deepest are
-#: kept, so memory follows the field, not the program.
+#: Groove vertices swept at a time once a program has more than CHUNK_FROM: it
+#: is built and cut a run of paths at a time, and only the moves that cut some
+#: sample deepest are kept, so memory follows the field, not the program.
 CHUNK_VERTICES = 1_000_000
+CHUNK_FROM = 4_000_000
 
 _LINE_BULGE = 1e-9
 
@@ -489,7 +490,9 @@ def cut_surface(grooves: Grooves, tool_profile: ToolProfile | Tool | Any, depth:
     grid = (float(x0), float(y0), res, nx, ny)
     offsets = np.asarray(grooves.offsets, dtype=np.int64)
     cuts = np.searchsorted(offsets, np.arange(CHUNK_VERTICES, int(offsets[-1]), CHUNK_VERTICES))
-    cuts = np.unique(np.clip(cuts, 1, grooves.n_paths - 1)) if grooves.n_paths > 1 else cuts[:0]
+    if grooves.n_paths < 2 or offsets[-1] <= CHUNK_FROM:
+        cuts = cuts[:0]
+    cuts = np.unique(np.clip(cuts, 1, max(grooves.n_paths - 1, 1)))
     if len(cuts) == 0:
         program = Moves.from_grooves(grooves)
         _sweep(program, 0, grid, depth, r_cut, profile, z, move)
