@@ -36,7 +36,7 @@ def _h(gx: float, gy: float, gz: float, ex: float, ey: float, ez: float,
     return lx + ux * inv, ly + uy * inv, lz + uz * inv
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def target(theta: float, y: float, px: float, py: float, pz: float, params: np.ndarray,
            nx: float, ny: float, nz: float,
            iterations: int) -> tuple[float, float, float, float, float, float, float, float]:
