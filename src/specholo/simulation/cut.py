@@ -488,17 +488,15 @@ def cut_surface(grooves: Grooves, tool_profile: ToolProfile | Tool | Any, depth:
     z = np.zeros((ny, nx), np.float32)
     move = np.full((ny, nx), -1, np.int32)
     grid = (float(x0), float(y0), res, nx, ny)
-    offsets = np.asarray(grooves.offsets, dtype=np.int64)
-    cuts = np.searchsorted(offsets, np.arange(CHUNK_VERTICES, int(offsets[-1]), CHUNK_VERTICES))
-    if grooves.n_paths < 2 or offsets[-1] <= CHUNK_FROM:
-        cuts = cuts[:0]
-    cuts = np.unique(np.clip(cuts, 1, max(grooves.n_paths - 1, 1)))
-    if len(cuts) == 0:
-        program = Moves.from_grooves(grooves)
-        _sweep(program, 0, grid, depth, r_cut, profile, z, move)
-    else:
+    total = len(grooves.vertices)
+    if grooves.n_paths > 1 and total > CHUNK_FROM:
+        cuts = np.searchsorted(grooves.offsets, np.arange(CHUNK_VERTICES, total, CHUNK_VERTICES))
+        cuts = np.unique(np.clip(cuts, 1, grooves.n_paths - 1))
         program = _sweep_chunks(grooves, np.split(np.arange(grooves.n_paths), cuts), grid, depth,
                                 r_cut, profile, z, move)
+    else:
+        program = Moves.from_grooves(grooves)
+        _sweep(program, 0, grid, depth, r_cut, profile, z, move)
     # move -1 (uncut) picks the appended -1
     labels = np.append(program.path.astype(np.int32), np.int32(-1))[move]
     return HeightField(z, bounds[0].copy(), res, labels, move, program, profile, depth)

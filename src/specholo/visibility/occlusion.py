@@ -27,8 +27,8 @@ from specholo.setup import Viewer
 _OFFSET = 1e-5
 # Rays traced per call, to bound the memory of the temporary arrays.
 _CHUNK = 1 << 20
-# Chunks traced at once: embree and numpy's big operations release the GIL, so
-# threads share the ray casts (1.5x on two cores).
+# Chunks traced at once: numpy's big operations and part of embree's work
+# release the GIL, so threads share the ray casts (1.2-1.3x on two cores).
 _WORKERS = max(1, min(4, os.cpu_count() or 1))
 
 
