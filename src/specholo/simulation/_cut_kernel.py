@@ -18,9 +18,10 @@ import math
 import numba as nb
 import numpy as np
 
-# Columns of ``geo``.
-SX, SY, EX, EY, CX, CY, RHO, SWEEP, DX, DY, LENGTH = range(11)
-N_GEO = 11
+# Columns of ``geo``. A move's unit direction and length are not stored: they
+# follow from its ends (:func:`chord`), and a kept table is a field's worth of rows.
+SX, SY, EX, EY, CX, CY, RHO, SWEEP = range(8)
+N_GEO = 8
 # Move kinds.
 LINE, ARC, POINT = 0, 1, 2
 # Move flags: the path starts / ends at this move (a cap, left by plunge and
@@ -32,6 +33,16 @@ OPEN_START, OPEN_END, CORNER_START, CORNER_END = 1, 2, 4, 8
 BODY, SPHERE, CAP = 0, 1, 2
 #: Clusters kept per path and eye.
 MAX_CLUSTERS = 8
+
+
+@nb.njit(cache=True, inline="always")
+def chord(geo: np.ndarray, m: int) -> tuple[float, float, float]:
+    """Unit direction (x, y) and length of move m's chord; (0, 0, 0) when it has none."""
+    cx, cy = geo[m, EX] - geo[m, SX], geo[m, EY] - geo[m, SY]
+    length = math.hypot(cx, cy)
+    if not length > 0.0:
+        return 0.0, 0.0, 0.0
+    return cx / length, cy / length, length
 
 
 @nb.njit(cache=True, inline="always")
@@ -90,11 +101,11 @@ def locate(geo: np.ndarray, kind: np.ndarray, m: int, px: float,
     if k == POINT:
         return math.sqrt((px - sx) ** 2 + (py - sy) ** 2), 1
     if k == LINE:
-        dx, dy = geo[m, DX], geo[m, DY]
+        dx, dy, length = chord(geo, m)
         t = (px - sx) * dx + (py - sy) * dy
         if t <= 0.0:
             return math.sqrt((px - sx) ** 2 + (py - sy) ** 2), 1
-        if t >= geo[m, LENGTH]:
+        if t >= length:
             return math.sqrt((px - geo[m, EX]) ** 2 + (py - geo[m, EY]) ** 2), 2
         return abs((px - sx) * dy - (py - sy) * dx), 0
     vx, vy = px - geo[m, CX], py - geo[m, CY]
@@ -185,7 +196,7 @@ def _sweep_row(geo: np.ndarray, kind: np.ndarray, m: int, i0: int, i1: int, j: i
     sx, sy, ex, ey = geo[m, SX], geo[m, SY], geo[m, EX], geo[m, EY]
     # Per-move constants in registers: the loop below runs ~10^8 times.
     cx, cy, rho, sw = geo[m, CX], geo[m, CY], geo[m, RHO], geo[m, SWEEP]
-    dx, dy, length = geo[m, DX], geo[m, DY], geo[m, LENGTH]
+    dx, dy, length = chord(geo, m)
     sg = 1.0 if sw > 0.0 else -1.0
     ax, ay, bx, by = sx - cx, sy - cy, ex - cx, ey - cy
     wide = abs(sw) > math.pi
@@ -298,7 +309,8 @@ def surface(geo: np.ndarray, kind: np.ndarray, m: int, mode: int, qx: float, qy:
         return (p - depth, dp * ux, dp * uy, ddp * ux * ux + k * uy * uy,
                 (ddp - k) * ux * uy, ddp * uy * uy + k * ux * ux)
     if kind[m] == LINE:
-        nx, ny = -geo[m, DY], geo[m, DX]
+        tx, ty, _ = chord(geo, m)
+        nx, ny = -ty, tx
         s = (px - geo[m, SX]) * nx + (py - geo[m, SY]) * ny
         p, dp, ddp = profile(abs(s), step, height, slope)
         sg = 1.0 if s >= 0.0 else -1.0
@@ -378,8 +390,8 @@ def screen(geo: np.ndarray, kind: np.ndarray, flags: np.ndarray, depth: float, e
         f0 = f1 = hn = 0.0
         for e in range(2):
             if kind[m] == LINE:
-                tx, ty = geo[m, DX], geo[m, DY]
-                s = -ext if e == 0 else geo[m, LENGTH] + ext
+                tx, ty, length = chord(geo, m)
+                s = -ext if e == 0 else length + ext
                 px, py = geo[m, SX] + s * tx, geo[m, SY] + s * ty
             else:
                 rho, sw = geo[m, RHO], geo[m, SWEEP]
