@@ -88,7 +88,7 @@ def _wall_point(y: float, px: float, py: float, ex: float, ey: float, ez: float,
 @nb.njit(cache=True)
 def field(theta: float, y: float, px: float, py: float, pz: float,
           params: np.ndarray) -> tuple[float, float, float, float, float, float, float, float]:
-    """Slope of the toolpath and its targets at (theta, y).
+    """Slope of the toolpath and its targets at (theta, y), from a cold start.
 
     Returns:
         dy/dtheta, band centre, x, dx/dtheta, d centre/dtheta (derivatives along
@@ -96,7 +96,17 @@ def field(theta: float, y: float, px: float, py: float, pz: float,
     """
     # First guess: the plate normal, a wall point at the groove's bottom. Each
     # fixed-point step gains ~log10(distance / R) digits: four reach ~1e-10 mm.
-    x, c, hx, hy, hz, nx, ny, nz = target(theta, y, px, py, pz, params, 0.0, 0.0, 1.0, 4)
+    return _field(theta, y, px, py, pz, params, 0.0, 0.0, 1.0, 4)[:8]
+
+
+@nb.njit(cache=True, inline="always")
+def _field(theta: float, y: float, px: float, py: float, pz: float, params: np.ndarray,
+           nx: float, ny: float, nz: float, iterations: int) -> tuple[
+               float, float, float, float, float, float, float, float, float, float, float]:
+    """:func:`field` from the wall normal n and at least ``iterations`` steps;
+    also returns the converged n (a guess for the next point of the walk)."""
+    x, c, hx, hy, hz, nx, ny, nz = target(theta, y, px, py, pz, params, nx, ny, nz,
+                                          iterations)
     # Forward differences, warm-started from the converged n: four cold steps
     # leave a residual far below what the quotients can see.
     xa, ca, _, _, _, _, _, _ = target(theta + _DTHETA, y, px, py, pz, params, nx, ny, nz, 1)
@@ -107,7 +117,7 @@ def field(theta: float, y: float, px: float, py: float, pz: float,
     # x' = x_th + x_y y' for the path's true direction.
     slope = hx / hy
     dy = -x_th * slope / (1.0 + x_y * slope)
-    return dy, c, x, x_th + x_y * dy, c_th + c_y * dy, hx, hy, hz
+    return dy, c, x, x_th + x_y * dy, c_th + c_y * dy, hx, hy, hz, nx, ny, nz
 
 
 @nb.njit(cache=True, inline="always")
@@ -182,10 +192,13 @@ def start_offsets(start: np.ndarray, end: np.ndarray, pts: np.ndarray, params: n
 
 @nb.njit(cache=True, inline="always")
 def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: float,
-          params: np.ndarray) -> tuple[float, float]:
-    k2, c2, _, _, _, _, _, _ = field(th + dth, y + dth * k1, px, py, pz, params)
+          params: np.ndarray, nx: float, ny: float,
+          nz: float) -> tuple[float, float, float, float, float]:
+    """A Heun step from the wall normal n at (th, y): y, u and n at its end."""
+    k2, c2, _, _, _, _, _, _, nx, ny, nz = _field(th + dth, y + dth * k1, px, py, pz, params,
+                                                  nx, ny, nz, 1)
     y1 = y + 0.5 * dth * (k1 + k2)
-    return y1, y1 - c2
+    return y1, y1 - c2, nx, ny, nz
 
 
 @nb.njit(cache=True, parallel=True)
@@ -215,11 +228,16 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
         stripe = 0
         point_out[k, 1], stripe_out[k] = y, stripe
         k += 1
+        # Each solve starts from the wall normal of the last, nearby (a step
+        # or two instead of four; the same convergence test ends it).
+        nx, ny, nz, cold = 0.0, 0.0, 1.0, 4
         while end[i] - th > _NEAR_EDGE:
             if k + 2 > stop:
                 k = -1
                 break
-            k1, c, x, dx, dc, _, _, _ = field(th, y, px, py, pz, params)
+            k1, c, x, dx, dc, _, _, _, nx, ny, nz = _field(th, y, px, py, pz, params, nx, ny, nz,
+                                                           cold)
+            cold = 1
             point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x, dx, k1
             u_start = y - c
             # Neighbouring stripes of one stipple are the band's height 2 wb apart
@@ -235,7 +253,7 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
             # Never leave a sliver of the run for a last, tiny step.
             if end[i] - th < 1.25 * dth:
                 dth = end[i] - th
-            y1, u1 = _heun(th, y, k1, dth, px, py, pz, params)
+            y1, u1, mx, my, mz = _heun(th, y, k1, dth, px, py, pz, params, nx, ny, nz)
             edge = 0.0
             if u1 > wb:
                 edge = wb
@@ -252,7 +270,8 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
                 t_new = dth
                 for _ in range(2):
                     t_new = a_t + (edge - a_u) * (b_t - a_t) / (b_u - a_u)
-                    y1, u_new = _heun(th, y, k1, t_new, px, py, pz, params)
+                    y1, u_new, mx, my, mz = _heun(th, y, k1, t_new, px, py, pz, params,
+                                                  nx, ny, nz)
                     if abs(u_new) <= wb:
                         a_t, a_u = t_new, u_new
                     else:
@@ -260,18 +279,21 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
                 dth = t_new
             th += dth
             y = y1
+            nx, ny, nz = mx, my, mz
             point_out[k, 1], stripe_out[k] = y, stripe
             k += 1
             if edge != 0.0:
                 # The stripe's end sample: its own point and direction.
-                dy_e, c, x_e, dx_e, _, _, _, _ = field(th, y, px, py, pz, params)
+                dy_e, c, x_e, dx_e, _, _, _, _, nx, ny, nz = _field(th, y, px, py, pz, params,
+                                                                    nx, ny, nz, 1)
                 point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
                 stripe += 1
                 y = c - edge
                 point_out[k, 1], stripe_out[k] = y, stripe
                 k += 1
         if k > 0:
-            dy_e, _, x_e, dx_e, _, _, _, _ = field(th, y, px, py, pz, params)
+            dy_e, _, x_e, dx_e, _, _, _, _, _, _, _ = _field(th, y, px, py, pz, params,
+                                                             nx, ny, nz, cold)
             point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
         count[i] = -1 if k < 0 else k - offsets[i]
     return count
