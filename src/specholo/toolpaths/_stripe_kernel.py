@@ -107,8 +107,8 @@ def _field(theta: float, y: float, px: float, py: float, pz: float, params: np.n
     also returns the converged n (a guess for the next point of the walk)."""
     x, c, hx, hy, hz, nx, ny, nz = target(theta, y, px, py, pz, params, nx, ny, nz,
                                           iterations)
-    # Forward differences, warm-started from the converged n: four cold steps
-    # leave a residual far below what the quotients can see.
+    # Forward differences, warm-started from the converged n: the solve's
+    # residual is far below what the quotients can see.
     xa, ca, _, _, _, _, _, _ = target(theta + _DTHETA, y, px, py, pz, params, nx, ny, nz, 1)
     xc, cc, _, _, _, _, _, _ = target(theta, y + _DY, px, py, pz, params, nx, ny, nz, 1)
     x_th, c_th = (xa - x) / _DTHETA, (ca - c) / _DTHETA
@@ -230,14 +230,14 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
         k += 1
         # Each solve starts from the wall normal of the last, nearby (a step
         # or two instead of four; the same convergence test ends it).
-        nx, ny, nz, cold = 0.0, 0.0, 1.0, 4
+        nx, ny, nz, min_steps = 0.0, 0.0, 1.0, 4
         while end[i] - th > _NEAR_EDGE:
             if k + 2 > stop:
                 k = -1
                 break
             k1, c, x, dx, dc, _, _, _, nx, ny, nz = _field(th, y, px, py, pz, params, nx, ny, nz,
-                                                           cold)
-            cold = 1
+                                                           min_steps)
+            min_steps = 1
             point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x, dx, k1
             u_start = y - c
             # Neighbouring stripes of one stipple are the band's height 2 wb apart
@@ -293,7 +293,7 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
                 k += 1
         if k > 0:
             dy_e, _, x_e, dx_e, _, _, _, _, _, _, _ = _field(th, y, px, py, pz, params,
-                                                             nx, ny, nz, cold)
+                                                             nx, ny, nz, min_steps)
             point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
         count[i] = -1 if k < 0 else k - offsets[i]
     return count
