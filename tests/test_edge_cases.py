@@ -225,3 +225,34 @@ def test_verification_in_stipple_chunks_gives_the_same_figures() -> None:
     parts = verify(d.grooves, d.points, setup, vis, az, chunk_vertices=2_000)
     assert whole == parts
     assert whole[1].stipples_seen > 100 and whole[1].p95_error < 0.3
+
+
+@pytest.mark.parametrize("room", [None, (0, 0), (5, 1), (10_000, 1_000)])
+def test_grooves_built_in_parts_are_the_parts_end_to_end(room: tuple[int, int] | None) -> None:
+    from specholo.toolpaths.grooves import Grooves, GroovesBuilder
+
+    rng = np.random.default_rng(3)
+    parts = []
+    for n_paths in (3, 0, 1, 4):
+        sizes = rng.integers(2, 6, n_paths)
+        nv = int(sizes.sum())
+        parts.append(Grooves(rng.normal(size=(nv, 2)), rng.normal(size=nv),
+                             np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                             rng.integers(0, 50, n_paths)))
+    b = GroovesBuilder()
+    if room is not None:
+        b.reserve(*room)
+    for k, part in enumerate(parts):
+        if k % 2:  # written in place, as the striped walk does
+            v, bu, o, s = b.extend(len(part.vertices), part.n_paths)
+            v[:], bu[:], o[:], s[:] = part.vertices, part.bulges, part.offsets[:-1], part.stipple
+        else:
+            b.add(part)
+    g = b.build()
+    np.testing.assert_array_equal(g.vertices, np.concatenate([p.vertices for p in parts]))
+    np.testing.assert_array_equal(g.bulges, np.concatenate([p.bulges for p in parts]))
+    np.testing.assert_array_equal(g.stipple, np.concatenate([p.stipple for p in parts]))
+    base = np.cumsum([0] + [len(p.vertices) for p in parts])
+    want = np.concatenate([[0]] + [p.offsets[1:] + base[k] for k, p in enumerate(parts)])
+    np.testing.assert_array_equal(g.offsets, want)
+    assert len(g.vertices) == g.offsets[-1] and g.vertices.flags.owndata

@@ -224,7 +224,7 @@ def test_grooves_stay_between_the_sightline_crossings():
 
 def test_sample_buffers_that_overflow_are_retried_with_room():
     from specholo.toolpaths import _stripe_kernel as kernel
-    from specholo.toolpaths.striped import _integrate, _params
+    from specholo.toolpaths.striped import _integrate, _params, _Scratch
 
     setup = Setup()
     opts = StripeOptions()
@@ -234,8 +234,17 @@ def test_sample_buffers_that_overflow_are_retried_with_room():
     params = _params(setup, opts)
     u0, _, cap = kernel.start_offsets(runs.start, runs.end, runs.point, params, opts.band,
                                       opts.min_light_tilt)
-    full = _integrate(runs, params, u0, cap.copy(), opts.band, setup.tool.width)
-    tight = _integrate(runs, params, u0, np.full(3, 2, dtype=np.int64), opts.band,
-                       setup.tool.width)
+    def samples(cap: np.ndarray) -> list[list[np.ndarray]]:
+        offsets, count, *slots = _integrate(runs, params, u0, cap, opts.band,
+                                            setup.tool.width, _Scratch())
+        assert (count >= 0).all()
+        return [[a[o:o + c] for a in slots[:3]] for o, c in zip(offsets, count, strict=True)]
+
+    full = samples(cap.copy())
+    # The first run fits; the others overflow and go again, more than once.
+    tight = samples(np.array([cap[0], 2, 2], dtype=np.int64))
+    assert [len(r[0]) for r in full] == [len(r[0]) for r in tight]
+    assert min(len(r[0]) for r in full) > 8
     for a, b in zip(full, tight, strict=True):
-        np.testing.assert_array_equal(a, b)
+        for x, y in zip(a, b, strict=True):
+            np.testing.assert_array_equal(x, y)

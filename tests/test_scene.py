@@ -388,3 +388,24 @@ def test_stipple_point_cloud_spacing() -> None:
 def test_stipple_bad_arguments(bunny: Model, kwargs: dict[str, float], fragment: str) -> None:
     with pytest.raises(SpecholoError, match=fragment):
         stipple(bunny, np.random.default_rng(0), **kwargs)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("grid", [False, True])
+def test_disk_sets_are_the_greedy_pass_in_priority_order(grid: bool) -> None:
+    """Each candidate is kept iff no higher-ranked kept one is within r (a pair at
+    exactly r conflicts), also for points on the cubes' faces and at distance r."""
+    from specholo.scene.stippling import _DiskSets
+
+    rng = np.random.default_rng(7)
+    r = 0.25
+    if grid:  # lattice points: many pairs at exactly r, many points on cube faces
+        pts = rng.integers(0, 12, size=(1500, 3)) * (r / 2)
+    else:
+        pts = rng.random((1500, 3)) * [4.0, 3.0, 0.5]
+    priority = rng.permutation(len(pts))
+    got = _DiskSets(pts, priority).independent_set(r)
+    kept: list[int] = []
+    for i in np.argsort(-priority):
+        if not kept or np.sqrt(((pts[kept] - pts[i]) ** 2).sum(axis=1)).min() > r:
+            kept.append(int(i))
+    np.testing.assert_array_equal(got, np.sort(kept))

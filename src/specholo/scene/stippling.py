@@ -4,10 +4,8 @@ Each stipple becomes one glint of the hologram, so stipples should cover the
 surface evenly without clumps: a Poisson-disk set, where no two stipples are
 closer than a radius r. It is built from many uniform random candidates by
 keeping a maximal independent set of the graph joining candidates closer than
-r, chosen greedily in a random priority order. The greedy set is computed in
-rounds (Luby's scheme with fixed priorities): every candidate that outranks all
-its undecided neighbours joins, its neighbours drop out, and so on, which keeps
-all the work in numpy.
+r, chosen greedily in a random priority order: one compiled pass in that order
+keeps each candidate with no kept one within r (:mod:`._disk_kernel`).
 """
 
 from __future__ import annotations
@@ -24,6 +22,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from specholo.errors import SpecholoError
+from specholo.scene._disk_kernel import AXIS_BITS, greedy_disk
 from specholo.scene.loading import Model, available_memory, format_bytes, mesh_memory
 
 # Candidates drawn per wanted stipple: more gives a tighter (more saturated)
@@ -42,15 +41,6 @@ _MAX_CANDIDATES = 10_000_000
 # For a requested count, accept a radius whose set has N..(1 + slack) N points.
 _COUNT_SLACK = 0.05
 _MAX_SEARCH_STEPS = 16
-# Pair budget of the neighbour graph, per point and fixed, beyond which clumped
-# points are thinned first (see _PairGraph._thinned_set).
-_PAIRS_PER_POINT = 16
-_PAIRS_BASE = 1_000_000
-# Points whose neighbours are counted to estimate the pairs of a larger set: a
-# clump big enough to exceed the budget holds a share of the points that this
-# many probes find (counting every point's took 6 s of 21 at 10^6 stipples).
-_PAIR_PROBES = 50_000
-
 #: Peak memory of a whole design per stipple, bytes: stippling, occlusion, the
 #: tool check, the grooves (built in place, ~5.7 KB per stipple) and overlaps.
 #: Measured on the bunny: 10^5 stipples peak near 1.6 GB, 10^6 near 7.8 GB.
@@ -280,8 +270,7 @@ def _stipple_cloud(
 
 def _select_spacing(points: np.ndarray, rng: np.random.Generator, r: float) -> np.ndarray:
     """Indices of a Poisson-disk subset of radius r."""
-    graph = _PairGraph(points)
-    return graph.independent_set(r, rng.permutation(len(points)))
+    return _DiskSets(points, rng.permutation(len(points))).independent_set(r)
 
 
 def _select_count(
@@ -293,8 +282,7 @@ def _select_count(
     step in log-log space, kept inside the bracket found so far (bisection in
     log r when the secant leaves it).
     """
-    graph = _PairGraph(points)
-    priority = rng.permutation(len(points))
+    sets = _DiskSets(points, rng.permutation(len(points)))
     target = count * (1.0 + 0.5 * _COUNT_SLACK)
     above: tuple[float, np.ndarray] | None = None  # largest r with >= count points
     below: float | None = None  # smallest r with < count points
@@ -303,7 +291,7 @@ def _select_count(
     r = r0
     chosen: np.ndarray | None = None
     for _ in range(_MAX_SEARCH_STEPS):
-        selected = graph.independent_set(r, priority)
+        selected = sets.independent_set(r)
         k = len(selected)
         history.append((r, k))
         if count <= k <= count * (1.0 + _COUNT_SLACK):
@@ -340,121 +328,28 @@ def _select_count(
     return chosen
 
 
-class _PairGraph:
-    """Pairs of points closer than a radius, cached for the largest radius asked."""
+class _DiskSets:
+    """Greedy Poisson-disk sets of one candidate set, for the radii of a search.
 
-    def __init__(self, points: np.ndarray) -> None:
-        self.points = points
-        self.tree = cKDTree(points)
-        self.radius = -1.0
-        self.pairs = np.zeros((0, 2), dtype=np.int64)
-        self.dist = np.zeros(0)
-        # Twice the pairs an even spread has (~4 per point): more means clumps.
-        self.budget = _PAIRS_PER_POINT * len(points) + _PAIRS_BASE
-
-    def _too_many_pairs(self, reach: float) -> bool:
-        """True if more than the budget of pairs lie within ``reach`` (counted, not listed).
-
-        Past ``_PAIR_PROBES`` points the count is estimated from the neighbours
-        of every k-th point.
-        """
-        n = len(self.points)
-        if n * (n - 1) // 2 <= self.budget:
-            return False
-        if n <= _PAIR_PROBES:
-            return (int(self.tree.count_neighbors(self.tree, reach)) - n) // 2 > self.budget
-        probes = self.points[:: n // _PAIR_PROBES]
-        near = self.tree.query_ball_point(probes, reach, return_length=True) - 1
-        return 0.5 * float(np.mean(near)) * n > self.budget
-
-    def edges(self, r: float) -> np.ndarray:
-        """(e, 2) index pairs of points at distance <= r."""
-        if r > self.radius:
-            # Ask a little beyond r so a slightly larger next radius is cached too.
-            reach = 1.1 * r
-            self.pairs = self.tree.query_pairs(reach, output_type="ndarray").astype(np.int64)
-            diff = self.points[self.pairs[:, 0]] - self.points[self.pairs[:, 1]]
-            self.dist = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-            self.radius = reach
-        return self.pairs[self.dist <= r]
-
-    def independent_set(self, r: float, priority: np.ndarray) -> np.ndarray:
-        """Sorted indices of the greedy maximal independent set at radius r.
-
-        Args:
-            r: the minimum distance between chosen points.
-            priority: (n,) distinct ranks; higher-ranked points are chosen first.
-
-        Returns:
-            (k,) int64 indices, no two closer than r.
-        """
-        if r > self.radius and self._too_many_pairs(1.1 * r):
-            thinned = self._thinned_set(r, priority)
-            if thinned is not None:
-                return thinned
-        return _greedy_independent_set(len(self.points), self.edges(r), priority)
-
-    def _thinned_set(self, r: float, priority: np.ndarray) -> np.ndarray | None:
-        """An independent set at radius r for clumped points, in memory linear in n.
-
-        Points in one cube of side r / sqrt(3) are all closer than r, so at most
-        one of them can be chosen: keeping only the highest-ranked point of each
-        cube leaves a set whose pairs within r are bounded (~60 per point), and
-        its greedy independent set is a valid (if slightly less greedy) set of
-        the whole. A clump of thousands of points (a scanner dwelling on one
-        spot) would otherwise list millions of pairs.
-
-        Returns:
-            Sorted indices, or None when the cubes cannot be numbered (r too small
-            for the extent).
-        """
-        lo = self.points.min(axis=0)
-        side = r / math.sqrt(3.0)
-        cells_per_axis = float(np.max(self.points.max(axis=0) - lo)) / side
-        if not cells_per_axis < 2.0**40:
-            return None
-        cell = np.floor((self.points - lo) / side).astype(np.int64)
-        # Sort by cube, highest rank first within a cube; keep each cube's first.
-        order = np.lexsort((-priority, cell[:, 2], cell[:, 1], cell[:, 0]))
-        c = cell[order]
-        first = np.ones(len(order), dtype=bool)
-        first[1:] = np.any(c[1:] != c[:-1], axis=1)
-        keep = order[first]
-        sub = self.points[keep]
-        pairs = cKDTree(sub).query_pairs(r, output_type="ndarray").astype(np.int64)
-        if len(pairs):
-            diff = sub[pairs[:, 0]] - sub[pairs[:, 1]]
-            pairs = pairs[np.einsum("ij,ij->i", diff, diff) <= r * r]
-        chosen = _greedy_independent_set(len(keep), pairs, priority[keep])
-        return np.sort(keep[chosen])
-
-
-def _greedy_independent_set(n: int, pairs: np.ndarray, priority: np.ndarray) -> np.ndarray:
-    """The maximal independent set a greedy pass in priority order would pick.
-
-    Args:
-        n: number of vertices.
-        pairs: (e, 2) undirected edges.
-        priority: (n,) distinct ranks.
-
-    Returns:
-        (k,) sorted int64 vertex indices.
+    Candidates are taken in a fixed random priority order; the set at radius r
+    is what one pass in that order keeps, no two closer than r.
     """
-    a, b = pairs[:, 0], pairs[:, 1]
-    flip = priority[a] > priority[b]
-    low = np.where(flip, b, a)  # the lower-ranked end of each edge
-    high = np.where(flip, a, b)
-    state = np.zeros(n, dtype=np.int8)  # 0 undecided, 1 chosen, 2 excluded
-    while True:
-        undecided = state == 0
-        if not undecided.any():
-            break
-        # A vertex joins when no undecided neighbour outranks it.
-        outranked = np.zeros(n, dtype=bool)
-        outranked[low] = True
-        joins = undecided & ~outranked
-        state[joins] = 1
-        state[low[joins[high]]] = 2
-        live = (state[low] == 0) & (state[high] == 0)
-        low, high = low[live], high[live]
-    return np.flatnonzero(state == 1).astype(np.int64)
+
+    def __init__(self, points: np.ndarray, priority: np.ndarray) -> None:
+        self.order = np.argsort(-priority, kind="stable")  # highest rank first
+        # In the order taken, so the pass reads them one after another.
+        self.points = np.ascontiguousarray(points[self.order], dtype=np.float64)
+        self.lo = self.points.min(axis=0) if len(points) else np.zeros(3)
+        span = self.points.max(axis=0) - self.lo if len(points) else np.zeros(3)
+        self.extent = float(np.max(span))
+
+    def independent_set(self, r: float) -> np.ndarray:
+        """(k,) sorted int64 indices of the greedy set at radius r."""
+        # Cubes a little over 2 r (so rounding never hides a neighbour), and
+        # few enough along an axis for the cube numbers to pack in an int64.
+        side = max(2.0 * r * (1.0 + 1e-9), self.extent * (1.0 + 1e-9) / 2.0**AXIS_BITS,
+                   np.finfo(float).tiny)
+        kept = np.zeros(len(self.order), dtype=bool)
+        kept[self.order] = greedy_disk(self.points, r, self.lo, side)
+        return np.flatnonzero(kept).astype(np.int64)
+

@@ -14,6 +14,8 @@ import math
 import numba as nb
 import numpy as np
 
+from specholo.toolpaths.arcs import _biarc
+
 _DTHETA = 1e-6  # forward-difference steps for the toolpath's derivatives (rad, mm)
 _DY = 1e-3
 _NEAR_EDGE = 1e-12
@@ -300,62 +302,94 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
 
 
 @nb.njit(cache=True, parallel=True)
-def compact(offsets: np.ndarray, count: np.ndarray, runs: np.ndarray, stripe: np.ndarray,
-            point: np.ndarray,
-            tangent: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Gather the written slots of finished runs (count >= 0) into dense arrays.
+def chain_counts(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point: np.ndarray,
+                 min_spacing: float, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which samples each run keeps once slivers are gone.
+
+    Arcs shorter than ``min_spacing`` would be turned visibly by rounding their
+    ends to the G-code's grid, and a stripe that short end to end (a band edge
+    met right at a run's end) serves a sliver of views.
+
+    Samples of run r are slots offsets[r] .. offsets[r] + count[r] - 1 (count
+    >= 0). A stripe's first sample always stays; a sample closer than
+    ``min_spacing`` to the next one of its stripe goes; a stripe shorter than
+    ``min_spacing`` end to end goes whole.
 
     Returns:
-        run id (m,), stripe (m,), point (m, 2) and unit tangent (m, 2).
+        kept samples (r,) and kept stripes (r,) per run; ``keep`` (slots) is
+        set to 1 at kept samples.
     """
     n = count.size
-    start = np.zeros(n + 1, dtype=np.int64)
-    for i in range(n):
-        start[i + 1] = start[i] + max(count[i], 0)
-    m = start[n]
-    run_o = np.empty(m, dtype=np.int64)
-    stripe_o = np.empty(m, dtype=np.int64)
-    point_o = np.empty((m, 2))
-    tangent_o = np.empty((m, 2))
-    for i in nb.prange(n):
-        for j in range(max(count[i], 0)):
-            src, dst = offsets[i] + j, start[i] + j
-            run_o[dst] = runs[i]
-            stripe_o[dst] = stripe[src]
-            point_o[dst, 0], point_o[dst, 1] = point[src, 0], point[src, 1]
-            norm = math.hypot(tangent[src, 0], tangent[src, 1])
-            tangent_o[dst, 0], tangent_o[dst, 1] = tangent[src, 0] / norm, tangent[src, 1] / norm
-    return run_o, stripe_o, point_o, tangent_o
-
-
-@nb.njit(cache=True)
-def tidy(run: np.ndarray, stripe: np.ndarray, point: np.ndarray,
-         min_spacing: float) -> tuple[np.ndarray, np.ndarray]:
-    """Which samples to keep, and where stripes start, once slivers are gone.
-
-    A sample closer than ``min_spacing`` to the next one of its stripe goes (the
-    later stays; a stripe's first sample always stays): arcs that short would be
-    turned visibly by rounding their ends to the G-code's grid. A stripe shorter
-    than ``min_spacing`` end to end (a band edge met right at a run's end)
-    serves a sliver of views and goes whole.
-
-    Returns:
-        keep (m,) and breaks (m,): True where a sample starts a stripe.
-    """
-    m = run.size
-    breaks = np.ones(m, dtype=np.bool_)
-    for i in range(1, m):
-        breaks[i] = run[i] != run[i - 1] or stripe[i] != stripe[i - 1]
-    keep = np.ones(m, dtype=np.bool_)
-    for i in range(m - 1):
-        if not breaks[i] and not breaks[i + 1]:
-            dx, dy = point[i + 1, 0] - point[i, 0], point[i + 1, 1] - point[i, 1]
-            keep[i] = math.hypot(dx, dy) >= min_spacing
-    first = 0
-    for i in range(1, m + 1):
-        if i == m or breaks[i]:
-            dx, dy = point[i - 1, 0] - point[first, 0], point[i - 1, 1] - point[first, 1]
+    kept = np.zeros(n, dtype=np.int64)
+    paths = np.zeros(n, dtype=np.int64)
+    for r in nb.prange(n):
+        a0 = offsets[r]
+        stop = a0 + count[r]
+        a = a0
+        while a < stop:
+            b = a + 1
+            while b < stop and stripe[b] == stripe[a]:
+                b += 1
+            # The stripe is slots a .. b - 1.
+            dx, dy = point[b - 1, 0] - point[a, 0], point[b - 1, 1] - point[a, 1]
             if math.hypot(dx, dy) < min_spacing:
-                keep[first:i] = False
-            first = i
-    return keep, breaks
+                for j in range(a, b):
+                    keep[j] = 0
+            else:
+                keep[a] = 1
+                k = 1
+                for j in range(a + 1, b - 1):
+                    dx, dy = point[j + 1, 0] - point[j, 0], point[j + 1, 1] - point[j, 1]
+                    keep[j] = 1 if math.hypot(dx, dy) >= min_spacing else 0
+                    k += keep[j]
+                if b - 1 > a:
+                    keep[b - 1] = 1
+                    k += 1
+                kept[r] += k
+                paths[r] += 1
+            a = b
+    return kept, paths
+
+
+@nb.njit(cache=True, parallel=True)
+def chain_fill(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point: np.ndarray,
+               tangent: np.ndarray, keep: np.ndarray, ids: np.ndarray, vertex_base: np.ndarray,
+               path_base: np.ndarray, vertices: np.ndarray, bulges: np.ndarray,
+               path_offsets: np.ndarray, path_ids: np.ndarray) -> None:
+    """Biarc chains through each run's kept samples, straight into groove arrays.
+
+    Each kept stripe of q samples becomes a path of 2q - 1 vertices (the
+    samples and the biarcs' joints), as :func:`specholo.toolpaths.arcs.arc_chain`
+    on the kept samples with unit tangents. Run r's paths start at vertex
+    ``vertex_base[r]`` and path ``path_base[r]`` and belong to stipple ``ids[r]``.
+    """
+    n = count.size
+    for r in nb.prange(n):
+        s = vertex_base[r]
+        p = path_base[r]
+        stop = offsets[r] + count[r]
+        prev = -1  # the last kept sample of the current stripe
+        for j in range(offsets[r], stop):
+            if not keep[j]:
+                continue
+            tx, ty = tangent[j, 0], tangent[j, 1]
+            norm = math.hypot(tx, ty)
+            tx, ty = tx / norm, ty / norm
+            if prev >= 0 and stripe[prev] == stripe[j]:
+                qx, qy = tangent[prev, 0], tangent[prev, 1]
+                qn = math.hypot(qx, qy)
+                jx, jy, b1, b2 = _biarc(point[prev, 0], point[prev, 1], qx / qn, qy / qn,
+                                        point[j, 0], point[j, 1], tx, ty)
+                vertices[s, 0], vertices[s, 1] = jx, jy
+                bulges[s - 1], bulges[s] = b1, b2
+                s += 1
+            else:
+                if prev >= 0:
+                    bulges[s - 1] = 0.0
+                path_offsets[p], path_ids[p] = s, ids[r]
+                p += 1
+            vertices[s, 0], vertices[s, 1] = point[j, 0], point[j, 1]
+            s += 1
+            prev = j
+        if prev >= 0:
+            bulges[s - 1] = 0.0

@@ -252,9 +252,11 @@ class Grooves:
 class GroovesBuilder:
     """Grooves assembled part by part without holding the parts and the whole at once.
 
-    The arrays grow in place (``ndarray.resize``: on Linux a large block is moved
-    by remapping its pages, not copied), so a design built in chunks peaks at
-    about its final size rather than twice it.
+    Storage is reserved up front where the caller knows a bound (:meth:`reserve`):
+    untouched pages of a reservation take no memory, so a generous bound costs
+    nothing, and parts are written straight into it (:meth:`extend`). Past the
+    reservation the arrays grow in place (``ndarray.resize``). :meth:`build`
+    hands back the used rows, trimming the rest without a copy.
     """
 
     def __init__(self) -> None:
@@ -262,27 +264,77 @@ class GroovesBuilder:
         self._bulges = np.zeros(0)
         self._offsets = np.zeros(1, dtype=np.int64)
         self._stipple = np.zeros(0, dtype=np.int64)
+        self._n_vertices = 0
+        self._n_paths = 0
+        # (first path, first vertex) of the last part, whose offsets are still local
+        self._pending: tuple[int, int] | None = None
+
+    def reserve(self, vertices: int, paths: int) -> None:
+        """Room for at least this many vertices and paths in all (before any part)."""
+        if self._n_vertices or self._n_paths:
+            raise ValueError("reserve before adding any part")
+        try:
+            self._vertices = np.empty((max(vertices, 0), 2))
+            self._bulges = np.empty(max(vertices, 0))
+            self._offsets = np.empty(max(paths, 0) + 1, dtype=np.int64)
+            self._stipple = np.empty(max(paths, 0), dtype=np.int64)
+        except MemoryError:  # the system refuses the address space: grow as needed
+            self.__init__()  # type: ignore[misc]
+        self._offsets[0] = 0
 
     @staticmethod
-    def _grow(a: np.ndarray, extra: np.ndarray) -> np.ndarray:
-        n = len(a)
-        a.resize((n + len(extra),) + a.shape[1:], refcheck=False)
-        a[n:] = extra
+    def _room(a: np.ndarray, need: int) -> np.ndarray:
+        if need > len(a):
+            a.resize((need,) + a.shape[1:], refcheck=False)
         return a
+
+    def extend(self, vertices: int,
+               paths: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Rows for a part of this many vertices and paths, to be filled by the caller.
+
+        Returns:
+            vertices (vertices, 2), bulges (vertices,), path start offsets
+            (paths,) local to the part (the builder makes them global on the
+            next call or :meth:`build`) and stipples (paths,): views into the
+            builder's storage.
+        """
+        self._globalise()
+        v0, p0 = self._n_vertices, self._n_paths
+        v1, p1 = v0 + vertices, p0 + paths
+        self._vertices = self._room(self._vertices, v1)
+        self._bulges = self._room(self._bulges, v1)
+        self._offsets = self._room(self._offsets, p1 + 1)
+        self._stipple = self._room(self._stipple, p1)
+        self._n_vertices, self._n_paths = v1, p1
+        self._pending = (p0, v0)
+        return (self._vertices[v0:v1], self._bulges[v0:v1], self._offsets[p0:p1],
+                self._stipple[p0:p1])
+
+    def _globalise(self) -> None:
+        if self._pending is not None:
+            p0, v0 = self._pending
+            self._offsets[p0:self._n_paths] += v0
+            self._offsets[self._n_paths] = self._n_vertices
+            self._pending = None
 
     def add(self, part: Grooves) -> None:
         """Append a part's paths after those already added."""
         if not part.n_paths:
             return
-        base = len(self._vertices)
-        self._vertices = self._grow(self._vertices, part.vertices)
-        self._bulges = self._grow(self._bulges, part.bulges)
-        self._offsets = self._grow(self._offsets, part.offsets[1:] + base)
-        self._stipple = self._grow(self._stipple, part.stipple)
+        v, b, o, s = self.extend(len(part.vertices), part.n_paths)
+        v[:], b[:], o[:], s[:] = part.vertices, part.bulges, part.offsets[:-1], part.stipple
 
     def build(self) -> Grooves:
         """The grooves added so far (the builder must not be used afterwards)."""
-        out = Grooves(self._vertices, self._bulges, self._offsets, self._stipple)
+        self._globalise()
+        nv, npath = self._n_vertices, self._n_paths
+        arrays = []
+        for a, n in ((self._vertices, nv), (self._bulges, nv), (self._offsets, npath + 1),
+                     (self._stipple, npath)):
+            if len(a) > n:
+                a.resize((n,) + a.shape[1:], refcheck=False)  # shrinks in place
+            arrays.append(a)
+        out = Grooves(*arrays)
         self.__init__()  # type: ignore[misc]
         return out
 

@@ -22,7 +22,6 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.setup import Setup
 from specholo.toolpaths import _stripe_kernel as kernel
-from specholo.toolpaths.arcs import arc_chain
 from specholo.toolpaths.common import Runs, dots_for, split_near_plate
 from specholo.toolpaths.grooves import Grooves, GroovesBuilder
 
@@ -125,19 +124,38 @@ def check_work(cap: np.ndarray, setup: Setup, w: float) -> None:
             "--band, a narrower --view-range, a lower --eye-height or fewer stipples")
 
 
+class _Scratch:
+    """The walk's slot arrays, kept from chunk to chunk (fresh pages are slow to fault)."""
+
+    def __init__(self) -> None:
+        self.size = 0
+
+    def take(self, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """stripe (m,), point (m, 2), tangent (m, 2) and keep (m,) slots."""
+        if m > self.size:
+            self.size = m
+            self.stripe = np.empty(m, dtype=np.int64)
+            self.point, self.tangent = np.empty((m, 2)), np.empty((m, 2))
+            self.keep = np.empty(m, dtype=np.uint8)
+        return self.stripe[:m], self.point[:m], self.tangent[:m], self.keep[:m]
+
+
 def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
-               w: float, spacing: float) -> tuple[np.ndarray, ...]:
+               w: float, spacing: float, scratch: _Scratch) -> tuple[np.ndarray, ...]:
     """Samples of every run, in travel order.
 
     Returns:
-        run (m,), stripe (m,), point (m, 2) and unit tangent (m, 2).
+        offsets (r,) and count (r,): run r's samples are slots offsets[r] ..
+        offsets[r] + count[r] - 1 of stripe (slots,), point (slots, 2) and
+        tangent (slots, 2) (unnormalised); and keep (slots,), scratch for
+        :func:`kernel.chain_counts`.
 
     Raises:
         SpecholoError: when a run needs far more samples than its bound (the
             walk does not settle: the glint condition is ill-conditioned there).
     """
     pending = np.arange(len(runs))
-    parts = []
+    parts: list[tuple[np.ndarray, ...]] = []
     first = cap.copy()
     while pending.size:
         bound = MAX_GROWTH * np.maximum(first[pending], MIN_BOUND)
@@ -152,20 +170,38 @@ def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
                 "away, or the light grazes the eyes' plane there")
         offsets = np.concatenate([[0], np.cumsum(cap[pending])]).astype(np.int64)
         m = int(offsets[-1])
-        stripe = np.empty(m, dtype=np.int64)
-        point, tangent = np.empty((m, 2)), np.empty((m, 2))
+        if not parts:
+            stripe, point, tangent, keep = scratch.take(m)
+        else:  # a retry's slots: the first pass's are still in use
+            stripe, point, tangent = np.empty(m, dtype=np.int64), np.empty((m, 2)), np.empty((m, 2))
         count = kernel.integrate(runs.start[pending], runs.end[pending],
                                  np.ascontiguousarray(runs.point[pending]), u0[pending],
                                  params, w, spacing, offsets, stripe, point, tangent)
-        parts.append(kernel.compact(offsets, count, pending, stripe, point, tangent))
+        parts.append((pending, offsets, count, stripe, point, tangent))
         # Runs whose bound was too small go again with room to spare.
         cap[pending[count < 0]] *= 4
         pending = pending[count < 0]
     if len(parts) == 1:
-        return parts[0]
-    run = np.concatenate([p[0] for p in parts])
-    order = np.argsort(run, kind="stable")
-    return tuple(np.concatenate([p[i] for p in parts])[order] for i in range(4))
+        return offsets[:-1], count, stripe, point, tangent, keep
+    # Gather every run's finished slots, in run order, into one dense set.
+    sizes = np.zeros(len(runs), dtype=np.int64)
+    where = np.zeros(len(runs), dtype=np.int64)
+    part_of = np.zeros(len(runs), dtype=np.int64)
+    for k, (ids, offs, cnt, *_) in enumerate(parts):
+        done = cnt >= 0
+        sizes[ids[done]], where[ids[done]], part_of[ids[done]] = cnt[done], offs[:-1][done], k
+    dense = np.concatenate([[0], np.cumsum(sizes)])[:-1]
+    total = int(sizes.sum())
+    out = [np.empty(total, dtype=np.int64), np.empty((total, 2)), np.empty((total, 2))]
+    for k, part in enumerate(parts):
+        sel = np.flatnonzero(part_of == k)
+        n_sel = sizes[sel]
+        rank = np.arange(int(n_sel.sum())) - np.repeat(np.cumsum(n_sel) - n_sel, n_sel)
+        dst = np.repeat(dense[sel], n_sel) + rank
+        src = np.repeat(where[sel], n_sel) + rank
+        for o, arr in zip(out, part[3:], strict=True):
+            o[dst] = arr[src]
+    return dense, sizes, out[0], out[1], out[2], np.empty(total, dtype=np.uint8)
 
 
 def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
@@ -203,17 +239,24 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     check_work(cap, setup, w)
     spacing = setup.tool.width * (1 + SPACING_CLEARANCE) if opts.spacing is None else opts.spacing
     out = GroovesBuilder()
+    # Each taken sample is at most two vertices and each kept stripe has two or
+    # more samples; unused room is never touched, so it takes no memory.
+    total = int(cap.sum())
+    out.reserve(2 * total + len(near), total // 2 + len(near))
+    scratch = _Scratch()
     # Chunks end at run boundaries and keep run order: the same grooves as one walk.
-    bounds = np.searchsorted(np.cumsum(cap), np.arange(CHUNK_SAMPLES, int(cap.sum()),
-                                                       CHUNK_SAMPLES))
+    bounds = np.searchsorted(np.cumsum(cap), np.arange(CHUNK_SAMPLES, total, CHUNK_SAMPLES))
     for idx in np.split(np.arange(len(far)), np.unique(bounds)):
         if len(idx) == 0:
             continue
-        run, stripe, pts, tangent = _integrate(far.take(idx), params, u0[idx], cap[idx], w,
-                                               spacing)
-        keep, breaks = kernel.tidy(run, stripe, pts, MIN_SPACING)
-        pts, tangent, breaks, run = pts[keep], tangent[keep], breaks[keep], run[keep]
-        vertices, bulges, offsets = arc_chain(pts, tangent, breaks)
-        out.add(Grooves(vertices, bulges, offsets, far.stipple[idx][run[breaks]]))
+        offsets, count, stripe, pts, tangent, keep = _integrate(
+            far.take(idx), params, u0[idx], cap[idx], w, spacing, scratch)
+        kept, paths = kernel.chain_counts(offsets, count, stripe, pts, MIN_SPACING, keep)
+        n_vertices = 2 * kept - paths
+        vertex_base = np.cumsum(n_vertices) - n_vertices
+        path_base = np.cumsum(paths) - paths
+        v, b, o, s = out.extend(int(n_vertices.sum()), int(paths.sum()))
+        kernel.chain_fill(offsets, count, stripe, pts, tangent, keep, far.stipple[idx],
+                          vertex_base, path_base, v, b, o, s)
     out.add(dots_for(near, setup))
     return out.build(), dropped
