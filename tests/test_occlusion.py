@@ -216,3 +216,23 @@ def test_intervals_contains_matches_brute_force(
         any(a <= t <= b for a, b in iv.for_stipple(int(i))) for i, t in zip(ids, theta, strict=True)
     ]
     np.testing.assert_array_equal(iv.contains(ids, theta), expect)
+
+
+def test_bulk_rays_hit_what_trimeshs_tracer_hits(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The rays set up in bulk for the mesh's embree scene give, to the bit, the
+    intervals and visibility of trimesh's own ray tracer on the same rays."""
+    from specholo.visibility import occlusion
+
+    model = place(load_model(BUNNY), 60.0, -20.0)
+    s = stipple(model, np.random.default_rng(4), count=3000)
+    rng = np.random.default_rng(5)
+    eyes = VIEWER.eye(rng.uniform(-R, R, len(s)))
+    bulk_iv = visible_intervals(model.mesh, s.points, s.normals, VIEWER)
+    bulk = visible(model.mesh, s.points, s.normals, eyes)
+    monkeypatch.setattr(occlusion, "_HAVE_EMBREE", False)
+    ref_iv = visible_intervals(model.mesh, s.points, s.normals, VIEWER)
+    np.testing.assert_array_equal(bulk, visible(model.mesh, s.points, s.normals, eyes))
+    assert 0.2 < bulk.mean() < 0.9
+    for a, b in ((bulk_iv.stipple, ref_iv.stipple), (bulk_iv.start, ref_iv.start),
+                 (bulk_iv.end, ref_iv.end)):
+        np.testing.assert_array_equal(a, b)

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 import os
+import threading
+import weakref
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -20,6 +22,14 @@ import trimesh
 
 from specholo.errors import SpecholoError
 from specholo.setup import Viewer
+from specholo.visibility import _ray_kernel
+
+try:  # trimesh's embree tracer is used through its scene, set up in bulk
+    import embreex  # noqa: F401
+
+    _HAVE_EMBREE = True
+except ImportError:  # pragma: no cover - platforms without embree wheels
+    _HAVE_EMBREE = False
 
 # Rays start this far (times the mesh's bounding-box diagonal) off the surface
 # along the face normal, so they don't hit the stipple's own face; embree works
@@ -71,12 +81,13 @@ def visible(
     if mesh is None:
         return np.ones(len(np.asarray(points).reshape(-1, 3)), dtype=bool)
     points, normals = _check(points, normals)
-    eyes = np.broadcast_to(np.asarray(eyes, dtype=np.float64), points.shape)
+    eyes = np.ascontiguousarray(np.broadcast_to(np.asarray(eyes, dtype=np.float64),
+                                                points.shape))
     result = np.zeros(len(points), dtype=bool)
 
     def trace(lo: int) -> None:
         sl = slice(lo, lo + _CHUNK)
-        result[sl] = _visible_chunk(mesh, points[sl], normals[sl], eyes[sl])
+        result[sl] = _visible_rays(mesh, points[sl], normals[sl], eyes[sl], 0)
 
     _each(trace, range(0, len(points), _CHUNK))
     return result
@@ -92,33 +103,92 @@ def _each(trace: Callable[[int], None], starts: range) -> None:
             list(pool.map(trace, starts[1:]))
 
 
-def _visible_chunk(
-    mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray, eyes: np.ndarray
-) -> np.ndarray:
-    facing = np.einsum("ij,ij->i", normals, eyes - points) > 0.0
-    result = facing.copy()
-    idx = np.flatnonzero(facing)
+class _Scene:
+    """The mesh's embree scene, built as trimesh builds it (vertices shifted to
+    their minimum and scaled to a box of ~100, in single precision), so a ray
+    set up in that frame (:func:`_ray_kernel.rays`) hits what trimesh's would."""
+
+    def __init__(self, mesh: trimesh.Trimesh) -> None:
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+
+        vertices = np.array(mesh.vertices, dtype=np.float64)
+        self.origin = vertices.min(axis=0)
+        self.scale = 100.0 / float(mesh.scale)
+        self.scene = rtcore_scene.EmbreeScene()
+        TriangleMesh(scene=self.scene,
+                     vertices=((vertices - self.origin) * self.scale).astype(np.float32),
+                     indices=np.asarray(mesh.faces).astype(np.int32))
+        self.key = hash(mesh)
+
+    def first(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """(k,) index of the first triangle each ray hits, -1 for none."""
+        return np.asarray(self.scene.run(origins, directions), dtype=np.int64)
+
+
+# By the mesh's id (a mesh's hash changes with its data); dropped with the mesh.
+_SCENES: dict[int, _Scene] = {}
+_SCENES_LOCK = threading.Lock()
+
+
+def _scene(mesh: trimesh.Trimesh) -> _Scene | None:
+    """The mesh's cached scene (rebuilt if the mesh changed), or None without embreex."""
+    if not _HAVE_EMBREE:
+        return None
+    with _SCENES_LOCK:
+        scene = _SCENES.get(id(mesh))
+        if scene is None:
+            weakref.finalize(mesh, _SCENES.pop, id(mesh), None)
+        if scene is None or scene.key != hash(mesh):
+            scene = _SCENES[id(mesh)] = _Scene(mesh)
+        return scene
+
+
+def _visible_rays(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray,
+                  eyes: np.ndarray, grid: int) -> np.ndarray:
+    """Visibility along the rays of :mod:`._ray_kernel` (point i, eye j of ray k).
+
+    Returns:
+        (n_rays,) bool, n_rays = len(points) * grid, or len(points) for grid 0.
+    """
+    n_rays = len(points) * grid if grid > 0 else len(points)
+    result = _ray_kernel.facing(points, normals, eyes, grid, n_rays)
+    idx = np.flatnonzero(result)
     if len(idx) == 0:
         return result
-    origins = points[idx] + (_OFFSET * float(mesh.scale)) * normals[idx]
-    to_eye = eyes[idx] - origins
-    reach = np.linalg.norm(to_eye, axis=1)
-    directions = to_eye / reach[:, None]
-    tri = np.asarray(mesh.ray.intersects_first(origins, directions), dtype=np.int64)
+    offset = _OFFSET * float(mesh.scale)
+    scene = _scene(mesh)
+    if scene is not None:
+        o32, d32 = _ray_kernel.rays(points, normals, eyes, grid, idx, offset, scene.origin,
+                                    scene.scale)
+        tri = scene.first(o32, d32)
+        del o32, d32
+    else:  # trimesh's own ray tracer, on the same rays
+        pi, ej = (idx // grid, idx % grid) if grid > 0 else (idx, idx)
+        origins = points[pi] + offset * normals[pi]
+        to_eye = eyes[ej] - origins
+        tri = np.asarray(mesh.ray.intersects_first(
+            origins, to_eye / np.linalg.norm(to_eye, axis=1)[:, None]), dtype=np.int64)
     hit = np.flatnonzero(tri >= 0)
     if len(hit):
         # The first hit blocks the view only if it lies before the eye: find its
         # distance along the ray from the plane of the triangle hit.
+        ray = idx[hit]
+        pi, ej = (ray // grid, ray % grid) if grid > 0 else (ray, ray)
+        origins = points[pi] + offset * normals[pi]
+        to_eye = eyes[ej] - origins
+        reach = np.linalg.norm(to_eye, axis=1)
+        directions = to_eye / reach[:, None]
         face = tri[hit]
         plane_n = np.asarray(mesh.face_normals, dtype=np.float64)[face]
         plane_p = np.asarray(mesh.triangles, dtype=np.float64)[face, 0]
-        num = np.einsum("ij,ij->i", plane_n, plane_p - origins[hit])
-        den = np.einsum("ij,ij->i", plane_n, directions[hit])
+        num = np.einsum("ij,ij->i", plane_n, plane_p - origins)
+        den = np.einsum("ij,ij->i", plane_n, directions)
         with np.errstate(divide="ignore", invalid="ignore"):
             t = num / den
         # A ray running in the plane of the hit face (den ~ 0) is blocked by it.
-        blocked = ~np.isfinite(t) | (t < reach[hit])
-        result[idx[hit[blocked]]] = False
+        blocked = ~np.isfinite(t) | (t < reach)
+        result[ray[blocked]] = False
     return result
 
 
@@ -241,19 +311,14 @@ def visible_intervals(
 
     grid = np.linspace(-half, half, max(1, math.ceil(2.0 * half / step)) + 1)
     g = len(grid)
-    eyes = viewer.eye(grid)
+    eyes = np.ascontiguousarray(viewer.eye(grid), dtype=np.float64)
     seen = np.zeros((n, g), dtype=bool)
     per_chunk = max(1, _CHUNK // g)
 
     def trace(lo: int) -> None:
         sl = slice(lo, min(n, lo + per_chunk))
         m = sl.stop - sl.start
-        seen[sl] = visible(
-            mesh,
-            np.repeat(points[sl], g, axis=0),
-            np.repeat(normals[sl], g, axis=0),
-            np.tile(eyes, (m, 1)),
-        ).reshape(m, g)
+        seen[sl] = _visible_rays(mesh, points[sl], normals[sl], eyes, g).reshape(m, g)
 
     _each(trace, range(0, n, per_chunk))
 
