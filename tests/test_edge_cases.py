@@ -256,3 +256,27 @@ def test_grooves_built_in_parts_are_the_parts_end_to_end(room: tuple[int, int] |
     want = np.concatenate([[0]] + [p.offsets[1:] + base[k] for k, p in enumerate(parts)])
     np.testing.assert_array_equal(g.offsets, want)
     assert len(g.vertices) == g.offsets[-1] and g.vertices.flags.owndata
+
+
+def test_measured_path_lengths_are_the_arcs_lengths() -> None:
+    """One pass gives each path's arc length (flat arcs by a series, bulged ones by
+    atan) and the extent; a half circle of radius 1 is pi long."""
+    from specholo.toolpaths.grooves import Grooves
+
+    rng = np.random.default_rng(11)
+    sizes = rng.integers(1, 7, 300)
+    nv = int(sizes.sum())
+    # Bulges from straight to a half turn, many below the series' 1e-2.
+    bulges = rng.choice([0.0, 1e-9, 3e-3, 9.9e-3, 1e-2, 0.3, 1.0, -0.7], nv) * rng.random(nv)
+    g = Grooves(rng.normal(size=(nv, 2)), bulges,
+                np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                np.arange(len(sizes)))
+    extent, lengths = g.measure()
+    seg = g.segments()
+    want = np.bincount(seg.path, weights=seg.lengths(), minlength=g.n_paths)
+    np.testing.assert_allclose(lengths, want, rtol=1e-14, atol=0)
+    np.testing.assert_array_equal(extent, g.extent())
+    half = Grooves(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 0.0]),
+                   np.array([0, 2]), np.array([0]))
+    assert half.measure()[1][0] == pytest.approx(math.pi, rel=1e-15)
+    np.testing.assert_allclose(half.extent(), [[-1.0, 0.0], [1.0, 1.0]], atol=1e-15)

@@ -552,10 +552,13 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     grooves, dropped = design_runs(runs, config)
     timings["toolpaths"] = time.perf_counter() - t0
     section = cutter.section(config.depth_mm)
-    extent = groove_extent(grooves)  # one pass over the arcs, for the plate and the overlaps
+    # One pass over the arcs, for the plate and the overlaps (which need the lengths).
+    extent, lengths = grooves.measure(lengths=check_overlaps)
     plate = plate_rect(grooves, section.width, config, extent)
     t0 = time.perf_counter()
-    overlaps = groove_overlaps(grooves, section.width, extent=extent) if check_overlaps else None
+    overlaps = groove_overlaps(grooves, section.width, extent=extent,
+                               lengths=lengths) if check_overlaps else None
+    del lengths
     timings["overlaps"] = time.perf_counter() - t0
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
                   views, overlaps, plate)

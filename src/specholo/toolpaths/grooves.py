@@ -44,21 +44,48 @@ def _arc_geometry(start: np.ndarray, end: np.ndarray,
     return centre, radius, start_angle, sweep
 
 
+@nb.njit(cache=True, inline="always")
+def _path_length(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int) -> float:
+    """Length of the arcs of vertices a .. b - 1, mm."""
+    part = 0.0
+    for i in range(a, b - 1):
+        chord = math.hypot(vertices[i + 1, 0] - vertices[i, 0],
+                           vertices[i + 1, 1] - vertices[i, 1])
+        part += chord * _arc_over_chord(abs(bulges[i]))
+    return part
+
+
+@nb.njit(cache=True, inline="always")
+def _arc_over_chord(t: float) -> float:
+    """An arc's length over its chord for |bulge| t: sweep / (2 sin(sweep / 2)) with
+    sweep = 4 atan(t), which is atan(t) (1 + t^2) / t."""
+    t2 = t * t
+    if t < 1e-2:
+        # atan(t) / t by its series, exact in double here (the next term is t^8 / 9):
+        # the arcs of a design are mostly this flat, and atan is the costly part.
+        return (1.0 + t2) * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 / 7.0)))
+    return math.atan(t) * (1.0 + t2) / t
+
+
 @nb.njit(cache=True, parallel=True)
 def _extent(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
-            chunks: int) -> np.ndarray:
+            chunks: int, lengths: np.ndarray) -> np.ndarray:
     """(2, 2) corners of the centrelines, arcs counted where they bulge past their ends.
 
     One pass over the vertices in a few parallel chunks: a circle's extreme point
-    in each axis direction counts where the arc passes it.
+    in each axis direction counts where the arc passes it. Each path's length
+    goes to ``lengths`` (n_paths,) on the way, unless it is empty.
     """
     n_paths = offsets.size - 1
     box = np.empty((chunks, 4))
+    measure = lengths.size > 0
     for c in nb.prange(chunks):
         lo_x = lo_y = math.inf
         hi_x = hi_y = -math.inf
         for j in range(c * n_paths // chunks, (c + 1) * n_paths // chunks):
             a, b = offsets[j], offsets[j + 1]
+            if measure:
+                lengths[j] = _path_length(vertices, bulges, a, b)
             for i in range(a, b):
                 x, y = vertices[i, 0], vertices[i, 1]
                 lo_x, hi_x = min(lo_x, x), max(hi_x, x)
@@ -217,12 +244,21 @@ class Grooves:
     def extent(self) -> np.ndarray:
         """(2, 2) corners of the centrelines, arcs included where they bulge past
         their end points (the tool follows the arc, not its chord); zeros if empty."""
+        return self.measure(lengths=False)[0]
+
+    def measure(self, lengths: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`extent` and, in the same pass over the arcs, each path's length.
+
+        Returns:
+            extent (2, 2) and lengths (n_paths,) in mm (empty if not asked for).
+        """
+        out = np.zeros(self.n_paths if lengths else 0)
         if len(self.vertices) == 0:
-            return np.zeros((2, 2))
+            return np.zeros((2, 2)), out
         f = np.ascontiguousarray
         chunks = max(1, min(4 * nb.get_num_threads(), self.n_paths))
         return _extent(f(self.vertices, dtype=float), f(self.bulges, dtype=float),
-                       f(self.offsets, dtype=np.int64), chunks)
+                       f(self.offsets, dtype=np.int64), chunks, out), out
 
     def take(self, paths: np.ndarray) -> Grooves:
         """The given paths (k,), in that order, as grooves of their own."""

@@ -252,51 +252,51 @@ def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
     if n < 2:
         return out
     order, start, key, nx, ny = _grid(pts, cell)
+    # The chords copied out in cell order, so a query reads its cells' chords
+    # one after another rather than gathering each from anywhere: a chord that
+    # ends its path is left out (a sentinel stipple of -1).
+    cx0 = np.empty(n)
+    cy0 = np.empty(n)
+    cx1 = np.empty(n)
+    cy1 = np.empty(n)
+    owner = np.empty(n, np.int64)
+    for q in nb.prange(n):
+        j = order[q]
+        cx0[q], cy0[q] = pts[j, 0], pts[j, 1]
+        if j + 1 < n and path[j + 1] == path[j]:
+            cx1[q], cy1[q] = pts[j + 1, 0], pts[j + 1, 1]
+            owner[q] = stipple[path[j]]
+        else:
+            cx1[q], cy1[q] = cx0[q], cy0[q]
+            owner[q] = -1
     for k in nb.prange(query.size):
         i = query[k]
         if i + 1 >= n or path[i + 1] != path[i]:
             continue
         ax, ay = pts[i, 0], pts[i, 1]
         bx, by = pts[i + 1, 0], pts[i + 1, 1]
+        own = stipple[path[i]]
         cx, cy = key[i] // ny, key[i] % ny
         hits = 0
         for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
-            for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
-                c = gx * ny + gy
-                for q in range(start[c], start[c + 1]):
-                    j = order[q]
-                    if j == i or j + 1 >= n or path[j + 1] != path[j] \
-                            or stipple[path[j]] == stipple[path[i]]:
-                        continue
-                    px, py = pts[j, 0], pts[j, 1]
-                    qx, qy = pts[j + 1, 0], pts[j + 1, 1]
-                    d1 = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
-                    d2 = (bx - ax) * (qy - ay) - (by - ay) * (qx - ax)
-                    d3 = (qx - px) * (ay - py) - (qy - py) * (ax - px)
-                    d4 = (qx - px) * (by - py) - (qy - py) * (bx - px)
-                    # Half-open ends so a crossing at a shared sample counts once.
-                    if ((d1 < 0.0 <= d2) or (d2 < 0.0 <= d1)) and \
-                            ((d3 < 0.0 <= d4) or (d4 < 0.0 <= d3)):
-                        hits += 1
+            # A column's cells are consecutive: one run of chords per column.
+            lo_c = gx * ny + max(cy - 1, 0)
+            hi_c = gx * ny + min(cy + 2, ny)
+            for q in range(start[lo_c], start[hi_c]):
+                # Chords of the same stipple (the queried one among them) never count.
+                if owner[q] == own or owner[q] < 0:
+                    continue
+                px, py = cx0[q], cy0[q]
+                qx, qy = cx1[q], cy1[q]
+                d1 = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+                d2 = (bx - ax) * (qy - ay) - (by - ay) * (qx - ax)
+                d3 = (qx - px) * (ay - py) - (qy - py) * (ax - px)
+                d4 = (qx - px) * (by - py) - (qy - py) * (bx - px)
+                # Half-open ends so a crossing at a shared sample counts once.
+                if ((d1 < 0.0 <= d2) or (d2 < 0.0 <= d1)) and \
+                        ((d3 < 0.0 <= d4) or (d4 < 0.0 <= d3)):
+                    hits += 1
         out[k] = hits
-    return out
-
-
-@nb.njit(cache=True, parallel=True)
-def _path_lengths(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """(n_paths,) length of each path's arcs, mm, from the vertex arrays (no
-    per-arc copies); summed by the caller, so the total does not depend on the
-    number of threads."""
-    n_paths = offsets.size - 1
-    out = np.zeros(n_paths)
-    for j in nb.prange(n_paths):
-        part = 0.0
-        for i in range(offsets[j], offsets[j + 1] - 1):
-            chord = math.hypot(vertices[i + 1, 0] - vertices[i, 0],
-                               vertices[i + 1, 1] - vertices[i, 1])
-            sweep = 4.0 * math.atan(abs(bulges[i]))
-            part += chord * sweep / (2.0 * math.sin(0.5 * sweep)) if sweep > 1e-12 else chord
-        out[j] = part
     return out
 
 
@@ -310,6 +310,20 @@ def _in_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
     out = np.zeros(vertices.shape[0], np.bool_)
     for j in nb.prange(offsets.size - 1):
         a, b = offsets[j], offsets[j + 1]
+        # The path's box first, padded by its largest sagitta (a bound: half
+        # the bulge times the chord's x and y legs): most paths on a large
+        # plate pass no chosen window, and their arcs need no look.
+        lo_x = hi_x = vertices[a, 0]
+        lo_y = hi_y = vertices[a, 1]
+        sag = 0.0
+        for i in range(a + 1, b):
+            x, y = vertices[i, 0], vertices[i, 1]
+            lo_x, hi_x = min(lo_x, x), max(hi_x, x)
+            lo_y, hi_y = min(lo_y, y), max(hi_y, y)
+            sag = max(sag, 0.5 * abs(bulges[i - 1]) * (abs(x - vertices[i - 1, 0])
+                                                       + abs(y - vertices[i - 1, 1])))
+        if not _touches(chosen, lo_x, lo_y, hi_x, hi_y, reach + sag, x0, y0, side):
+            continue
         for i in range(a, max(b - 1, a + 1)):
             x1, y1 = vertices[i, 0], vertices[i, 1]
             x2, y2 = x1, y1
@@ -317,18 +331,41 @@ def _in_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
                 x2, y2 = vertices[i + 1, 0], vertices[i + 1, 1]
             # The arc stays within its sagitta of the chord.
             sag = 0.5 * abs(bulges[i]) * math.hypot(x2 - x1, y2 - y1) if i + 1 < b else 0.0
-            pad = reach + sag
-            lo_i = int(math.floor((min(x1, x2) - pad - x0) / side))
-            hi_i = int(math.floor((max(x1, x2) + pad - x0) / side))
-            lo_j = int(math.floor((min(y1, y2) - pad - y0) / side))
-            hi_j = int(math.floor((max(y1, y2) + pad - y0) / side))
-            hit = False
-            for gi in range(max(lo_i, 0), min(hi_i, nx - 1) + 1):
-                for gj in range(max(lo_j, 0), min(hi_j, ny - 1) + 1):
-                    if chosen[gi, gj]:
-                        hit = True
-            out[i] = hit
+            out[i] = _touches(chosen, min(x1, x2), min(y1, y2), max(x1, x2), max(y1, y2),
+                              reach + sag, x0, y0, side)
     return out
+
+
+@nb.njit(cache=True, inline="always")
+def _touches(chosen: np.ndarray, lo_x: float, lo_y: float, hi_x: float, hi_y: float,
+             pad: float, x0: float, y0: float, side: float) -> bool:
+    """Whether the box, grown by ``pad``, meets a chosen window."""
+    nx, ny = chosen.shape
+    lo_i = int(math.floor((lo_x - pad - x0) / side))
+    hi_i = int(math.floor((hi_x + pad - x0) / side))
+    lo_j = int(math.floor((lo_y - pad - y0) / side))
+    hi_j = int(math.floor((hi_y + pad - y0) / side))
+    for gi in range(max(lo_i, 0), min(hi_i, nx - 1) + 1):
+        for gj in range(max(lo_j, 0), min(hi_j, ny - 1) + 1):
+            if chosen[gi, gj]:
+                return True
+    return False
+
+
+@nb.njit(cache=True)
+def _in_chosen(pts: np.ndarray, chosen: np.ndarray, x0: float, y0: float,
+               side: float) -> np.ndarray:
+    """(q,) indices of the points inside a chosen window, in order."""
+    nx, ny = chosen.shape
+    out = np.empty(pts.shape[0], np.int64)
+    q = 0
+    for i in range(pts.shape[0]):
+        gi = math.floor((pts[i, 0] - x0) / side)
+        gj = math.floor((pts[i, 1] - y0) / side)
+        if 0 <= gi < nx and 0 <= gj < ny and chosen[int(gi), int(gj)]:
+            out[q] = i
+            q += 1
+    return out[:q].copy()
 
 
 def _windowed(grooves: Grooves, width: float, step: float, total: float, lo: np.ndarray,
@@ -369,10 +406,7 @@ def _windowed(grooves: Grooves, width: float, step: float, total: float, lo: np.
     share = np.concatenate([share, np.zeros(len(dots))])
     if len(pts) == 0:
         return 0, 0.0
-    cell = np.floor((pts - lo) / WINDOW).astype(np.int64)
-    inside = (cell[:, 0] >= 0) & (cell[:, 0] < nx) & (cell[:, 1] >= 0) & (cell[:, 1] < ny)
-    query = np.flatnonzero(inside)
-    query = query[chosen[cell[query, 0], cell[query, 1]]]
+    query = _in_chosen(pts, chosen, float(lo[0]), float(lo[1]), WINDOW)
     scale = nx * ny / k
     if len(query) > MAX_QUERIES:
         scale *= len(query) / MAX_QUERIES
@@ -386,7 +420,8 @@ def _windowed(grooves: Grooves, width: float, step: float, total: float, lo: np.
 def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
                     sample: int | None = 20_000,
                     rng: np.random.Generator | None = None,
-                    extent: np.ndarray | None = None) -> Overlaps:
+                    extent: np.ndarray | None = None,
+                    lengths: np.ndarray | None = None) -> Overlaps:
     """Measure where grooves of a given width cut into each other.
 
     Consecutive paths of one stipple are its neighbouring stripes (the only ones
@@ -402,6 +437,7 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
             (the stipple's own stripes are always checked in full); None for all.
         rng: random generator for that sample; default seeded with 0.
         extent: (2, 2) the grooves' ``extent()``, if already known.
+        lengths: (n_paths,) the paths' lengths (``measure()``), if already known.
 
     Returns:
         The overlap figures.
@@ -409,13 +445,13 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
     if not (math.isfinite(width) and width > 0):
         raise ValueError(f"groove width must be positive, got {width}")
     tolerance = min(tolerance, 0.25 * width)  # a groove finer than the slack itself
-    f = np.ascontiguousarray
-    total = float(_path_lengths(f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float),
-                                f(grooves.offsets, dtype=np.int64)).sum())
+    if extent is None or lengths is None:
+        extent, lengths = grooves.measure()
+    total = float(lengths.sum())  # summed here: the same total on any number of threads
     fine = width / SAMPLES_PER_WIDTH
     if total / fine + len(grooves.vertices) > MAX_SAMPLES:
         return _large_overlaps(grooves, width, tolerance, total, fine, rng,
-                               grooves.extent() if extent is None else extent)
+                               extent)
     step = fine
     pts, path, share = sample_centrelines(grooves, step)
     if len(pts) == 0:
