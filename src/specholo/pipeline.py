@@ -552,13 +552,15 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     grooves, dropped = design_runs(runs, config)
     timings["toolpaths"] = time.perf_counter() - t0
     section = cutter.section(config.depth_mm)
-    # One pass over the arcs, for the plate and the overlaps (which need the lengths).
+    # One pass over the arcs, for the plate and the overlaps (which need the length;
+    # summed by numpy, so the same on any number of threads).
     extent, lengths = grooves.measure(lengths=check_overlaps)
+    total = float(lengths.sum())
+    del lengths
     plate = plate_rect(grooves, section.width, config, extent)
     t0 = time.perf_counter()
     overlaps = groove_overlaps(grooves, section.width, extent=extent,
-                               lengths=lengths) if check_overlaps else None
-    del lengths
+                               total_length=total) if check_overlaps else None
     timings["overlaps"] = time.perf_counter() - t0
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
                   views, overlaps, plate)

@@ -421,7 +421,7 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
                     sample: int | None = 20_000,
                     rng: np.random.Generator | None = None,
                     extent: np.ndarray | None = None,
-                    lengths: np.ndarray | None = None) -> Overlaps:
+                    total_length: float | None = None) -> Overlaps:
     """Measure where grooves of a given width cut into each other.
 
     Consecutive paths of one stipple are its neighbouring stripes (the only ones
@@ -437,7 +437,7 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
             (the stipple's own stripes are always checked in full); None for all.
         rng: random generator for that sample; default seeded with 0.
         extent: (2, 2) the grooves' ``extent()``, if already known.
-        lengths: (n_paths,) the paths' lengths (``measure()``), if already known.
+        total_length: the sum of the paths' lengths (``measure()``), if known.
 
     Returns:
         The overlap figures.
@@ -445,9 +445,11 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
     if not (math.isfinite(width) and width > 0):
         raise ValueError(f"groove width must be positive, got {width}")
     tolerance = min(tolerance, 0.25 * width)  # a groove finer than the slack itself
-    if extent is None or lengths is None:
+    if extent is None or total_length is None:
         extent, lengths = grooves.measure()
-    total = float(lengths.sum())  # summed here: the same total on any number of threads
+        total_length = float(lengths.sum())
+        del lengths
+    total = total_length
     fine = width / SAMPLES_PER_WIDTH
     if total / fine + len(grooves.vertices) > MAX_SAMPLES:
         return _large_overlaps(grooves, width, tolerance, total, fine, rng,
