@@ -94,6 +94,15 @@ def _extent(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
                 if i + 1 >= b or bulge == 0.0:
                     continue
                 cx, cy = vertices[i + 1, 0] - x, vertices[i + 1, 1] - y
+                if abs(bulge) <= 1.0:
+                    # A minor arc stays within its sagitta (|bulge| chord / 2, bounded
+                    # here by the legs) of its chord: one inside the box so far,
+                    # with room to spare for rounding, cannot grow it.
+                    pad = 0.5 * abs(bulge) * (abs(cx) + abs(cy)) * (1.0 + 1e-6) + 1e-12
+                    x2, y2 = x + cx, y + cy
+                    if min(x, x2) - pad > lo_x and max(x, x2) + pad < hi_x \
+                            and min(y, y2) - pad > lo_y and max(y, y2) + pad < hi_y:
+                        continue
                 offset = (1.0 - bulge * bulge) / (4.0 * bulge)
                 ox = x + 0.5 * cx - cy * offset
                 oy = y + 0.5 * cy + cx * offset
