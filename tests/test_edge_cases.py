@@ -244,8 +244,9 @@ def test_grooves_built_in_parts_are_the_parts_end_to_end(room: tuple[int, int] |
         b.reserve(*room)
     for k, part in enumerate(parts):
         if k % 2:  # written in place, as the striped walk does
-            v, bu, o, s = b.extend(len(part.vertices), part.n_paths)
-            v[:], bu[:], o[:], s[:] = part.vertices, part.bulges, part.offsets[:-1], part.stipple
+            base, v, bu, o, s = b.extend(len(part.vertices), part.n_paths)
+            v[:], bu[:], s[:] = part.vertices, part.bulges, part.stipple
+            o[:] = part.offsets[:-1] + base
         else:
             b.add(part)
     g = b.build()

@@ -354,14 +354,16 @@ def chain_counts(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, poi
 @nb.njit(cache=True, parallel=True)
 def chain_fill(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point: np.ndarray,
                tangent: np.ndarray, keep: np.ndarray, ids: np.ndarray, vertex_base: np.ndarray,
-               path_base: np.ndarray, vertices: np.ndarray, bulges: np.ndarray,
-               path_offsets: np.ndarray, path_ids: np.ndarray) -> None:
+               path_base: np.ndarray, first_vertex: int, vertices: np.ndarray,
+               bulges: np.ndarray, path_offsets: np.ndarray, path_ids: np.ndarray) -> None:
     """Biarc chains through each run's kept samples, straight into groove arrays.
 
     Each kept stripe of q samples becomes a path of 2q - 1 vertices (the
     samples and the biarcs' joints), as :func:`specholo.toolpaths.arcs.arc_chain`
     on the kept samples with unit tangents. Run r's paths start at vertex
-    ``vertex_base[r]`` and path ``path_base[r]`` and belong to stipple ``ids[r]``.
+    ``vertex_base[r]`` and path ``path_base[r]`` of these arrays and belong to
+    stipple ``ids[r]``; their offsets count from ``first_vertex``, the
+    arrays' first vertex in the whole.
     """
     n = count.size
     for r in nb.prange(n):
@@ -386,7 +388,7 @@ def chain_fill(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point
             else:
                 if prev >= 0:
                     bulges[s - 1] = 0.0
-                path_offsets[p], path_ids[p] = s, ids[r]
+                path_offsets[p], path_ids[p] = first_vertex + s, ids[r]
                 p += 1
             vertices[s, 0], vertices[s, 1] = point[j, 0], point[j, 1]
             s += 1

@@ -311,8 +311,6 @@ class GroovesBuilder:
         self._stipple = np.zeros(0, dtype=np.int64)
         self._n_vertices = 0
         self._n_paths = 0
-        # (first path, first vertex) of the last part, whose offsets are still local
-        self._pending: tuple[int, int] | None = None
 
     def reserve(self, vertices: int, paths: int) -> None:
         """Room for at least this many vertices and paths in all (before any part)."""
@@ -334,16 +332,15 @@ class GroovesBuilder:
         return a
 
     def extend(self, vertices: int,
-               paths: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+               paths: int) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Rows for a part of this many vertices and paths, to be filled by the caller.
 
         Returns:
-            vertices (vertices, 2), bulges (vertices,), path start offsets
-            (paths,) local to the part (the builder makes them global on the
-            next call or :meth:`build`) and stipples (paths,): views into the
-            builder's storage.
+            The part's first vertex index, and views into the builder's
+            storage: vertices (vertices, 2), bulges (vertices,), path start
+            offsets (paths,) (indices into the whole, so that first vertex
+            plus the part's own) and stipples (paths,).
         """
-        self._globalise()
         v0, p0 = self._n_vertices, self._n_paths
         v1, p1 = v0 + vertices, p0 + paths
         self._vertices = self._room(self._vertices, v1)
@@ -351,28 +348,22 @@ class GroovesBuilder:
         self._offsets = self._room(self._offsets, p1 + 1)
         self._stipple = self._room(self._stipple, p1)
         self._n_vertices, self._n_paths = v1, p1
-        self._pending = (p0, v0)
-        return (self._vertices[v0:v1], self._bulges[v0:v1], self._offsets[p0:p1],
+        return (v0, self._vertices[v0:v1], self._bulges[v0:v1], self._offsets[p0:p1],
                 self._stipple[p0:p1])
-
-    def _globalise(self) -> None:
-        if self._pending is not None:
-            p0, v0 = self._pending
-            self._offsets[p0:self._n_paths] += v0
-            self._offsets[self._n_paths] = self._n_vertices
-            self._pending = None
 
     def add(self, part: Grooves) -> None:
         """Append a part's paths after those already added."""
         if not part.n_paths:
             return
-        v, b, o, s = self.extend(len(part.vertices), part.n_paths)
-        v[:], b[:], o[:], s[:] = part.vertices, part.bulges, part.offsets[:-1], part.stipple
+        base, v, b, o, s = self.extend(len(part.vertices), part.n_paths)
+        v[:], b[:], s[:] = part.vertices, part.bulges, part.stipple
+        o[:] = part.offsets[:-1] + base
 
     def build(self) -> Grooves:
         """The grooves added so far (the builder must not be used afterwards)."""
-        self._globalise()
         nv, npath = self._n_vertices, self._n_paths
+        self._offsets = self._room(self._offsets, npath + 1)
+        self._offsets[npath] = nv
         arrays = []
         for a, n in ((self._vertices, nv), (self._bulges, nv), (self._offsets, npath + 1),
                      (self._stipple, npath)):

@@ -253,10 +253,12 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
             far.take(idx), params, u0[idx], cap[idx], w, spacing, scratch)
         kept, paths = kernel.chain_counts(offsets, count, stripe, pts, MIN_SPACING, keep)
         n_vertices = 2 * kept - paths
-        vertex_base = np.cumsum(n_vertices) - n_vertices
         path_base = np.cumsum(paths) - paths
-        v, b, o, s = out.extend(int(n_vertices.sum()), int(paths.sum()))
+        base, v, b, o, s = out.extend(int(n_vertices.sum()), int(paths.sum()))
+        # Run r's vertices start at vertex_base[r] of the part, its paths' offsets
+        # count from the first vertex of the whole.
+        vertex_base = np.cumsum(n_vertices) - n_vertices
         kernel.chain_fill(offsets, count, stripe, pts, tangent, keep, far.stipple[idx],
-                          vertex_base, path_base, v, b, o, s)
+                          vertex_base, path_base, base, v, b, o, s)
     out.add(dots_for(near, setup))
     return out.build(), dropped

@@ -144,6 +144,14 @@ def _scene(mesh: trimesh.Trimesh) -> _Scene | None:
         return scene
 
 
+def _ray_ends(points: np.ndarray, normals: np.ndarray, eyes: np.ndarray, grid: int,
+              rays: np.ndarray, offset: float) -> tuple[np.ndarray, np.ndarray]:
+    """Origins (k, 3), lifted off the face, and vectors to the eye (k, 3) of some rays."""
+    pi, ej = (rays // grid, rays % grid) if grid > 0 else (rays, rays)
+    origins = points[pi] + offset * normals[pi]
+    return origins, eyes[ej] - origins
+
+
 def _visible_rays(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray,
                   eyes: np.ndarray, grid: int) -> np.ndarray:
     """Visibility along the rays of :mod:`._ray_kernel` (point i, eye j of ray k).
@@ -164,9 +172,7 @@ def _visible_rays(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray
         tri = scene.first(o32, d32)
         del o32, d32
     else:  # trimesh's own ray tracer, on the same rays
-        pi, ej = (idx // grid, idx % grid) if grid > 0 else (idx, idx)
-        origins = points[pi] + offset * normals[pi]
-        to_eye = eyes[ej] - origins
+        origins, to_eye = _ray_ends(points, normals, eyes, grid, idx, offset)
         tri = np.asarray(mesh.ray.intersects_first(
             origins, to_eye / np.linalg.norm(to_eye, axis=1)[:, None]), dtype=np.int64)
     hit = np.flatnonzero(tri >= 0)
@@ -174,9 +180,7 @@ def _visible_rays(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray
         # The first hit blocks the view only if it lies before the eye: find its
         # distance along the ray from the plane of the triangle hit.
         ray = idx[hit]
-        pi, ej = (ray // grid, ray % grid) if grid > 0 else (ray, ray)
-        origins = points[pi] + offset * normals[pi]
-        to_eye = eyes[ej] - origins
+        origins, to_eye = _ray_ends(points, normals, eyes, grid, ray, offset)
         reach = np.linalg.norm(to_eye, axis=1)
         directions = to_eye / reach[:, None]
         face = tri[hit]
