@@ -336,7 +336,11 @@ class _DiskSets:
     """
 
     def __init__(self, points: np.ndarray, priority: np.ndarray) -> None:
-        self.order = np.argsort(-priority, kind="stable")  # highest rank first
+        """``priority`` (n,) is a permutation of 0 .. n - 1, the highest taken first."""
+        n = len(priority)
+        # The inverse permutation: argsort of a permutation without the sort.
+        self.order = np.empty(n, dtype=np.intp)
+        self.order[n - 1 - np.asarray(priority)] = np.arange(n)
         # In the order taken, so the pass reads them one after another.
         self.points = np.ascontiguousarray(points[self.order], dtype=np.float64)
         self.lo = self.points.min(axis=0) if len(points) else np.zeros(3)

@@ -156,10 +156,16 @@ def start_offsets(start: np.ndarray, end: np.ndarray, pts: np.ndarray, params: n
         prev_du = 0.0
         prev_th = start[i]
         x_first = x_last = 0.0
+        # Each solve starts from the last one's wall normal (the same convergence
+        # test ends it), the first from the plate normal with four steps at least.
+        nx, ny, nz, min_steps = 0.0, 0.0, 1.0, 4
         for j in range(k):
             th = start[i] + (end[i] - start[i]) * j / (k - 1)
-            c = _centre(th, 0.0, px, py, pz, params)
-            dy, _, x, _, dc, hx, hy, hz = field(th, c, px, py, pz, params)
+            _, c, _, _, _, nx, ny, nz = target(th, 0.0, px, py, pz, params, nx, ny, nz,
+                                               min_steps)
+            dy, _, x, _, dc, hx, hy, hz, nx, ny, nz = _field(th, c, px, py, pz, params,
+                                                             nx, ny, nz, 1)
+            min_steps = 1
             if abs(hy) / math.sqrt(hx * hx + hy * hy + hz * hz) < min_light_tilt:
                 valid[i] = False
             du = dy - dc
@@ -249,13 +255,29 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
             # where the band has narrowed since, it is never outside its own band
             # (it would end at once, over and over, and the walk never finish).
             wb = max(wb, abs(u_start))
-            dth = min(max_step, max_chord / max(abs(dx), 1e-12))
+            longest = min(max_step, max_chord / max(abs(dx), 1e-12))
             # |du| <= 2w per step: a step can cross at most one band edge.
-            dth = min(dth, 2.0 * w / max(abs(k1 - dc), 1e-12))
+            dth = min(longest, 2.0 * w / max(abs(k1 - dc), 1e-12))
+            # A step that would cross the band's edge is aimed at the middle of the
+            # snap zone short of it instead: it ends the stripe there, no secant.
+            u_aim = math.copysign((1.0 - 0.5 * _SNAP) * wb, k1 - dc)
+            aim = (u_aim - u_start) / (k1 - dc)
+            aimed = 0.0 < aim < dth
+            if aimed:
+                dth = aim
             # Never leave a sliver of the run for a last, tiny step.
             if end[i] - th < 1.25 * dth:
                 dth = end[i] - th
+                aimed = False
             y1, u1, mx, my, mz = _heun(th, y, k1, dth, px, py, pz, params, nx, ny, nz)
+            if aimed and abs(u1) <= (1.0 - _SNAP) * wb and u1 != u_start:
+                # Short of the snap zone (u curves): one secant step on the aim
+                # (within the step limits; it stays inside the band), rather
+                # than a sliver of a step to the edge next.
+                dth = min(dth * (u_aim - u_start) / (u1 - u_start), longest)
+                if end[i] - th < 1.25 * dth:
+                    dth = end[i] - th
+                y1, u1, mx, my, mz = _heun(th, y, k1, dth, px, py, pz, params, nx, ny, nz)
             edge = 0.0
             if u1 > wb:
                 edge = wb

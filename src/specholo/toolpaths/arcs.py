@@ -17,7 +17,14 @@ import numpy as np
 @nb.njit(cache=True, inline="always")
 def _half_turn_bulge(ax: float, ay: float, bx: float, by: float) -> float:
     """tan(angle from a to b / 2): the bulge of an arc making that angle with its chord."""
-    return math.tan(0.5 * math.atan2(ax * by - ay * bx, ax * bx + ay * by))
+    # tan(phi / 2) = sin / (1 + cos) = (1 - cos) / sin, whichever does not cancel.
+    cross, dot = ax * by - ay * bx, ax * bx + ay * by
+    m = math.sqrt((ax * ax + ay * ay) * (bx * bx + by * by))
+    if dot >= 0.0:
+        return cross / (m + dot) if m > 0.0 else 0.0
+    if cross != 0.0:
+        return (m - dot) / cross
+    return math.tan(0.5 * math.atan2(cross, dot))  # exactly reversed
 
 
 @nb.njit(cache=True)
