@@ -281,3 +281,20 @@ def test_measured_path_lengths_are_the_arcs_lengths() -> None:
                    np.array([0, 2]), np.array([0]))
     assert half.measure()[1][0] == pytest.approx(math.pi, rel=1e-15)
     np.testing.assert_allclose(half.extent(), [[-1.0, 0.0], [1.0, 1.0]], atol=1e-15)
+
+
+def test_small_pages_turns_numpy_huge_pages_off_inside_only() -> None:
+    """Groove storage is allocated without numpy's huge-page advice (its first
+    touch is several times slower on machines that compact memory for it), and
+    the setting is restored after, also when the block raises."""
+    import numpy._core.multiarray as multiarray
+
+    from specholo._pages import small_pages
+
+    before = multiarray._get_madvise_hugepage()
+    with small_pages():
+        assert multiarray._get_madvise_hugepage() is False
+    assert multiarray._get_madvise_hugepage() is before
+    with pytest.raises(RuntimeError), small_pages():
+        raise RuntimeError("boom")
+    assert multiarray._get_madvise_hugepage() is before

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from specholo._pages import small_pages
+
 
 @nb.njit(cache=True, parallel=True)
 def _arc_geometry(start: np.ndarray, end: np.ndarray,
@@ -317,10 +319,11 @@ class GroovesBuilder:
         if self._n_vertices or self._n_paths:
             raise ValueError("reserve before adding any part")
         try:
-            self._vertices = np.empty((max(vertices, 0), 2))
-            self._bulges = np.empty(max(vertices, 0))
-            self._offsets = np.empty(max(paths, 0) + 1, dtype=np.int64)
-            self._stipple = np.empty(max(paths, 0), dtype=np.int64)
+            with small_pages():  # written once, at several times the speed
+                self._vertices = np.empty((max(vertices, 0), 2))
+                self._bulges = np.empty(max(vertices, 0))
+                self._offsets = np.empty(max(paths, 0) + 1, dtype=np.int64)
+                self._stipple = np.empty(max(paths, 0), dtype=np.int64)
         except MemoryError:  # the system refuses the address space: grow as needed
             self.__init__()  # type: ignore[misc]
         self._offsets[0] = 0
