@@ -280,21 +280,25 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
             dth = min(longest, 2.0 * w / max(abs(k1 - dc), 1e-12))
             # A step that would cross the band's edge is aimed at the middle of the
             # snap zone short of it instead: it ends the stripe there, no secant.
-            u_aim = math.copysign((1.0 - 0.5 * _SNAP) * wb, k1 - dc)
-            aim = (u_aim - u_start) / (k1 - dc)
-            aimed = 0.0 < aim < dth
+            du = k1 - dc
+            u_aim = math.copysign((1.0 - 0.5 * _SNAP) * wb, du)
+            aimed = du != 0.0 and 0.0 < (u_aim - u_start) / du < dth
             if aimed:
-                dth = aim
+                dth = (u_aim - u_start) / du
             # Never leave a sliver of the run for a last, tiny step.
             if end[i] - th < 1.25 * dth:
                 dth = end[i] - th
                 aimed = False
             y1, u1, mx, my, mz = _heun(th, y, k1, dth, px, py, pz, params, nx, ny, nz, x_y)
+            grow = 0.0
             if aimed and abs(u1) <= (1.0 - _SNAP) * wb and u1 != u_start:
+                grow = (u_aim - u_start) / (u1 - u_start)
+            if grow > 1.0:
                 # Short of the snap zone (u curves): one secant step on the aim
                 # (within the step limits; it stays inside the band), rather
-                # than a sliver of a step to the edge next.
-                dth = min(dth * (u_aim - u_start) / (u1 - u_start), longest)
+                # than a sliver of a step to the edge next. A u that turned
+                # back (grow <= 1) is left to the next step.
+                dth = min(dth * grow, longest)
                 if end[i] - th < 1.25 * dth:
                     dth = end[i] - th
                 y1, u1, mx, my, mz = _heun(th, y, k1, dth, px, py, pz, params, nx, ny, nz, x_y)
