@@ -87,26 +87,19 @@ def _wall_point(y: float, px: float, py: float, ex: float, ey: float, ez: float,
     return ex + tau * (px - ex), y - r * ny, gz, ey + tau * (py - ey)
 
 
-@nb.njit(cache=True)
-def field(theta: float, y: float, px: float, py: float, pz: float,
-          params: np.ndarray) -> tuple[float, float, float, float, float, float, float, float]:
-    """Slope of the toolpath and its targets at (theta, y), from a cold start.
-
-    Returns:
-        dy/dtheta, band centre, x, dx/dtheta, d centre/dtheta (derivatives along
-        the path), hx, hy, hz.
-    """
-    # First guess: the plate normal, a wall point at the groove's bottom. Each
-    # fixed-point step gains ~log10(distance / R) digits: four reach ~1e-10 mm.
-    return _field(theta, y, px, py, pz, params, 0.0, 0.0, 1.0, 4)[:8]
-
-
 @nb.njit(cache=True, inline="always")
 def _field(theta: float, y: float, px: float, py: float, pz: float, params: np.ndarray,
            nx: float, ny: float, nz: float, iterations: int) -> tuple[
                float, float, float, float, float, float, float, float, float, float, float]:
-    """:func:`field` from the wall normal n and at least ``iterations`` steps;
-    also returns the converged n (a guess for the next point of the walk)."""
+    """Slope of the toolpath and its targets at (theta, y), solved from the wall
+    normal n with at least ``iterations`` steps (from the plate normal, four
+    reach ~1e-10 mm).
+
+    Returns:
+        dy/dtheta, band centre, x, dx/dtheta, d centre/dtheta (derivatives along
+        the path), hx, hy, hz, and the converged n (a guess for the next point
+        of the walk).
+    """
     return _field_xy(theta, y, px, py, pz, params, nx, ny, nz, iterations)[:11]
 
 
@@ -126,9 +119,15 @@ def _field_xy(theta: float, y: float, px: float, py: float, pz: float, params: n
     x_y, c_y = (xc - x) / _DY, (cc - c) / _DY
     # The wall offset makes x depend on y too: solve (x', y') . h = 0 with
     # x' = x_th + x_y y' for the path's true direction.
-    slope = hx / hy
-    dy = -x_th * slope / (1.0 + x_y * slope)
+    dy = _path_slope(x_th, x_y, hx, hy)
     return dy, c, x, x_th + x_y * dy, c_th + c_y * dy, hx, hy, hz, nx, ny, nz, x_y
+
+
+@nb.njit(cache=True, inline="always")
+def _path_slope(x_th: float, x_y: float, hx: float, hy: float) -> float:
+    """dy/dtheta of the path with (x', y') . h = 0 and x' = x_th + x_y y'."""
+    slope = hx / hy
+    return -x_th * slope / (1.0 + x_y * slope)
 
 
 @nb.njit(cache=True, inline="always")
@@ -223,8 +222,7 @@ def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: 
                                           nx, ny, nz, 1)
     xa, _, _, _, _, _, _, _ = target(th + dth + _DTHETA, y + dth * k1, px, py, pz, params,
                                      nx, ny, nz, 1)
-    slope = hx / hy
-    k2 = -(xa - x) / _DTHETA * slope / (1.0 + x_y * slope)
+    k2 = _path_slope((xa - x) / _DTHETA, x_y, hx, hy)
     y1 = y + 0.5 * dth * (k1 + k2)
     return y1, y1 - c2, nx, ny, nz
 
