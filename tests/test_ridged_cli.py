@@ -99,13 +99,18 @@ def test_verify_over_azimuth_and_elevation(designed: Path, capsys):
     assert {round(v["azimuth"], 6) for v in views} == set(np.arange(-30.0, 30.1, 5.0))
     assert {round(v["elevation"], 6) for v in views} == set(np.arange(-15.0, 15.1, 5.0))
     glinting = [v for v in views if not math.isnan(v["p95_error"])]
-    # Most heads see stipples in stereo, all over the ranges, and where they see
-    # them the apparent points are within 0.3 mm of the stipples.
+    # Most heads see stipples in stereo, all over the ranges. Each sees a few
+    # (1 to 8 of 150), so a head's p95 is nearly its worst glint: nearly all
+    # heads' apparent points are within 0.25 mm of the stipples, and every one
+    # within 0.5 mm. The 0.05 mm raster places a glint to within a cell, and
+    # one cell of disparity between eyes 64 mm apart at 600 mm moves a point
+    # 40 mm behind the plate by (640 mm)^2 / (64 mm 600 mm) x 0.05 mm = 0.53 mm.
     assert len(glinting) >= 0.7 * len(views)
     for key in ("azimuth", "elevation"):
         values = [v[key] for v in glinting]
         assert min(values) < -10 and max(values) > 10
-    assert max(v["p95_error"] for v in glinting) < 0.3
+    assert sum(v["p95_error"] < 0.25 for v in glinting) >= 0.95 * len(glinting)
+    assert max(v["max_error"] for v in glinting) < 0.5
     assert result["summary"]["max_false_glints"] < 0.02
     assert (designed / "verify.png").is_file()
 
@@ -125,7 +130,7 @@ def test_render_spots_are_the_glints(designed: Path, tmp_path: Path, capsys,
     camera = plate_camera(setup, field_plate(loaded.heights), math.radians(azimuth),
                           math.radians(elevation), width=1024, height=768)
     glints = field_glint_pixels(loaded.heights, setup, camera)
-    assert glints.valid.all() and len(glints.pixel) >= 3
+    assert glints.valid.all() and len(glints.pixel) >= 2  # 150 stipples: a few glint per eye
     found, _ = spots(np.asarray(Image.open(out).convert("RGB")))
     assert len(found) == len(glints.pixel)
     d, _ = cKDTree(glints.pixel).query(found)
