@@ -284,6 +284,39 @@ def test_stipple_count_on_surface(bunny: Model, count: int) -> None:
     assert agree.mean() > 0.99
 
 
+def test_surface_samples_lie_on_their_faces_uniformly_by_area(bunny: Model) -> None:
+    from scipy.stats import chisquare
+
+    from specholo.scene._sample_kernel import sample_surface
+
+    mesh = bunny.mesh
+    assert mesh is not None
+    n = 200_000
+    pts, face = sample_surface(mesh.vertices, mesh.faces, mesh.area_faces, n,
+                               np.random.default_rng(4))
+    # On its own triangle: barycentric coordinates in [0, 1] and in its plane.
+    bary = trimesh.triangles.points_to_barycentric(mesh.triangles[face], pts)
+    assert bary.min() > -1e-9 and bary.max() < 1 + 1e-9
+    # Uniform over the area: faces hit in proportion to their area (big faces
+    # pooled so each expects >= 20), and within a triangle the corner weights
+    # average 1/3.
+    expected = n * mesh.area_faces / mesh.area
+    order = np.argsort(expected)
+    key = np.empty(len(order), dtype=np.int64)
+    key[order] = np.searchsorted(np.arange(20.0, n, 20.0), np.cumsum(expected[order]))
+    observed = np.bincount(key[face], minlength=key.max() + 1)
+    wanted = np.bincount(key, weights=expected, minlength=key.max() + 1)
+    keep = wanted > 0
+    assert chisquare(observed[keep], wanted[keep]).pvalue > 1e-4
+    np.testing.assert_allclose(bary.mean(axis=0), 1 / 3, atol=0.005)
+    # The same draws and arithmetic as trimesh's sampler: the same points.
+    ref, ref_face = trimesh.sample.sample_surface(mesh, 1000, seed=np.random.default_rng(9))
+    ours, our_face = sample_surface(mesh.vertices, mesh.faces, mesh.area_faces, 1000,
+                                    np.random.default_rng(9))
+    np.testing.assert_array_equal(our_face, ref_face)
+    np.testing.assert_array_equal(ours, ref)
+
+
 def test_stipple_normals_on_box() -> None:
     box = _box()
     s = stipple(Model(box, box.vertices), np.random.default_rng(3), count=400)

@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from specholo.errors import SpecholoError
 from specholo.scene._disk_kernel import AXIS_BITS, greedy_disk
+from specholo.scene._sample_kernel import sample_surface
 from specholo.scene.loading import Model, available_memory, format_bytes, mesh_memory
 
 # Candidates drawn per wanted stipple: more gives a tighter (more saturated)
@@ -220,9 +221,7 @@ def _stipple_mesh(
             )
         n_candidates = max(16, math.ceil(_CANDIDATES_PER_STIPPLE * estimate))
 
-    points, face = trimesh.sample.sample_surface(mesh, n_candidates, seed=rng)
-    points = np.asarray(points, dtype=np.float64)
-    face = np.asarray(face, dtype=np.int64)
+    points, face = sample_surface(mesh.vertices, mesh.faces, mesh.area_faces, n_candidates, rng)
     if count is not None:
         r0 = math.sqrt(area / (_AREA_PER_POINT * count * (1.0 + 0.5 * _COUNT_SLACK)))
         keep = _select_count(points, rng, count, r0)

@@ -39,7 +39,7 @@ MAX_CLUSTERS = 8
 def chord(geo: np.ndarray, m: int) -> tuple[float, float, float]:
     """Unit direction (x, y) and length of move m's chord; (0, 0, 0) when it has none."""
     cx, cy = geo[m, EX] - geo[m, SX], geo[m, EY] - geo[m, SY]
-    length = math.hypot(cx, cy)
+    length = math.sqrt(cx * cx + cy * cy)
     if not length > 0.0:
         return 0.0, 0.0, 0.0
     return cx / length, cy / length, length
@@ -300,7 +300,7 @@ def surface(geo: np.ndarray, kind: np.ndarray, m: int, mode: int, qx: float, qy:
     """
     if mode != BODY:
         vx, vy = px - qx, py - qy
-        r = math.hypot(vx, vy)
+        r = math.sqrt(vx * vx + vy * vy)
         p, dp, ddp = profile(r, step, height, slope)
         if r < 1e-12:
             return p - depth, 0.0, 0.0, ddp, 0.0, ddp
@@ -317,7 +317,7 @@ def surface(geo: np.ndarray, kind: np.ndarray, m: int, mode: int, qx: float, qy:
         return p - depth, sg * dp * nx, sg * dp * ny, ddp * nx * nx, ddp * nx * ny, \
             ddp * ny * ny
     vx, vy = px - geo[m, CX], py - geo[m, CY]
-    dist = math.hypot(vx, vy)
+    dist = math.sqrt(vx * vx + vy * vy)
     s = dist - geo[m, RHO]
     p, dp, ddp = profile(abs(s), step, height, slope)
     sg = 1.0 if s >= 0.0 else -1.0
@@ -488,7 +488,7 @@ def glints(paths: np.ndarray, path_ptr: np.ndarray, body_ok: np.ndarray, caps: b
                     j11, j12, j21, j22 = -hxx - d11, -hxy - d12, -hxy - d21, -hyy - d22
                     det = j11 * j22 - j12 * j21
                     if it == iterations:
-                        ok = math.hypot(fx, fy) <= residual
+                        ok = fx * fx + fy * fy <= residual * residual
                         break
                     if det == 0.0:
                         ok = False

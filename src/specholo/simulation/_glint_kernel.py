@@ -209,7 +209,7 @@ def _arc(sx: float, sy: float, ex: float, ey: float, b: float,
     segments), radius (0: straight), start angle, sweep, chord direction x, y,
     chord length and the tangent's angle at the start."""
     cx, cy = ex - sx, ey - sy
-    n = math.hypot(cx, cy)
+    n = math.sqrt(cx * cx + cy * cy)
     dx = cx / n if n > 0.0 else cx
     dy = cy / n if n > 0.0 else cy
     r = n * (1.0 + b * b) / (4.0 * abs(b)) if b != 0.0 else math.inf

@@ -41,7 +41,7 @@ def _arc_geometry(start: np.ndarray, end: np.ndarray,
         # The centre lies off the chord's middle, to its left for b > 0.
         centre[i, 0] = 0.5 * (start[i, 0] + end[i, 0]) - cy * offset
         centre[i, 1] = 0.5 * (start[i, 1] + end[i, 1]) + cx * offset
-        radius[i] = math.hypot(cx, cy) * (1.0 + b * b) / (4.0 * abs(b))
+        radius[i] = math.sqrt(cx * cx + cy * cy) * (1.0 + b * b) / (4.0 * abs(b))
         start_angle[i] = math.atan2(start[i, 1] - centre[i, 1], start[i, 0] - centre[i, 0])
     return centre, radius, start_angle, sweep
 
@@ -51,8 +51,8 @@ def _path_length(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int) -> fl
     """Length of the arcs of vertices a .. b - 1, mm."""
     part = 0.0
     for i in range(a, b - 1):
-        chord = math.hypot(vertices[i + 1, 0] - vertices[i, 0],
-                           vertices[i + 1, 1] - vertices[i, 1])
+        dx, dy = vertices[i + 1, 0] - vertices[i, 0], vertices[i + 1, 1] - vertices[i, 1]
+        chord = math.sqrt(dx * dx + dy * dy)  # math.hypot is ~7x slower here
         part += chord * _arc_over_chord(abs(bulges[i]))
     return part
 
@@ -108,7 +108,7 @@ def _extent(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
                 offset = (1.0 - bulge * bulge) / (4.0 * bulge)
                 ox = x + 0.5 * cx - cy * offset
                 oy = y + 0.5 * cy + cx * offset
-                radius = math.hypot(cx, cy) * (1.0 + bulge * bulge) / (4.0 * abs(bulge))
+                radius = math.sqrt(cx * cx + cy * cy) * (1.0 + bulge * bulge) / (4.0 * abs(bulge))
                 # A point of the circle is on the arc iff it lies on the bulge's side
                 # of the chord (minor and major arcs alike): no angles needed.
                 if (cx * (oy - y) - cy * (ox + radius - x)) * bulge < 0.0:

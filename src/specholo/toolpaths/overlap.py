@@ -94,7 +94,8 @@ def _sample_arcs(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np
     count = np.empty(k, np.int64)
     length = np.empty(k)
     for i in range(k):
-        chord = math.hypot(end[i, 0] - start[i, 0], end[i, 1] - start[i, 1])
+        cx, cy = end[i, 0] - start[i, 0], end[i, 1] - start[i, 1]
+        chord = math.sqrt(cx * cx + cy * cy)
         sweep = 4.0 * math.atan(abs(bulge[i]))
         length[i] = chord * sweep / (2.0 * math.sin(0.5 * sweep)) if sweep > 1e-12 else chord
         count[i] = max(1, int(math.ceil(length[i] / step)))
@@ -122,7 +123,7 @@ def _sample_arcs(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np
             else:
                 # Rotate the chord direction by -half, walk the sub-arc's chord.
                 cx, cy = ex - sx, ey - sy
-                c = math.hypot(cx, cy)
+                c = math.sqrt(cx * cx + cy * cy)
                 ang = math.atan2(cy, cx) - half + u * half
                 sub = c * math.sin(u * half) / math.sin(half)
                 x, y = sx + sub * math.cos(ang), sy + sub * math.sin(ang)
@@ -230,15 +231,15 @@ def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray,
     for p in nb.prange(n_paths - 1):
         if stipple[p] != stipple[p + 1]:
             continue
-        best = np.inf
+        best = np.inf  # squared: one root per pair of paths
         # Two very long paths are compared on every few samples (bounded work).
         pairs = (first[p + 1] - first[p]) * (first[p + 2] - first[p + 1])
         stride = max(1, int(math.ceil(math.sqrt(pairs / budget))))
         for i in range(first[p], first[p + 1], stride):
             for j in range(first[p + 1], first[p + 2], stride):
-                d = math.hypot(pts[j, 0] - pts[i, 0], pts[j, 1] - pts[i, 1])
-                best = min(best, d)
-        gap[p] = best
+                dx, dy = pts[j, 0] - pts[i, 0], pts[j, 1] - pts[i, 1]
+                best = min(best, dx * dx + dy * dy)
+        gap[p] = math.sqrt(best)
     return gap
 
 
@@ -330,7 +331,8 @@ def _in_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
             if i + 1 < b:
                 x2, y2 = vertices[i + 1, 0], vertices[i + 1, 1]
             # The arc stays within its sagitta of the chord.
-            sag = 0.5 * abs(bulges[i]) * math.hypot(x2 - x1, y2 - y1) if i + 1 < b else 0.0
+            dx, dy = x2 - x1, y2 - y1
+            sag = 0.5 * abs(bulges[i]) * math.sqrt(dx * dx + dy * dy) if i + 1 < b else 0.0
             out[i] = _touches(chosen, min(x1, x2), min(y1, y2), max(x1, x2), max(y1, y2),
                               reach + sag, x0, y0, side)
     return out
