@@ -26,7 +26,7 @@ _CONVERGED = 1e-10  # mm: the wall glint's estimated remaining error at the last
 #: The setup's floats (see above) as a tuple: passed down the inlined helpers by
 #: value, where an array is reference-counted (atomically) at every call.
 Params = tuple[float, float, float, float, float, float, float, float, float, float]
-# Reordered and fused floating point (~15% faster walks; samples move by
+# Reordered and fused floating point (~12% faster walks; samples move by
 # ~1e-7 mm). Not "nnan"/"ninf": the walk tests for non-finite values.
 _FAST = {"contract", "arcp", "nsz", "reassoc", "afn"}
 
