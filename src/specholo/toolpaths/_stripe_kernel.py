@@ -17,8 +17,6 @@ import numpy as np
 
 from specholo.toolpaths.arcs import _biarc
 
-_DTHETA = 1e-6  # forward-difference steps for the toolpath's derivatives (rad, mm)
-_DY = 1e-3
 _NEAR_EDGE = 1e-12
 _SNAP = 0.02  # a step ending within this share of w from the edge ends its stripe
 _MAX_ITERATIONS = 64  # most fixed-point steps for the wall normal
@@ -26,9 +24,15 @@ _CONVERGED = 1e-10  # mm: the wall glint's estimated remaining error at the last
 #: The setup's floats (see above) as a tuple: passed down the inlined helpers by
 #: value, where an array is reference-counted (atomically) at every call.
 Params = tuple[float, float, float, float, float, float, float, float, float, float]
+Vec = tuple[float, float, float]
+#: A solve: x, band centre, h (unnormalised), n, dx/dtheta, dc/dtheta, dx/dy,
+#: dc/dy, dn/dtheta, dn/dy, dh/dy (theta and y the walk's variables).
+Solved = tuple[float, float, Vec, Vec, float, float, float, float, Vec, Vec, Vec]
 # Reordered and fused floating point (~12% faster walks; samples move by
 # ~1e-7 mm). Not "nnan"/"ninf": the walk tests for non-finite values.
 _FAST = {"contract", "arcp", "nsz", "reassoc", "afn"}
+_ZERO = (0.0, 0.0, 0.0)
+_UP = (0.0, 0.0, 1.0)
 
 
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
@@ -39,130 +43,141 @@ def _unpacked(packed: np.ndarray) -> Params:
 
 
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
-def _h(gx: float, gy: float, gz: float, ex: float, ey: float, ez: float,
-       params: Params) -> tuple[float, float, float]:
-    """Normality vector (the half vector) at glint g for an eye e."""
-    ux, uy, uz = ex - gx, ey - gy, ez - gz
-    inv = 1.0 / math.sqrt(ux * ux + uy * uy + uz * uz)
-    lx, ly, lz = params[2], params[3], params[4]
-    if params[5] > 0.5:
-        lx, ly, lz = lx - gx, ly - gy, lz - gz
-        linv = 1.0 / math.sqrt(lx * lx + ly * ly + lz * lz)
-        lx, ly, lz = lx * linv, ly * linv, lz * linv
-    return lx + ux * inv, ly + uy * inv, lz + uz * inv
+def _along(a: Vec, s: float, b: Vec) -> Vec:
+    """a + s b."""
+    return a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2]
 
 
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
-def target(theta: float, y: float, px: float, py: float, pz: float, params: Params,
-           nx: float, ny: float, nz: float,
-           iterations: int) -> tuple[float, float, float, float, float, float, float, float]:
-    """Toolpath x, band centre and h for the eye at theta, toolpath height y.
+def _apart(a: Vec, b: Vec) -> float:
+    """|a - b| in the 1-norm."""
+    return abs(a[0] - b[0]) + abs(a[1] - b[1]) + abs(a[2] - b[2])
+
+
+@nb.njit(fastmath=_FAST, cache=True, inline="always")
+def _unit(vx: float, vy: float, vz: float, v_t: Vec, v_y: Vec) -> tuple[Vec, Vec, Vec]:
+    """v / |v| and its two derivatives, from v's (v_t, v_y).
+
+    d(v / |v|) = (dv - u (u . dv)) / |v| with u = v / |v|: one root and one
+    division serve the value and both derivatives.
+    """
+    inv = 1.0 / math.sqrt(vx * vx + vy * vy + vz * vz)
+    ux, uy, uz = vx * inv, vy * inv, vz * inv
+    a = ux * v_t[0] + uy * v_t[1] + uz * v_t[2]
+    b = ux * v_y[0] + uy * v_y[1] + uz * v_y[2]
+    return ((ux, uy, uz),
+            ((v_t[0] - ux * a) * inv, (v_t[1] - uy * a) * inv, (v_t[2] - uz * a) * inv),
+            ((v_y[0] - ux * b) * inv, (v_y[1] - uy * b) * inv, (v_y[2] - uz * b) * inv))
+
+
+@nb.njit(fastmath=_FAST, cache=True, inline="always")
+def _wall(y: float, px: float, py: float, ex: float, ey: float, ez: float, inv_dz: float,
+          dinv_dz: float, r: float, zc: float, n: Vec, n_t: Vec,
+          n_y: Vec) -> tuple[Vec, Vec, Vec, float, float, float]:
+    """The wall glint g = c - R n for normal n, put on the sightline at its own
+    depth, with its derivatives in theta and y (n's given).
+
+    Returns:
+        g, dg/dtheta, dg/dy, and the sightline's height at g's depth with its
+        two derivatives.
+    """
+    gz = zc - r * n[2]
+    q = ez - gz
+    tau = q * inv_dz
+    # e moves as (ez, 0, -ex) in theta; y moves g's height directly.
+    tau_t = (r * n_t[2] - ex) * inv_dz + q * dinv_dz
+    tau_y = r * n_y[2] * inv_dz
+    ax, ay = px - ex, py - ey
+    return ((ex + tau * ax, y - r * n[1], gz),
+            (ez * (1.0 - tau) + tau_t * ax, -r * n_t[1], -r * n_t[2]),
+            (tau_y * ax, 1.0 - r * n_y[1], -r * n_y[2]),
+            ey + tau * ay, tau_t * ay, tau_y * ay)
+
+
+@nb.njit(fastmath=_FAST, cache=True, inline="always")
+def _half(g: Vec, g_t: Vec, g_y: Vec, ex: float, ey: float, ez: float,
+          params: Params) -> tuple[Vec, Vec, Vec]:
+    """Normality vector (the half vector) at glint g and its two derivatives."""
+    v, v_t, v_y = _unit(ex - g[0], ey - g[1], ez - g[2],
+                        (ez - g_t[0], -g_t[1], -ex - g_t[2]), (-g_y[0], -g_y[1], -g_y[2]))
+    lv, l_t, l_y = (params[2], params[3], params[4]), _ZERO, _ZERO
+    if params[5] > 0.5:
+        lv, l_t, l_y = _unit(params[2] - g[0], params[3] - g[1], params[4] - g[2],
+                             (-g_t[0], -g_t[1], -g_t[2]), (-g_y[0], -g_y[1], -g_y[2]))
+    return ((lv[0] + v[0], lv[1] + v[1], lv[2] + v[2]),
+            (l_t[0] + v_t[0], l_t[1] + v_t[1], l_t[2] + v_t[2]),
+            (l_y[0] + v_y[0], l_y[1] + v_y[1], l_y[2] + v_y[2]))
+
+
+@nb.njit(fastmath=_FAST, cache=True)
+def solve(theta: float, y: float, px: float, py: float, pz: float, params: Params, n: Vec,
+          n_t: Vec, n_y: Vec, iterations: int) -> Solved:
+    """Toolpath x, band centre and h for the eye at theta, toolpath height y,
+    with their derivatives in theta and y.
 
     The glint sits on the ball-end wall at g = c - R n (c the ball centre, R - d
     above the plate, n = h/|h|); g is put on the sightline at its own depth. n
     is found by fixed-point steps from a first guess (h turns by ~R / distance
-    per step, so each step gains ~3 digits).
+    per step, so each step gains ~3 digits); its derivatives ride along
+    (forward mode), from guesses of their own, and converge as fast.
+    Compiled on its own: LLVM inlines it anyway, and the walk compiles in a
+    fraction of the time.
 
     Returns:
-        x, centre (u = y - centre is the glint's offset from the sightline),
-        hx, hy, hz, and the converged n.
+        :data:`Solved` (u = y - centre is the glint's offset from the sightline).
     """
     d, ey, r, zc = params[0], params[1], params[6], params[7]
     ex, ez = d * math.sin(theta), d * math.cos(theta)
     inv_dz = 1.0 / (ez - pz)
+    dinv_dz = ex * inv_dz * inv_dz
+    h = h_t = h_y = _ZERO
     # At least ``iterations`` steps; a ball large against the distances (a
     # coarse tool, a wide laser trough) converges slowly and takes more.
     for k in range(_MAX_ITERATIONS):
-        gx, gy, gz, _ = _wall_point(y, px, py, ex, ey, ez, inv_dz, r, zc, ny, nz)
-        hx, hy, hz = _h(gx, gy, gz, ex, ey, ez, params)
-        inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
-        change = abs(hx * inv - nx) + abs(hy * inv - ny) + abs(hz * inv - nz)
-        nx, ny, nz = hx * inv, hy * inv, hz * inv
+        g, g_t, g_y, _, _, _ = _wall(y, px, py, ex, ey, ez, inv_dz, dinv_dz, r, zc, n, n_t, n_y)
+        h, h_t, h_y = _half(g, g_t, g_y, ex, ey, ez, params)
+        m, m_t, m_y = _unit(h[0], h[1], h[2], h_t, h_y)
+        change = _apart(m, n)
+        n, n_t, n_y = m, m_t, m_y
         # The steps contract by about R / D: what is left to move is about
         # change * R / D of the normal, r times that at the wall.
         if k + 1 >= iterations and not change * r * r / d > _CONVERGED:
             break
     # h is the last step's: its direction is n, within ~change R / D of the
     # converged one, as close as another evaluation would bring it.
-    gx, gy, gz, line_y = _wall_point(y, px, py, ex, ey, ez, inv_dz, r, zc, ny, nz)
-    return gx + r * nx, line_y + r * ny, hx, hy, hz, nx, ny, nz
-
-
-# Not inlined: LLVM still inlines it, and the walk's first compile takes half
-# the time (94 s against 185 s here) at the same speed.
-@nb.njit(fastmath=_FAST, cache=True)
-def _nearby(theta: float, y: float, px: float, py: float, pz: float, params: Params,
-            nx: float, ny: float, nz: float) -> tuple[float, float, float, float, float]:
-    """Toolpath x, band centre and n next to a solved point, for difference quotients.
-
-    One fixed-point step from that point's converged n: what is left (~R / D of
-    the change in n, itself ~the step of the quotient) moves x by ~r R / D per
-    unit step, below the forward difference's own truncation error.
-    """
-    d, ey, r, zc = params[0], params[1], params[6], params[7]
-    ex, ez = d * math.sin(theta), d * math.cos(theta)
-    inv_dz = 1.0 / (ez - pz)
-    gx, gy, gz, _ = _wall_point(y, px, py, ex, ey, ez, inv_dz, r, zc, ny, nz)
-    hx, hy, hz = _h(gx, gy, gz, ex, ey, ez, params)
-    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
-    nx, ny, nz = hx * inv, hy * inv, hz * inv
-    gx, gy, gz, line_y = _wall_point(y, px, py, ex, ey, ez, inv_dz, r, zc, ny, nz)
-    return gx + r * nx, line_y + r * ny, nx, ny, nz
+    g, g_t, g_y, line, line_t, line_y = _wall(y, px, py, ex, ey, ez, inv_dz, dinv_dz, r, zc,
+                                              n, n_t, n_y)
+    return (g[0] + r * n[0], line + r * n[1], h, n, g_t[0] + r * n_t[0], line_t + r * n_t[1],
+            g_y[0] + r * n_y[0], line_y + r * n_y[1], n_t, n_y, h_y)
 
 
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
-def _wall_point(y: float, px: float, py: float, ex: float, ey: float, ez: float,
-                inv_dz: float, r: float, zc: float, ny: float,
-                nz: float) -> tuple[float, float, float, float]:
-    """The wall glint for normal n, put on the sightline at its own depth.
+def _moved(s: Solved, dy: float) -> Solved:
+    """A solve carried to dy higher at the same theta, to first order.
 
-    Returns:
-        g (x, y, z) and the sightline's height at that depth.
+    x, the centre and h depend on y only through the wall normal and the
+    glint's own height (~1 / D per mm), so over the ~dtheta^2 between a Heun
+    step's predictor and its end this is exact to ~(dy / D)^2.
     """
-    gz = zc - r * nz
-    tau = (ez - gz) * inv_dz
-    return ex + tau * (px - ex), y - r * ny, gz, ey + tau * (py - ey)
+    return (s[0] + s[6] * dy, s[1] + s[7] * dy, _along(s[2], dy, s[10]), _along(s[3], dy, s[9]),
+            s[4], s[5], s[6], s[7], s[8], s[9], s[10])
 
 
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
-def _field(theta: float, y: float, px: float, py: float, pz: float, params: Params,
-           nx: float, ny: float, nz: float, iterations: int) -> tuple[
-               float, float, float, float, float, float, float, float, float, float, float]:
-    """Slope of the toolpath and its targets at (theta, y), solved from the wall
-    normal n with at least ``iterations`` steps (from the plate normal, four
-    reach ~1e-10 mm).
+def _slopes(s: Solved) -> tuple[float, float, float]:
+    """dy/dtheta of the path, and dx/dtheta and d centre/dtheta along it.
 
-    Returns:
-        dy/dtheta, band centre, x, dx/dtheta, d centre/dtheta (derivatives along
-        the path), hx, hy, hz, and the converged n (a guess for the next point
-        of the walk).
+    The wall offset makes x depend on y too: (x', y') . h = 0 with
+    x' = x_t + x_y y' gives the path's true direction.
     """
-    return _field_xy(theta, y, px, py, pz, params, nx, ny, nz, iterations)[:11]
+    dy = _path_slope(s[4], s[6], s[2][0], s[2][1])
+    return dy, s[4] + s[6] * dy, s[5] + s[7] * dy
 
 
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
-def _field_xy(theta: float, y: float, px: float, py: float, pz: float, params: Params,
-              nx: float, ny: float, nz: float, iterations: int) -> tuple[
-                  float, float, float, float, float, float, float, float, float, float, float,
-                  float, float, float, float]:
-    """:func:`_field`, then dx/dy at fixed theta and dn/dtheta along the path."""
-    x, c, hx, hy, hz, nx, ny, nz = target(theta, y, px, py, pz, params, nx, ny, nz,
-                                          iterations)
-    # Forward differences, warm-started from the converged n: the solve's
-    # residual is far below what the quotients can see.
-    xa, ca, ax, ay, az = _nearby(theta + _DTHETA, y, px, py, pz, params, nx, ny, nz)
-    xc, cc, cx, cy, cz = _nearby(theta, y + _DY, px, py, pz, params, nx, ny, nz)
-    x_th, c_th = (xa - x) / _DTHETA, (ca - c) / _DTHETA
-    x_y, c_y = (xc - x) / _DY, (cc - c) / _DY
-    # The wall offset makes x depend on y too: solve (x', y') . h = 0 with
-    # x' = x_th + x_y y' for the path's true direction.
-    dy = _path_slope(x_th, x_y, hx, hy)
-    # n moves along the path too (the steps from n are within ~R / D of the
-    # solutions there): a first guess a step on.
-    s_th, s_y = 1.0 / _DTHETA, dy / _DY
-    return (dy, c, x, x_th + x_y * dy, c_th + c_y * dy, hx, hy, hz, nx, ny, nz, x_y,
-            (ax - nx) * s_th + (cx - nx) * s_y, (ay - ny) * s_th + (cy - ny) * s_y,
-            (az - nz) * s_th + (cz - nz) * s_y)
+def target(theta: float, y: float, px: float, py: float, pz: float, params: Params) -> Solved:
+    """:func:`solve` from the plate normal (four steps reach ~1e-10 mm)."""
+    return solve(theta, y, px, py, pz, params, _UP, _ZERO, _ZERO, 4)
 
 
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
@@ -170,13 +185,6 @@ def _path_slope(x_th: float, x_y: float, hx: float, hy: float) -> float:
     """dy/dtheta of the path with (x', y') . h = 0 and x' = x_th + x_y y'."""
     slope = hx / hy
     return -x_th * slope / (1.0 + x_y * slope)
-
-
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
-def _centre(theta: float, y: float, px: float, py: float, pz: float,
-            params: Params) -> float:
-    """Band centre alone (no derivatives needed)."""
-    return target(theta, y, px, py, pz, params, 0.0, 0.0, 1.0, 4)[1]
 
 
 @nb.njit(fastmath=_FAST, cache=True, parallel=True)
@@ -190,85 +198,96 @@ def start_offsets(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: n
     Returns:
         u0 (r,), valid (r,) and capacity (r,) (an upper bound on samples).
     """
-    k = 33
     n = start.size
     params = _unpacked(packed)
     u0 = np.zeros(n)
     valid = np.ones(n, dtype=np.bool_)
     cap = np.zeros(n, dtype=np.int64)
     for i in nb.prange(n):
-        px, py, pz = pts[i, 0], pts[i, 1], pts[i, 2]
-        u = 0.0
-        lo = hi = 0.0
-        total = 0.0
-        best = math.inf
-        u_apex = 0.0
-        apex = 0
-        prev_du = 0.0
-        prev_th = start[i]
-        x_first = x_last = 0.0
-        # Each solve starts from the last one's wall normal (the same convergence
-        # test ends it), the first from the plate normal with four steps at least.
-        nx, ny, nz, min_steps = 0.0, 0.0, 1.0, 4
-        for j in range(k):
-            th = start[i] + (end[i] - start[i]) * j / (k - 1)
-            _, c, _, _, _, nx, ny, nz = target(th, 0.0, px, py, pz, params, nx, ny, nz,
-                                               min_steps)
-            dy, _, x, _, dc, hx, hy, hz, nx, ny, nz = _field(th, c, px, py, pz, params,
-                                                             nx, ny, nz, 1)
-            min_steps = 1
-            if abs(hy) / math.sqrt(hx * hx + hy * hy + hz * hz) < min_light_tilt:
-                valid[i] = False
-            du = dy - dc
-            if not math.isfinite(du):
-                du = 0.0
-            if j == 0:
-                x_first = x
-            else:
-                step = 0.5 * (du + prev_du) * (th - prev_th)
-                u += step
-                total += abs(step)
-            x_last = x
-            lo = min(lo, u)
-            hi = max(hi, u)
-            if abs(du) < best:
-                best = abs(du)
-                apex = j
-                u_apex = u
-            prev_du = du
-            prev_th = th
-        if hi - lo <= 2.0 * w * 0.999:
-            u0[i] = -0.5 * (hi + lo)
-        elif 0 < apex < k - 1:
-            u0[i] = ((-u_apex + w) % (2.0 * w)) - w
-        else:
-            u0[i] = -w * math.copysign(1.0, u) * (1.0 - 1e-9)
-        span = end[i] - start[i]
-        cap[i] = 3 * (int(total / (2.0 * w)) + 2) + int(span / params[8]) \
-            + int(abs(x_last - x_first) / params[9]) + 64
+        u0[i], valid[i], cap[i] = _offset(start[i], end[i], pts[i, 0], pts[i, 1], pts[i, 2],
+                                          params, w, min_light_tilt)
     return u0, valid, cap
+
+
+@nb.njit(fastmath=_FAST, cache=True)
+def _offset(th0: float, th_end: float, px: float, py: float, pz: float, params: Params,
+            w: float, min_light_tilt: float) -> tuple[float, bool, int]:
+    """One run of :func:`start_offsets`: u0, validity and capacity."""
+    k = 33
+    valid = True
+    u = 0.0
+    lo = hi = 0.0
+    total = 0.0
+    best = math.inf
+    u_apex = 0.0
+    apex = 0
+    prev_du = 0.0
+    prev_th = th0
+    x_first = x_last = 0.0
+    # Each solve starts from the last one's wall normal and its derivatives
+    # (the same convergence test ends it), the first from the plate normal
+    # with four steps at least.
+    n_w, n_t, n_y, min_steps = _UP, _ZERO, _ZERO, 4
+    for j in range(k):
+        th = th0 + (th_end - th0) * j / (k - 1)
+        at_zero = solve(th, 0.0, px, py, pz, params, n_w, n_t, n_y, min_steps)
+        c = at_zero[1]
+        sol = solve(th, c, px, py, pz, params, _along(at_zero[3], c, at_zero[9]),
+                    at_zero[8], at_zero[9], 1)
+        x, h, n_w, n_t, n_y = sol[0], sol[2], sol[3], sol[8], sol[9]
+        dy, _, dc = _slopes(sol)
+        min_steps = 1
+        if abs(h[1]) / math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) < min_light_tilt:
+            valid = False
+        du = dy - dc
+        if not math.isfinite(du):
+            du = 0.0
+        if j == 0:
+            x_first = x
+        else:
+            step = 0.5 * (du + prev_du) * (th - prev_th)
+            u += step
+            total += abs(step)
+        x_last = x
+        lo = min(lo, u)
+        hi = max(hi, u)
+        if abs(du) < best:
+            best = abs(du)
+            apex = j
+            u_apex = u
+        prev_du = du
+        prev_th = th
+    if hi - lo <= 2.0 * w * 0.999:
+        u_first = -0.5 * (hi + lo)
+    elif 0 < apex < k - 1:
+        u_first = ((-u_apex + w) % (2.0 * w)) - w
+    else:
+        u_first = -w * math.copysign(1.0, u) * (1.0 - 1e-9)
+    span = th_end - th0
+    cap = 3 * (int(total / (2.0 * w)) + 2) + int(span / params[8]) \
+        + int(abs(x_last - x_first) / params[9]) + 64
+    return u_first, valid, cap
 
 
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
 def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: float,
-          params: Params, nx: float, ny: float, nz: float, x_y: float,
-          dn: tuple[float, float, float]) -> tuple[float, float, float, float, float]:
-    """A Heun step from the wall normal n at (th, y), dn/dtheta along the path
-    there: y, u and n at its end.
+          params: Params, s: Solved) -> tuple[float, float, Solved]:
+    """A Heun step from the solve ``s`` at (th, y) with slope k1.
 
-    The end's slope takes dx/dy from the start: it comes from the wall offset
-    alone (~R / D) and moves by ~R / D over a step, so the slope moves by
-    ~(R / D)^2 relative, far below the step's own error, and the
-    difference quotient in y is saved. The samples' own directions are
-    solved in full.
+    The end is solved at the predictor's height and carried to the step's
+    end y1 (:func:`_moved`), where the walk goes on from it: one solve per
+    step.
+
+    Returns:
+        y1, u there, and the solve there.
     """
-    x, c2, hx, hy, _, nx, ny, nz = target(th + dth, y + dth * k1, px, py, pz, params,
-                                          nx + dth * dn[0], ny + dth * dn[1],
-                                          nz + dth * dn[2], 1)
-    xa, _, _, _, _ = _nearby(th + dth + _DTHETA, y + dth * k1, px, py, pz, params, nx, ny, nz)
-    k2 = _path_slope((xa - x) / _DTHETA, x_y, hx, hy)
-    y1 = y + 0.5 * dth * (k1 + k2)
-    return y1, y1 - c2, nx, ny, nz
+    y_p = y + dth * k1
+    n, n_t, n_y = s[3], s[8], s[9]
+    e = solve(th + dth, y_p, px, py, pz, params, _along(n, dth, _along(n_t, k1, n_y)), n_t,
+              n_y, 1)
+    y1 = y + 0.5 * dth * (k1 + _slopes(e)[0])
+    e = _moved(e, y1 - y_p)
+    return y1, y1 - e[1], e
 
 
 @nb.njit(fastmath=_FAST, cache=True, parallel=True)
@@ -289,106 +308,121 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
     n = start.size
     params = _unpacked(packed)
     count = np.zeros(n, dtype=np.int64)
-    max_step, max_chord = params[8], params[9]
     for i in nb.prange(n):
-        px, py, pz = pts[i, 0], pts[i, 1], pts[i, 2]
-        k, stop = offsets[i], offsets[i + 1]
-        th = start[i]
-        c = _centre(th, 0.0, px, py, pz, params)
-        y = c + u0[i]
-        stripe = 0
+        count[i] = _walk(start[i], end[i], pts[i, 0], pts[i, 1], pts[i, 2], u0[i], params, w,
+                         spacing, offsets[i], offsets[i + 1], stripe_out, point_out,
+                         tangent_out)
+    return count
+
+
+@nb.njit(fastmath=_FAST, cache=True)
+def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
+          params: Params, w: float, spacing: float, first: int, stop: int,
+          stripe_out: np.ndarray, point_out: np.ndarray, tangent_out: np.ndarray) -> int:
+    """One run of :func:`integrate`, from theta ``th0`` to ``th_end`` into slots
+    ``first`` .. ``stop`` - 1.
+
+    Returns:
+        the number of samples written, or -1 where the slots ran out.
+    """
+    max_step, max_chord = params[8], params[9]
+    k = first
+    th = th0
+    c = target(th, 0.0, px, py, pz, params)[1]
+    y = c + u0
+    stripe = 0
+    point_out[k, 1], stripe_out[k] = y, stripe
+    k += 1
+    # Each solve starts from the wall normal of the last, nearby, and its
+    # derivatives (a step or two instead of four; the same convergence test
+    # ends it).
+    sol = solve(th, y, px, py, pz, params, _UP, _ZERO, _ZERO, 4)
+    while th_end - th > _NEAR_EDGE:
+        if k + 2 > stop:
+            k = -1
+            break
+        k1, dx, dc = _slopes(sol)
+        x, c = sol[0], sol[1]
+        point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x, dx, k1
+        u_start = y - c
+        # Neighbouring stripes of one stipple are the band's height 2 wb apart
+        # vertically, so wb |cos(slope)| >= spacing / 2 keeps their grooves apart.
+        wb = max(w, 0.5 * spacing * math.sqrt(dx * dx + k1 * k1) / max(abs(dx), 1e-12))
+        # A stripe starts at the edge of the band where the last one ended;
+        # where the band has narrowed since, it is never outside its own band
+        # (it would end at once, over and over, and the walk never finish).
+        wb = max(wb, abs(u_start))
+        longest = min(max_step, max_chord / max(abs(dx), 1e-12))
+        # |du| <= 2w per step: a step can cross at most one band edge.
+        dth = min(longest, 2.0 * w / max(abs(k1 - dc), 1e-12))
+        # A step that would cross the band's edge is aimed at the middle of the
+        # snap zone short of it instead: it ends the stripe there, no secant.
+        du = k1 - dc
+        u_aim = math.copysign((1.0 - 0.5 * _SNAP) * wb, du)
+        aimed = du != 0.0 and 0.0 < (u_aim - u_start) / du < dth
+        if aimed:
+            dth = (u_aim - u_start) / du
+        # Never leave a sliver of the run for a last, tiny step.
+        if th_end - th < 1.25 * dth:
+            dth = th_end - th
+            aimed = False
+        y1, u1, sol1 = _heun(th, y, k1, dth, px, py, pz, params, sol)
+        grow = 0.0
+        if aimed and abs(u1) <= (1.0 - _SNAP) * wb and u1 != u_start:
+            grow = (u_aim - u_start) / (u1 - u_start)
+        if grow > 1.0:
+            # Short of the snap zone (u curves): one secant step on the aim
+            # (within the step limits; it stays inside the band), rather
+            # than a sliver of a step to the edge next. A u that turned
+            # back (grow <= 1) is left to the next step.
+            dth = min(dth * grow, longest)
+            if th_end - th < 1.25 * dth:
+                dth = th_end - th
+            y1, u1, sol1 = _heun(th, y, k1, dth, px, py, pz, params, sol)
+        edge = 0.0
+        if u1 > wb:
+            edge = wb
+        elif u1 < -wb:
+            edge = -wb
+        elif abs(u1) > (1.0 - _SNAP) * wb and th_end - th - dth > _NEAR_EDGE:
+            # Ending next to the edge would force a sliver of a step next:
+            # the stripe ends here instead.
+            edge = math.copysign(wb, u1)
+            u1 = edge
+        if edge != 0.0 and u1 != edge:
+            # Secant on the step length so the stripe ends on the band edge.
+            a_t, a_u, b_t, b_u = 0.0, u_start, dth, u1
+            t_new = dth
+            for _ in range(2):
+                t_new = a_t + (edge - a_u) * (b_t - a_t) / (b_u - a_u)
+                y1, u_new, sol1 = _heun(th, y, k1, t_new, px, py, pz, params, sol)
+                if abs(u_new) <= wb:
+                    a_t, a_u = t_new, u_new
+                else:
+                    b_t, b_u = t_new, u_new
+            dth = t_new
+        th += dth
+        y = y1
+        sol = sol1
         point_out[k, 1], stripe_out[k] = y, stripe
         k += 1
-        # Each solve starts from the wall normal of the last, nearby (a step
-        # or two instead of four; the same convergence test ends it).
-        nx, ny, nz, min_steps = 0.0, 0.0, 1.0, 4
-        while end[i] - th > _NEAR_EDGE:
-            if k + 2 > stop:
-                k = -1
-                break
-            k1, c, x, dx, dc, _, _, _, nx, ny, nz, x_y, dnx, dny, dnz = _field_xy(
-                th, y, px, py, pz, params, nx, ny, nz, min_steps)
-            dn = (dnx, dny, dnz)
-            min_steps = 1
-            point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x, dx, k1
-            u_start = y - c
-            # Neighbouring stripes of one stipple are the band's height 2 wb apart
-            # vertically, so wb |cos(slope)| >= spacing / 2 keeps their grooves apart.
-            wb = max(w, 0.5 * spacing * math.sqrt(dx * dx + k1 * k1) / max(abs(dx), 1e-12))
-            # A stripe starts at the edge of the band where the last one ended;
-            # where the band has narrowed since, it is never outside its own band
-            # (it would end at once, over and over, and the walk never finish).
-            wb = max(wb, abs(u_start))
-            longest = min(max_step, max_chord / max(abs(dx), 1e-12))
-            # |du| <= 2w per step: a step can cross at most one band edge.
-            dth = min(longest, 2.0 * w / max(abs(k1 - dc), 1e-12))
-            # A step that would cross the band's edge is aimed at the middle of the
-            # snap zone short of it instead: it ends the stripe there, no secant.
-            du = k1 - dc
-            u_aim = math.copysign((1.0 - 0.5 * _SNAP) * wb, du)
-            aimed = du != 0.0 and 0.0 < (u_aim - u_start) / du < dth
-            if aimed:
-                dth = (u_aim - u_start) / du
-            # Never leave a sliver of the run for a last, tiny step.
-            if end[i] - th < 1.25 * dth:
-                dth = end[i] - th
-                aimed = False
-            y1, u1, mx, my, mz = _heun(th, y, k1, dth, px, py, pz, params, nx, ny, nz, x_y, dn)
-            grow = 0.0
-            if aimed and abs(u1) <= (1.0 - _SNAP) * wb and u1 != u_start:
-                grow = (u_aim - u_start) / (u1 - u_start)
-            if grow > 1.0:
-                # Short of the snap zone (u curves): one secant step on the aim
-                # (within the step limits; it stays inside the band), rather
-                # than a sliver of a step to the edge next. A u that turned
-                # back (grow <= 1) is left to the next step.
-                dth = min(dth * grow, longest)
-                if end[i] - th < 1.25 * dth:
-                    dth = end[i] - th
-                y1, u1, mx, my, mz = _heun(th, y, k1, dth, px, py, pz, params, nx, ny, nz, x_y, dn)
-            edge = 0.0
-            if u1 > wb:
-                edge = wb
-            elif u1 < -wb:
-                edge = -wb
-            elif abs(u1) > (1.0 - _SNAP) * wb and end[i] - th - dth > _NEAR_EDGE:
-                # Ending next to the edge would force a sliver of a step next:
-                # the stripe ends here instead.
-                edge = math.copysign(wb, u1)
-                u1 = edge
-            if edge != 0.0 and u1 != edge:
-                # Secant on the step length so the stripe ends on the band edge.
-                a_t, a_u, b_t, b_u = 0.0, u_start, dth, u1
-                t_new = dth
-                for _ in range(2):
-                    t_new = a_t + (edge - a_u) * (b_t - a_t) / (b_u - a_u)
-                    y1, u_new, mx, my, mz = _heun(th, y, k1, t_new, px, py, pz, params,
-                                                  nx, ny, nz, x_y, dn)
-                    if abs(u_new) <= wb:
-                        a_t, a_u = t_new, u_new
-                    else:
-                        b_t, b_u = t_new, u_new
-                dth = t_new
-            th += dth
-            y = y1
-            nx, ny, nz = mx, my, mz
+        if edge != 0.0:
+            # The stripe's end sample: its own point and direction.
+            dy_e, dx_e, _ = _slopes(sol)
+            point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = sol[0], dx_e, dy_e
+            stripe += 1
+            # The next stripe starts the band's height away: solved there, from
+            # this solve carried over.
+            y_new = sol[1] - edge
+            m = _moved(sol, y_new - y)
+            sol = solve(th, y_new, px, py, pz, params, m[3], m[8], m[9], 1)
+            y = y_new
             point_out[k, 1], stripe_out[k] = y, stripe
             k += 1
-            if edge != 0.0:
-                # The stripe's end sample: its own point and direction.
-                dy_e, c, x_e, dx_e, _, _, _, _, nx, ny, nz = _field(th, y, px, py, pz, params,
-                                                                    nx, ny, nz, 1)
-                point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
-                stripe += 1
-                y = c - edge
-                point_out[k, 1], stripe_out[k] = y, stripe
-                k += 1
-        if k > 0:
-            dy_e, _, x_e, dx_e, _, _, _, _, _, _, _ = _field(th, y, px, py, pz, params,
-                                                             nx, ny, nz, min_steps)
-            point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x_e, dx_e, dy_e
-        count[i] = -1 if k < 0 else k - offsets[i]
-    return count
+    if k > 0:
+        dy_e, dx_e, _ = _slopes(sol)
+        point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = sol[0], dx_e, dy_e
+    return -1 if k < 0 else k - first
 
 
 @nb.njit(fastmath=_FAST, cache=True, parallel=True)
