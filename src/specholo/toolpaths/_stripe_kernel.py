@@ -183,8 +183,7 @@ def target(theta: float, y: float, px: float, py: float, pz: float, params: Para
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
 def _path_slope(x_th: float, x_y: float, hx: float, hy: float) -> float:
     """dy/dtheta of the path with (x', y') . h = 0 and x' = x_th + x_y y'."""
-    slope = hx / hy
-    return -x_th * slope / (1.0 + x_y * slope)
+    return -x_th * hx / (hy + x_y * hx)
 
 
 @nb.njit(fastmath=_FAST, cache=True, parallel=True)
@@ -224,19 +223,24 @@ def _offset(th0: float, th_end: float, px: float, py: float, pz: float, params: 
     prev_du = 0.0
     prev_th = th0
     x_first = x_last = 0.0
-    # Each solve starts from the last one's wall normal and its derivatives
-    # (the same convergence test ends it), the first from the plate normal
-    # with four steps at least.
-    n_w, n_t, n_y, min_steps = _UP, _ZERO, _ZERO, 4
+    # u' is taken on the band's centre. The first sample finds it from y = 0;
+    # the others solve at the last one's centre, from its wall normal and
+    # derivatives (the same convergence test ends it), and carry the solve to
+    # their own centre, a step of ~dc/dtheta dtheta away (:func:`_moved`).
+    sol = target(th0, 0.0, px, py, pz, params)
+    y = 0.0
     for j in range(k):
         th = th0 + (th_end - th0) * j / (k - 1)
-        at_zero = solve(th, 0.0, px, py, pz, params, n_w, n_t, n_y, min_steps)
-        c = at_zero[1]
-        sol = solve(th, c, px, py, pz, params, _along(at_zero[3], c, at_zero[9]),
-                    at_zero[8], at_zero[9], 1)
-        x, h, n_w, n_t, n_y = sol[0], sol[2], sol[3], sol[8], sol[9]
+        if j > 0:
+            y = sol[1]
+            sol = solve(th, y, px, py, pz, params, _along(sol[3], th - prev_th, sol[8]), sol[8],
+                        sol[9], 1)
+        sol = _moved(sol, sol[1] - y)
+        if j == 0:
+            y = sol[1]
+            sol = solve(th, y, px, py, pz, params, sol[3], sol[8], sol[9], 1)
+        x, h = sol[0], sol[2]
         dy, _, dc = _slopes(sol)
-        min_steps = 1
         if abs(h[1]) / math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) < min_light_tilt:
             valid = False
         du = dy - dc
@@ -347,7 +351,10 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
         u_start = y - c
         # Neighbouring stripes of one stipple are the band's height 2 wb apart
         # vertically, so wb |cos(slope)| >= spacing / 2 keeps their grooves apart.
-        wb = max(w, 0.5 * spacing * math.sqrt(dx * dx + k1 * k1) / max(abs(dx), 1e-12))
+        # (Squares compared first: the root is seldom needed.)
+        wb, half, ax = w, 0.5 * spacing, max(abs(dx), 1e-12)
+        if half * half * (dx * dx + k1 * k1) > w * w * ax * ax:
+            wb = half * math.sqrt(dx * dx + k1 * k1) / ax
         # A stripe starts at the edge of the band where the last one ended;
         # where the band has narrowed since, it is never outside its own band
         # (it would end at once, over and over, and the walk never finish).
