@@ -294,6 +294,15 @@ def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: 
     return y1, y1 - e[1], e
 
 
+@nb.njit(fastmath=_FAST, cache=True, inline="always")
+def _put(s: Solved, slot: int, point_out: np.ndarray,
+         tangent_out: np.ndarray) -> tuple[float, float, float]:
+    """Write a sample's x and direction from its solve; returns :func:`_slopes`."""
+    k1, dx, dc = _slopes(s)
+    point_out[slot, 0], tangent_out[slot, 0], tangent_out[slot, 1] = s[0], dx, k1
+    return k1, dx, dc
+
+
 @nb.njit(fastmath=_FAST, cache=True, parallel=True)
 def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarray,
               packed: np.ndarray, w: float, spacing: float, offsets: np.ndarray,
@@ -345,10 +354,8 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
         if k + 2 > stop:
             k = -1
             break
-        k1, dx, dc = _slopes(sol)
-        x, c = sol[0], sol[1]
-        point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = x, dx, k1
-        u_start = y - c
+        k1, dx, dc = _put(sol, k - 1, point_out, tangent_out)
+        u_start = y - sol[1]
         # Neighbouring stripes of one stipple are the band's height 2 wb apart
         # vertically, so wb |cos(slope)| >= spacing / 2 keeps their grooves apart.
         # (Squares compared first: the root is seldom needed.)
@@ -415,8 +422,7 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
         k += 1
         if edge != 0.0:
             # The stripe's end sample: its own point and direction.
-            dy_e, dx_e, _ = _slopes(sol)
-            point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = sol[0], dx_e, dy_e
+            _put(sol, k - 1, point_out, tangent_out)
             stripe += 1
             # The next stripe starts the band's height away: solved there, from
             # this solve carried over.
@@ -427,8 +433,7 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
             point_out[k, 1], stripe_out[k] = y, stripe
             k += 1
     if k > 0:
-        dy_e, dx_e, _ = _slopes(sol)
-        point_out[k - 1, 0], tangent_out[k - 1, 0], tangent_out[k - 1, 1] = sol[0], dx_e, dy_e
+        _put(sol, k - 1, point_out, tangent_out)
     return -1 if k < 0 else k - first
 
 
