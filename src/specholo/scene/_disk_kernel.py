@@ -23,25 +23,24 @@ _GOLDEN = -7046029254386353131  # 0x9E3779B97F4A7C15 as an int64 (2^64 / golden 
 
 
 @nb.njit(cache=True, inline="always")
-def _slot(keys: np.ndarray, key: int) -> int:
+def _slot(table: np.ndarray, key: int) -> int:
     """Where cube ``key`` is filed in the table, or the empty slot it would take."""
-    mask = keys.size - 1
+    mask = table.shape[0] - 1
     h = ((key * _GOLDEN) >> 20) & mask  # Fibonacci hashing spreads the cubes
-    while keys[h] != 0 and keys[h] != key:
+    while table[h, 0] != 0 and table[h, 0] != key:
         h = (h + 1) & mask
     return h
 
 
 @nb.njit(cache=True)
-def _grown(keys: np.ndarray, head: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _grown(table: np.ndarray) -> np.ndarray:
     """The table at twice the size, every filed cube moved over."""
-    new_keys = np.zeros(2 * keys.size, dtype=np.int64)
-    new_head = np.full(2 * keys.size, -1, dtype=np.int32)
-    for h in range(keys.size):
-        if keys[h] != 0:
-            s = _slot(new_keys, keys[h])
-            new_keys[s], new_head[s] = keys[h], head[h]
-    return new_keys, new_head
+    new = np.zeros((2 * table.shape[0], 2), dtype=np.int64)
+    for h in range(table.shape[0]):
+        if table[h, 0] != 0:
+            s = _slot(new, table[h, 0])
+            new[s, 0], new[s, 1] = table[h, 0], table[h, 1]
+    return new
 
 
 @nb.njit(cache=True)
@@ -58,11 +57,13 @@ def greedy_disk(points: np.ndarray, r: float, lo: np.ndarray, side: float) -> np
         (n,) bool, True where kept.
     """
     n = points.shape[0]
-    keys = np.zeros(1 << 12, dtype=np.int64)  # packed cube number + 1; 0 where empty
-    head = np.full(1 << 12, -1, dtype=np.int32)  # the cube's last kept point
+    # Per filed cube: its packed number + 1 (0 where empty) and its last kept
+    # point + 1 (0 for none), side by side so a probe reads one cache line.
+    table = np.zeros((1 << 12, 2), dtype=np.int64)
     filed = 0
-    xyz = np.empty((n, 3))  # kept points, in the order kept
-    nxt = np.empty(n, dtype=np.int32)  # the kept point before it in the same cube
+    # Kept points in the order kept, each with the one before it in its cube
+    # (-1 for none) in the same row: one cache line per point visited.
+    kept_xyz = np.empty((n, 4))
     m = 0
     kept = np.zeros(n, dtype=np.bool_)
     for i in range(n):
@@ -82,27 +83,27 @@ def greedy_disk(points: np.ndarray, r: float, lo: np.ndarray, side: float) -> np
             qz = cz + (sz if a & 4 else 0)
             if qx < 0 or qy < 0 or qz < 0 or qx >= _AXIS or qy >= _AXIS or qz >= _AXIS:
                 continue
-            j = head[_slot(keys, ((qx << 42) | (qy << 21) | qz) + 1)]
+            j = table[_slot(table, ((qx << 42) | (qy << 21) | qz) + 1), 1] - 1
             while j >= 0:
-                dx, dy, dz = px - xyz[j, 0], py - xyz[j, 1], pz - xyz[j, 2]
+                dx, dy, dz = px - kept_xyz[j, 0], py - kept_xyz[j, 1], pz - kept_xyz[j, 2]
                 if math.sqrt(dx * dx + dy * dy + dz * dz) <= r:
                     clear = False
                     break
-                j = nxt[j]
+                j = int(kept_xyz[j, 3])
             if not clear:
                 break
         if clear:
             kept[i] = True
             key = ((cx << 42) | (cy << 21) | cz) + 1
-            h = _slot(keys, key)
-            if keys[h] == 0:
+            h = _slot(table, key)
+            if table[h, 0] == 0:
                 filed += 1
-                if 2 * filed > keys.size:
-                    keys, head = _grown(keys, head)
-                    h = _slot(keys, key)
-                keys[h] = key
-            xyz[m, 0], xyz[m, 1], xyz[m, 2] = px, py, pz
-            nxt[m] = head[h]
-            head[h] = m
+                if 2 * filed > table.shape[0]:
+                    table = _grown(table)
+                    h = _slot(table, key)
+                table[h, 0] = key
+            kept_xyz[m, 0], kept_xyz[m, 1], kept_xyz[m, 2] = px, py, pz
+            kept_xyz[m, 3] = table[h, 1] - 1
+            table[h, 1] = m + 1
             m += 1
     return kept

@@ -216,31 +216,42 @@ def _crossed(pts: np.ndarray, stipple: np.ndarray, width: float,
 
 
 @nb.njit(cache=True, parallel=True)
-def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray,
-                    min_pairs: int = MIN_PAIRS) -> np.ndarray:
-    """Closest distance between each path's points and the next path's, when
-    both draw the same stipple (inf otherwise)."""
-    n_paths = first.size - 1
-    gap = np.full(max(n_paths - 1, 0), np.inf)
+def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, limit: float,
+                    min_pairs: int = MIN_PAIRS) -> tuple[int, float]:
+    """Closest distance between each path's points and the next path's, when both
+    draw the same stipple: how many of those gaps lie between :data:`RETRACE` and
+    ``limit``, and the smallest beyond :data:`RETRACE` (inf if none).
+
+    Counted in blocks of pairs, not kept per pair: a million stipples make ~4e7.
+    """
+    n_pairs = max(first.size - 2, 0)
     # Every pair of neighbours gets its share of the budget, at least MIN_PAIRS.
     pairs_of = 0
-    for p in range(n_paths - 1):
+    for p in range(n_pairs):
         if stipple[p] == stipple[p + 1]:
             pairs_of += 1
     budget = max(min_pairs, MAX_PAIRS // max(pairs_of, 1))
-    for p in nb.prange(n_paths - 1):
-        if stipple[p] != stipple[p + 1]:
-            continue
-        best = np.inf  # squared: one root per pair of paths
-        # Two very long paths are compared on every few samples (bounded work).
-        pairs = (first[p + 1] - first[p]) * (first[p + 2] - first[p + 1])
-        stride = max(1, int(math.ceil(math.sqrt(pairs / budget))))
-        for i in range(first[p], first[p + 1], stride):
-            for j in range(first[p + 1], first[p + 2], stride):
-                dx, dy = pts[j, 0] - pts[i, 0], pts[j, 1] - pts[i, 1]
-                best = min(best, dx * dx + dy * dy)
-        gap[p] = math.sqrt(best)
-    return gap
+    blocks = min(n_pairs, 4096)
+    near = np.zeros(blocks, np.int64)
+    closest = np.full(blocks, np.inf)
+    for b in nb.prange(blocks):
+        for p in range(b * n_pairs // blocks, (b + 1) * n_pairs // blocks):
+            if stipple[p] != stipple[p + 1]:
+                continue
+            best = np.inf  # squared: one root per pair of paths
+            # Two very long paths are compared on every few samples (bounded work).
+            pairs = (first[p + 1] - first[p]) * (first[p + 2] - first[p + 1])
+            stride = max(1, int(math.ceil(math.sqrt(pairs / budget))))
+            for i in range(first[p], first[p + 1], stride):
+                for j in range(first[p + 1], first[p + 2], stride):
+                    dx, dy = pts[j, 0] - pts[i, 0], pts[j, 1] - pts[i, 1]
+                    best = min(best, dx * dx + dy * dy)
+            gap = math.sqrt(best)
+            if gap > RETRACE:
+                closest[b] = min(closest[b], gap)
+                if gap < limit:
+                    near[b] += 1
+    return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf
 
 
 @nb.njit(cache=True, parallel=True)
@@ -305,15 +316,16 @@ def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
 def _in_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
                 chosen: np.ndarray, x0: float, y0: float, side: float,
                 reach: float) -> np.ndarray:
-    """(m,) True for vertices starting an arc (or a dot) that comes within
-    ``reach`` of a chosen window (chosen[i, j]: the window at x0 + i side, y0 + j side)."""
-    nx, ny = chosen.shape
-    out = np.zeros(vertices.shape[0], np.bool_)
-    for j in nb.prange(offsets.size - 1):
+    """(q,) indices, in order, of the vertices starting an arc (or a dot) that comes
+    within ``reach`` of a chosen window (chosen[i, j]: the window at x0 + i side,
+    y0 + j side)."""
+    n_paths = offsets.size - 1
+    # The path's box first, padded by its largest sagitta (a bound: half the
+    # bulge times the chord's x and y legs): most paths on a large plate pass no
+    # chosen window, and their arcs need no look (nor a flag per vertex).
+    passes = np.zeros(n_paths, np.bool_)
+    for j in nb.prange(n_paths):
         a, b = offsets[j], offsets[j + 1]
-        # The path's box first, padded by its largest sagitta (a bound: half
-        # the bulge times the chord's x and y legs): most paths on a large
-        # plate pass no chosen window, and their arcs need no look.
         lo_x = hi_x = vertices[a, 0]
         lo_y = hi_y = vertices[a, 1]
         sag = 0.0
@@ -323,8 +335,12 @@ def _in_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
             lo_y, hi_y = min(lo_y, y), max(hi_y, y)
             sag = max(sag, 0.5 * abs(bulges[i - 1]) * (abs(x - vertices[i - 1, 0])
                                                        + abs(y - vertices[i - 1, 1])))
-        if not _touches(chosen, lo_x, lo_y, hi_x, hi_y, reach + sag, x0, y0, side):
-            continue
+        passes[j] = _touches(chosen, lo_x, lo_y, hi_x, hi_y, reach + sag, x0, y0, side)
+    near = np.flatnonzero(passes)
+    out = np.empty((offsets[near + 1] - offsets[near]).sum(), np.int64)
+    q = 0
+    for k in range(near.size):
+        a, b = offsets[near[k]], offsets[near[k] + 1]
         for i in range(a, max(b - 1, a + 1)):
             x1, y1 = vertices[i, 0], vertices[i, 1]
             x2, y2 = x1, y1
@@ -333,9 +349,11 @@ def _in_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
             # The arc stays within its sagitta of the chord.
             dx, dy = x2 - x1, y2 - y1
             sag = 0.5 * abs(bulges[i]) * math.sqrt(dx * dx + dy * dy) if i + 1 < b else 0.0
-            out[i] = _touches(chosen, min(x1, x2), min(y1, y2), max(x1, x2), max(y1, y2),
-                              reach + sag, x0, y0, side)
-    return out
+            if _touches(chosen, min(x1, x2), min(y1, y2), max(x1, x2), max(y1, y2),
+                        reach + sag, x0, y0, side):
+                out[q] = i
+                q += 1
+    return out[:q].copy()
 
 
 @nb.njit(cache=True, inline="always")
@@ -391,8 +409,8 @@ def _windowed(grooves: Grooves, width: float, step: float, total: float, lo: np.
     f = np.ascontiguousarray
     verts, bulges = f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float)
     offsets = f(grooves.offsets, dtype=np.int64)
-    near = np.flatnonzero(_in_windows(verts, bulges, offsets, chosen, float(lo[0]),
-                                      float(lo[1]), WINDOW, width + 2.0 * step))
+    near = _in_windows(verts, bulges, offsets, chosen, float(lo[0]), float(lo[1]), WINDOW,
+                       width + 2.0 * step)
     path = np.searchsorted(offsets, near, side="right") - 1
     single = offsets[path + 1] - offsets[path] == 1
     arcs, dots = near[~single], near[single]
@@ -462,8 +480,7 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
         return Overlaps(width, 0, math.inf, 0, 0.0, total)
     stipple = np.asarray(grooves.stipple, dtype=np.int64)
     first = np.searchsorted(path, np.arange(grooves.n_paths + 1))
-    gaps = _neighbour_gaps(pts, first, stipple)
-    near = (gaps < width - tolerance) & (gaps > RETRACE)
+    near, closest = _neighbour_gaps(pts, first, stipple, width - tolerance)
     span = pts.max(axis=0) - pts.min(axis=0) + width
     area = float(span[0] * span[1])
     query = np.arange(len(pts))
@@ -478,8 +495,8 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
     hits = _intersections(pts, path, stipple, 2.0 * step, query)
     return Overlaps(
         width=width,
-        neighbours=int(near.sum()),
-        closest_neighbours=float(gaps[gaps > RETRACE].min(initial=math.inf)),
+        neighbours=near,
+        closest_neighbours=closest,
         crossings=int(round(0.5 * scale * hits.sum())),
         crossed_length=float(scale * share[query][crossed].sum()),
         total_length=total,
@@ -499,14 +516,13 @@ def _large_overlaps(grooves: Grooves, width: float, tolerance: float, total: flo
     f = np.ascontiguousarray
     stipple = f(grooves.stipple, dtype=np.int64)
     # The pairs' budget is shared out with no floor: the work stays bounded.
-    gaps = _neighbour_gaps(f(grooves.vertices, dtype=float), f(grooves.offsets, dtype=np.int64),
-                           stipple, 1)
-    near = (gaps < width - tolerance) & (gaps > RETRACE)
+    near, closest = _neighbour_gaps(f(grooves.vertices, dtype=float),
+                                    f(grooves.offsets, dtype=np.int64), stipple,
+                                    width - tolerance, 1)
     lo, hi = extent
     area = float((hi[0] - lo[0] + width) * (hi[1] - lo[1] + width))
     crossings, crossed = _windowed(grooves, width - tolerance, step, total, lo, hi,
                                    rng if rng is not None else np.random.default_rng(0))
-    return Overlaps(width=width, neighbours=int(near.sum()),
-                    closest_neighbours=float(gaps[gaps > RETRACE].min(initial=math.inf)),
+    return Overlaps(width=width, neighbours=near, closest_neighbours=closest,
                     crossings=crossings, crossed_length=crossed, total_length=total,
                     coverage=total * width / area)
