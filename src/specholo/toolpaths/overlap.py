@@ -154,64 +154,139 @@ def sample_centrelines(grooves: Grooves,
     return pts[order], path[order], share[order]
 
 
+#: 2^64 over the golden ratio, as an int64: Fibonacci hashing spreads the cells.
+_GOLDEN = -7046029254386353131
+#: Bits for a cell's row in its packed number.
+_ROW_BITS = 31
+
+
+#: Most cells of the map of where queries are near (one byte each).
+_MARKS = 1 << 24
+
+
 @nb.njit(cache=True)
-def _grid(pts: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
-    """Points bucketed by square cells: order, bucket starts, origin cell and grid shape."""
+def _buckets(pts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                     int, float, float, float]:
+    """Points bucketed by square cells, for finding those within ``reach`` of any place.
+
+    The points (the few queried, spread over a whole plate) are hashed by cell, so
+    the table is the size of the points whatever the plate's; cells are a little
+    over ``reach`` across, so the points within reach of a place lie in the 3 x 3
+    cells around its own (:func:`_run`). A coarse map marks where any lie, so
+    most places need no look in the table (:func:`_marked`).
+
+    Returns:
+        order (n,): the points by cell; table (t, 3): per occupied cell its packed
+        number + 1 (0 where empty) and its run [lo, hi) of ``order``; the map
+        (mx, my) and how many cells a side of its cells spans; the origin x0, y0
+        and the cell side.
+    """
     n = pts.shape[0]
     x0, y0 = pts[:, 0].min(), pts[:, 1].min()
     wx, wy = pts[:, 0].max() - x0, pts[:, 1].max() - y0
-    # Cells never outnumber the points by much: on a large plate with a fine
-    # groove the grid would not fit in memory. Larger cells keep every
-    # neighbour within one cell (only more points per cell).
-    most = 4 * n + 1024
-    if (wx / cell + 1.0) * (wy / cell + 1.0) > most:
-        cell = max(cell, math.sqrt(wx * wy / most), (wx + wy) / most)
-    nx = int(wx / cell) + 1
-    ny = int(wy / cell) + 1
+    cell = max(reach * (1.0 + 1e-9), max(wx, wy) * (1.0 + 1e-9) / 2.0 ** (_ROW_BITS - 1),
+               1e-300)
     key = np.empty(n, np.int64)
     for i in range(n):
-        key[i] = int((pts[i, 0] - x0) / cell) * ny + int((pts[i, 1] - y0) / cell)
-    count = np.zeros(nx * ny + 1, np.int64)
-    for i in range(n):
-        count[key[i] + 1] += 1
-    start = np.cumsum(count)
-    fill = start[:-1].copy()
-    order = np.empty(n, np.int64)
-    for i in range(n):
-        order[fill[key[i]]] = i
-        fill[key[i]] += 1
-    return order, start, key, nx, ny
+        key[i] = (int((pts[i, 0] - x0) / cell) << _ROW_BITS) | int((pts[i, 1] - y0) / cell)
+    order = np.argsort(key, kind="mergesort")
+    size = 16
+    while size < 2 * n:
+        size *= 2
+    table = np.zeros((size, 3), np.int64)
+    # The map spans cells -1 .. last + 1 (a place just off the points' box may
+    # be near one), f cells a side per map cell.
+    gx, gy = int(wx / cell) + 3, int(wy / cell) + 3
+    f = 1
+    while (gx // f + 1) * (gy // f + 1) > _MARKS:
+        f += 1 + f // 4
+    marks = np.zeros((gx // f + 1, gy // f + 1), np.uint8)
+    lo = 0
+    while lo < n:
+        k = key[order[lo]]
+        hi = lo + 1
+        while hi < n and key[order[hi]] == k:
+            hi += 1
+        h = _slot(table, k + 1)
+        table[h, 0], table[h, 1], table[h, 2] = k + 1, lo, hi
+        cx, cy = k >> _ROW_BITS, k & ((1 << _ROW_BITS) - 1)
+        for dx in range(3):
+            for dy in range(3):
+                marks[(cx + dx) // f, (cy + dy) // f] = 1
+        lo = hi
+    return order, table, marks, f, x0, y0, cell
+
+
+@nb.njit(cache=True, inline="always")
+def _slot(table: np.ndarray, tag: int) -> int:
+    """Where the cell numbered ``tag`` - 1 is filed, or the empty slot it would take."""
+    mask = table.shape[0] - 1
+    h = ((tag * _GOLDEN) >> 20) & mask
+    while table[h, 0] != 0 and table[h, 0] != tag:
+        h = (h + 1) & mask
+    return h
+
+
+@nb.njit(cache=True, inline="always")
+def _marked(marks: np.ndarray, f: int, gx: float, gy: float) -> bool:
+    """Whether any bucketed point may lie in the 3 x 3 cells around cell (gx, gy)."""
+    if gx < -1.0 or gy < -1.0:
+        return False
+    i, j = (int(gx) + 1) // f, (int(gy) + 1) // f
+    return i < marks.shape[0] and j < marks.shape[1] and marks[i, j] != 0
+
+
+@nb.njit(cache=True, inline="always")
+def _run(table: np.ndarray, gx: float, gy: float) -> tuple[int, int]:
+    """The run [lo, hi) of :func:`_buckets`' order in cell (gx, gy) (empty if none)."""
+    if gx < 0.0 or gy < 0.0 or gx >= 2.0 ** (_ROW_BITS - 1) or gy >= 2.0 ** (_ROW_BITS - 1):
+        return 0, 0
+    h = _slot(table, ((int(gx) << _ROW_BITS) | int(gy)) + 1)
+    return table[h, 1], table[h, 2]
+
+
+def _blocks(n_query: int) -> int:
+    """Parallel blocks for :func:`_crossed` and :func:`_intersections`, each with its
+    own (n_query,) tallies: a few per thread, within ~64 MB of tallies."""
+    return max(1, min(4 * nb.get_num_threads(), (1 << 23) // max(n_query, 1)))
 
 
 @nb.njit(cache=True, parallel=True)
-def _crossed(pts: np.ndarray, stipple: np.ndarray, width: float,
-             query: np.ndarray) -> np.ndarray:
-    """Whether each queried point lies within ``width`` of another stipple's centreline."""
-    n = pts.shape[0]
-    out = np.zeros(query.size, np.bool_)
-    if n == 0:
+def _crossed(pts: np.ndarray, stipple: np.ndarray, width: float, query: np.ndarray,
+             blocks: int) -> np.ndarray:
+    """Whether each queried point lies within ``width`` of another stipple's centreline.
+
+    The queries are few and the points many: the queries are bucketed, and every
+    point looks up the queries around it.
+    """
+    n, n_query = pts.shape[0], query.size
+    out = np.zeros(n_query, np.bool_)
+    if n == 0 or n_query == 0:
         return out
-    order, start, key, nx, ny = _grid(pts, width)
+    order, table, marks, f, x0, y0, cell = _buckets(pts[query], width)
+    # The queries copied out in bucket order, read one after another per cell.
+    qx, qy, own = np.empty(n_query), np.empty(n_query), np.empty(n_query, np.int64)
+    for q in range(n_query):
+        i = query[order[q]]
+        qx[q], qy[q], own[q] = pts[i, 0], pts[i, 1], stipple[i]
     w2 = width * width
-    for k in nb.prange(query.size):
-        i = query[k]
-        cx, cy = key[i] // ny, key[i] % ny
-        found = False
-        for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
-            for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
-                c = gx * ny + gy
-                for q in range(start[c], start[c + 1]):
-                    j = order[q]
-                    if stipple[j] != stipple[i]:
-                        dx, dy = pts[j, 0] - pts[i, 0], pts[j, 1] - pts[i, 1]
+    found = np.zeros((blocks, n_query), np.bool_)
+    for blk in nb.prange(blocks):
+        for j in range(blk * n // blocks, (blk + 1) * n // blocks):
+            px, py, sj = pts[j, 0], pts[j, 1], stipple[j]
+            gx, gy = math.floor((px - x0) / cell), math.floor((py - y0) / cell)
+            if not _marked(marks, f, gx, gy):
+                continue
+            for a in range(9):
+                lo, hi = _run(table, gx + float(a % 3 - 1), gy + float(a // 3 - 1))
+                for q in range(lo, hi):
+                    if not found[blk, q] and own[q] != sj:
+                        dx, dy = px - qx[q], py - qy[q]
                         if dx * dx + dy * dy < w2:
-                            found = True
-                            break
-                if found:
-                    break
-            if found:
-                break
-        out[k] = found
+                            found[blk, q] = True
+    for q in nb.prange(n_query):
+        for blk in range(blocks):
+            out[order[q]] |= found[blk, q]
     return out
 
 
@@ -256,59 +331,58 @@ def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, lim
 
 @nb.njit(cache=True, parallel=True)
 def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
-                   cell: float, query: np.ndarray) -> np.ndarray:
+                   reach: float, query: np.ndarray, blocks: int) -> np.ndarray:
     """Per queried chord (point i to i + 1 of one path), how many chords of other
-    stipples' paths it crosses."""
-    n = pts.shape[0]
-    out = np.zeros(query.size, np.int64)
-    if n < 2:
+    stipples' paths it crosses.
+
+    Chords are at most ``reach`` / 2 long, so two that cross start within reach
+    of each other: the queried chords are bucketed by their start, and every
+    chord looks up the queried ones starting around its own start.
+    """
+    n, n_query = pts.shape[0], query.size
+    out = np.zeros(n_query, np.int64)
+    if n < 2 or n_query == 0:
         return out
-    order, start, key, nx, ny = _grid(pts, cell)
-    # The chords copied out in cell order, so a query reads its cells' chords
-    # one after another rather than gathering each from anywhere: a chord that
-    # ends its path is left out (a sentinel stipple of -1).
-    cx0 = np.empty(n)
-    cy0 = np.empty(n)
-    cx1 = np.empty(n)
-    cy1 = np.empty(n)
-    owner = np.empty(n, np.int64)
-    for q in nb.prange(n):
-        j = order[q]
-        cx0[q], cy0[q] = pts[j, 0], pts[j, 1]
-        if j + 1 < n and path[j + 1] == path[j]:
-            cx1[q], cy1[q] = pts[j + 1, 0], pts[j + 1, 1]
-            owner[q] = stipple[path[j]]
-        else:
-            cx1[q], cy1[q] = cx0[q], cy0[q]
-            owner[q] = -1
-    for k in nb.prange(query.size):
-        i = query[k]
-        if i + 1 >= n or path[i + 1] != path[i]:
-            continue
-        ax, ay = pts[i, 0], pts[i, 1]
-        bx, by = pts[i + 1, 0], pts[i + 1, 1]
-        own = stipple[path[i]]
-        cx, cy = key[i] // ny, key[i] % ny
-        hits = 0
-        for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
-            # A column's cells are consecutive: one run of chords per column.
-            lo_c = gx * ny + max(cy - 1, 0)
-            hi_c = gx * ny + min(cy + 2, ny)
-            for q in range(start[lo_c], start[hi_c]):
-                # Chords of the same stipple (the queried one among them) never count.
-                if owner[q] == own or owner[q] < 0:
-                    continue
-                px, py = cx0[q], cy0[q]
-                qx, qy = cx1[q], cy1[q]
-                d1 = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
-                d2 = (bx - ax) * (qy - ay) - (by - ay) * (qx - ax)
-                d3 = (qx - px) * (ay - py) - (qy - py) * (ax - px)
-                d4 = (qx - px) * (by - py) - (qy - py) * (bx - px)
-                # Half-open ends so a crossing at a shared sample counts once.
-                if ((d1 < 0.0 <= d2) or (d2 < 0.0 <= d1)) and \
-                        ((d3 < 0.0 <= d4) or (d4 < 0.0 <= d3)):
-                    hits += 1
-        out[k] = hits
+    order, table, marks, f, x0, y0, cell = _buckets(pts[query], reach)
+    # The queried chords copied out in bucket order, read one after another per
+    # cell; one that ends its path is no chord (a stipple of -1).
+    chord = np.empty((n_query, 4))
+    own = np.empty(n_query, np.int64)
+    for q in range(n_query):
+        i = query[order[q]]
+        valid = i + 1 < n and path[i + 1] == path[i]
+        own[q] = stipple[path[i]] if valid else -1
+        chord[q, 0], chord[q, 1] = pts[i, 0], pts[i, 1]
+        chord[q, 2], chord[q, 3] = pts[i + 1, 0] if valid else 0.0, pts[i + 1, 1] if valid else 0.0
+    hits = np.zeros((blocks, n_query), np.int64)
+    for blk in nb.prange(blocks):
+        for j in range(blk * n // blocks, (blk + 1) * n // blocks):
+            if j + 1 >= n or path[j + 1] != path[j]:
+                continue
+            px, py = pts[j, 0], pts[j, 1]
+            qx, qy = pts[j + 1, 0], pts[j + 1, 1]
+            gx, gy = math.floor((px - x0) / cell), math.floor((py - y0) / cell)
+            if not _marked(marks, f, gx, gy):
+                continue
+            sj = stipple[path[j]]
+            for a in range(9):
+                lo, hi = _run(table, gx + float(a % 3 - 1), gy + float(a // 3 - 1))
+                for q in range(lo, hi):
+                    # Chords of the same stipple (the queried one among them) never count.
+                    if own[q] == sj or own[q] < 0:
+                        continue
+                    ax, ay, bx, by = chord[q, 0], chord[q, 1], chord[q, 2], chord[q, 3]
+                    d1 = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+                    d2 = (bx - ax) * (qy - ay) - (by - ay) * (qx - ax)
+                    d3 = (qx - px) * (ay - py) - (qy - py) * (ax - px)
+                    d4 = (qx - px) * (by - py) - (qy - py) * (bx - px)
+                    # Half-open ends so a crossing at a shared sample counts once.
+                    if ((d1 < 0.0 <= d2) or (d2 < 0.0 <= d1)) and \
+                            ((d3 < 0.0 <= d4) or (d4 < 0.0 <= d3)):
+                        hits[blk, q] += 1
+    for q in nb.prange(n_query):
+        for blk in range(blocks):
+            out[order[q]] += hits[blk, q]
     return out
 
 
@@ -432,8 +506,9 @@ def _windowed(grooves: Grooves, width: float, step: float, total: float, lo: np.
         scale *= len(query) / MAX_QUERIES
         query = np.sort(rng.choice(query, MAX_QUERIES, replace=False))
     stipple = owner.astype(np.int64)
-    crossed = _crossed(pts, stipple[piece_of], width, query)
-    hits = _intersections(pts, piece_of.astype(np.int64), stipple, 2.0 * step, query)
+    blocks = _blocks(len(query))
+    crossed = _crossed(pts, stipple[piece_of], width, query, blocks)
+    hits = _intersections(pts, piece_of.astype(np.int64), stipple, 2.0 * step, query, blocks)
     return int(round(0.5 * scale * hits.sum())), float(scale * share[query][crossed].sum())
 
 
@@ -489,10 +564,11 @@ def groove_overlaps(grooves: Grooves, width: float, tolerance: float = 1e-3,
         rng = rng if rng is not None else np.random.default_rng(0)
         query = np.sort(rng.choice(len(pts), sample, replace=False))
         scale = len(pts) / sample
-    crossed = _crossed(pts, stipple[path], width - tolerance, query)
+    blocks = _blocks(len(query))
+    crossed = _crossed(pts, stipple[path], width - tolerance, query, blocks)
     # Chords are at most ``step`` long: two that cross start within 2 steps.
     # Each crossing is seen from both chords.
-    hits = _intersections(pts, path, stipple, 2.0 * step, query)
+    hits = _intersections(pts, path, stipple, 2.0 * step, query, blocks)
     return Overlaps(
         width=width,
         neighbours=near,
