@@ -552,11 +552,12 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     grooves, dropped = design_runs(runs, config)
     timings["toolpaths"] = time.perf_counter() - t0
     section = cutter.section(config.depth_mm)
-    # One pass over the arcs, for the plate and the overlaps (which need the length;
-    # summed by numpy, so the same on any number of threads).
-    extent, lengths = grooves.measure(lengths=check_overlaps)
-    total = float(lengths.sum())
-    del lengths
+    # One pass over the arcs (or none, when the walk found them), for the plate and
+    # the overlaps (which need the length).
+    if check_overlaps:
+        extent, total = grooves.extent_and_length()
+    else:
+        extent, total = grooves.extent(), 0.0
     plate = plate_rect(grooves, section.width, config, extent)
     t0 = time.perf_counter()
     overlaps = groove_overlaps(grooves, section.width, extent=extent,

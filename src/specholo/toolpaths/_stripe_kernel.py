@@ -16,6 +16,7 @@ import numba as nb
 import numpy as np
 
 from specholo.toolpaths.arcs import _biarc
+from specholo.toolpaths.grooves import measure_paths
 
 _NEAR_EDGE = 1e-12
 _SNAP = 0.02  # a step ending within this share of w from the edge ends its stripe
@@ -491,7 +492,8 @@ def chain_counts(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, poi
 def chain_fill(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point: np.ndarray,
                tangent: np.ndarray, keep: np.ndarray, ids: np.ndarray, vertex_base: np.ndarray,
                path_base: np.ndarray, first_vertex: int, vertices: np.ndarray,
-               bulges: np.ndarray, path_offsets: np.ndarray, path_ids: np.ndarray) -> None:
+               bulges: np.ndarray, path_offsets: np.ndarray, path_ids: np.ndarray,
+               box: np.ndarray, length: np.ndarray) -> None:
     """Biarc chains through each run's kept samples, straight into groove arrays.
 
     Each kept stripe of q samples becomes a path of 2q - 1 vertices (the
@@ -499,7 +501,9 @@ def chain_fill(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point
     on the kept samples with unit tangents. Run r's paths start at vertex
     ``vertex_base[r]`` and path ``path_base[r]`` of these arrays and belong to
     stipple ``ids[r]``; their offsets count from ``first_vertex``, the
-    arrays' first vertex in the whole.
+    arrays' first vertex in the whole. Run r's extent (lo_x, lo_y, hi_x, hi_y)
+    goes to ``box[r]`` (r, 4) and its paths' total length to ``length[r]``,
+    measured as :meth:`Grooves.measure` does while the run's arcs are in cache.
     """
     n = count.size
     for r in nb.prange(n):
@@ -531,3 +535,6 @@ def chain_fill(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point
             prev = j
         if prev >= 0:
             bulges[s - 1] = 0.0
+        lo_x, lo_y, hi_x, hi_y, length[r] = measure_paths(
+            vertices, bulges, path_offsets, first_vertex, path_base[r], p, s)
+        box[r, 0], box[r, 1], box[r, 2], box[r, 3] = lo_x, lo_y, hi_x, hi_y

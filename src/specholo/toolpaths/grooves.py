@@ -11,7 +11,7 @@ dot: a plunge that leaves a spherical dimple.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba as nb
 import numpy as np
@@ -47,7 +47,7 @@ def _arc_geometry(start: np.ndarray, end: np.ndarray,
 
 
 @nb.njit(cache=True, inline="always")
-def _path_length(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int) -> float:
+def path_length(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int) -> float:
     """Length of the arcs of vertices a .. b - 1, mm."""
     part = 0.0
     for i in range(a, b - 1):
@@ -69,14 +69,74 @@ def _arc_over_chord(t: float) -> float:
     return math.atan(t) * (1.0 + t2) / t
 
 
+@nb.njit(cache=True, inline="always")
+def grow_box(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int, lo_x: float,
+             lo_y: float, hi_x: float, hi_y: float) -> tuple[float, float, float, float]:
+    """The box (lo_x, lo_y, hi_x, hi_y) grown by the path of vertices a .. b - 1, its
+    arcs counted where they bulge past their ends: a circle's extreme point in
+    each axis direction counts where the arc passes it."""
+    for i in range(a, b):
+        x, y = vertices[i, 0], vertices[i, 1]
+        lo_x, hi_x = min(lo_x, x), max(hi_x, x)
+        lo_y, hi_y = min(lo_y, y), max(hi_y, y)
+        bulge = bulges[i]
+        if i + 1 >= b or bulge == 0.0:
+            continue
+        cx, cy = vertices[i + 1, 0] - x, vertices[i + 1, 1] - y
+        if abs(bulge) <= 1.0:
+            # A minor arc stays within its sagitta (|bulge| chord / 2, bounded
+            # here by the legs) of its chord: one inside the box so far,
+            # with room to spare for rounding, cannot grow it.
+            pad = 0.5 * abs(bulge) * (abs(cx) + abs(cy)) * (1.0 + 1e-6) + 1e-12
+            x2, y2 = x + cx, y + cy
+            if min(x, x2) - pad > lo_x and max(x, x2) + pad < hi_x \
+                    and min(y, y2) - pad > lo_y and max(y, y2) + pad < hi_y:
+                continue
+        offset = (1.0 - bulge * bulge) / (4.0 * bulge)
+        ox = x + 0.5 * cx - cy * offset
+        oy = y + 0.5 * cy + cx * offset
+        radius = math.sqrt(cx * cx + cy * cy) * (1.0 + bulge * bulge) / (4.0 * abs(bulge))
+        # A point of the circle is on the arc iff it lies on the bulge's side
+        # of the chord (minor and major arcs alike): no angles needed.
+        if (cx * (oy - y) - cy * (ox + radius - x)) * bulge < 0.0:
+            hi_x = max(hi_x, ox + radius)
+        if (cx * (oy - y) - cy * (ox - radius - x)) * bulge < 0.0:
+            lo_x = min(lo_x, ox - radius)
+        if (cx * (oy + radius - y) - cy * (ox - x)) * bulge < 0.0:
+            hi_y = max(hi_y, oy + radius)
+        if (cx * (oy - radius - y) - cy * (ox - x)) * bulge < 0.0:
+            lo_y = min(lo_y, oy - radius)
+    return lo_x, lo_y, hi_x, hi_y
+
+
+@nb.njit(cache=True)
+def measure_paths(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, base: int,
+                  first: int, stop: int, end: int) -> tuple[float, float, float, float, float]:
+    """Box (lo_x, lo_y, hi_x, hi_y) and total length (mm) of paths first .. stop - 1,
+    as :meth:`Grooves.measure` finds them: path q is vertices offsets[q] - base up
+    to the next path's start, the last up to ``end``.
+
+    Compiled on its own, without the caller's fast-math flags, so the figures are
+    the same to the bit however it is called.
+    """
+    lo_x = lo_y = math.inf
+    hi_x = hi_y = -math.inf
+    total = 0.0
+    for q in range(first, stop):
+        a = offsets[q] - base
+        b = offsets[q + 1] - base if q + 1 < stop else end
+        total += path_length(vertices, bulges, a, b)
+        lo_x, lo_y, hi_x, hi_y = grow_box(vertices, bulges, a, b, lo_x, lo_y, hi_x, hi_y)
+    return lo_x, lo_y, hi_x, hi_y, total
+
+
 @nb.njit(cache=True, parallel=True)
 def _extent(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
             chunks: int, lengths: np.ndarray) -> np.ndarray:
     """(2, 2) corners of the centrelines, arcs counted where they bulge past their ends.
 
-    One pass over the vertices in a few parallel chunks: a circle's extreme point
-    in each axis direction counts where the arc passes it. Each path's length
-    goes to ``lengths`` (n_paths,) on the way, unless it is empty.
+    One pass over the vertices in a few parallel chunks (:func:`grow_box`). Each
+    path's length goes to ``lengths`` (n_paths,) on the way, unless it is empty.
     """
     n_paths = offsets.size - 1
     box = np.empty((chunks, 4))
@@ -87,38 +147,8 @@ def _extent(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
         for j in range(c * n_paths // chunks, (c + 1) * n_paths // chunks):
             a, b = offsets[j], offsets[j + 1]
             if measure:
-                lengths[j] = _path_length(vertices, bulges, a, b)
-            for i in range(a, b):
-                x, y = vertices[i, 0], vertices[i, 1]
-                lo_x, hi_x = min(lo_x, x), max(hi_x, x)
-                lo_y, hi_y = min(lo_y, y), max(hi_y, y)
-                bulge = bulges[i]
-                if i + 1 >= b or bulge == 0.0:
-                    continue
-                cx, cy = vertices[i + 1, 0] - x, vertices[i + 1, 1] - y
-                if abs(bulge) <= 1.0:
-                    # A minor arc stays within its sagitta (|bulge| chord / 2, bounded
-                    # here by the legs) of its chord: one inside the box so far,
-                    # with room to spare for rounding, cannot grow it.
-                    pad = 0.5 * abs(bulge) * (abs(cx) + abs(cy)) * (1.0 + 1e-6) + 1e-12
-                    x2, y2 = x + cx, y + cy
-                    if min(x, x2) - pad > lo_x and max(x, x2) + pad < hi_x \
-                            and min(y, y2) - pad > lo_y and max(y, y2) + pad < hi_y:
-                        continue
-                offset = (1.0 - bulge * bulge) / (4.0 * bulge)
-                ox = x + 0.5 * cx - cy * offset
-                oy = y + 0.5 * cy + cx * offset
-                radius = math.sqrt(cx * cx + cy * cy) * (1.0 + bulge * bulge) / (4.0 * abs(bulge))
-                # A point of the circle is on the arc iff it lies on the bulge's side
-                # of the chord (minor and major arcs alike): no angles needed.
-                if (cx * (oy - y) - cy * (ox + radius - x)) * bulge < 0.0:
-                    hi_x = max(hi_x, ox + radius)
-                if (cx * (oy - y) - cy * (ox - radius - x)) * bulge < 0.0:
-                    lo_x = min(lo_x, ox - radius)
-                if (cx * (oy + radius - y) - cy * (ox - x)) * bulge < 0.0:
-                    hi_y = max(hi_y, oy + radius)
-                if (cx * (oy - radius - y) - cy * (ox - x)) * bulge < 0.0:
-                    lo_y = min(lo_y, oy - radius)
+                lengths[j] = path_length(vertices, bulges, a, b)
+            lo_x, lo_y, hi_x, hi_y = grow_box(vertices, bulges, a, b, lo_x, lo_y, hi_x, hi_y)
         box[c, 0], box[c, 1], box[c, 2], box[c, 3] = lo_x, lo_y, hi_x, hi_y
     out = np.empty((2, 2))
     out[0, 0], out[0, 1] = box[:, 0].min(), box[:, 1].min()
@@ -179,12 +209,15 @@ class Grooves:
         offsets: (n_paths + 1,) start of each path in ``vertices``; path j is
             ``vertices[offsets[j]:offsets[j + 1]]``.
         stipple: (n_paths,) id of the stipple each path draws.
+        known: the :meth:`extent` (2, 2) and total length (mm), where whoever
+            made the arrays found them on the way (None: measured when asked).
     """
 
     vertices: np.ndarray
     bulges: np.ndarray
     offsets: np.ndarray
     stipple: np.ndarray
+    known: tuple[np.ndarray, float] | None = field(default=None, compare=False, repr=False)
 
     @classmethod
     def empty(cls) -> Grooves:
@@ -244,7 +277,7 @@ class Grooves:
 
     def total_length(self) -> float:
         """Total groove length in mm (dots count as 0)."""
-        return float(self.segments().lengths().sum())
+        return self.extent_and_length()[1]
 
     def bounds(self) -> np.ndarray:
         """(2, 2) lower-left and upper-right corners of all vertices (mm)."""
@@ -255,7 +288,15 @@ class Grooves:
     def extent(self) -> np.ndarray:
         """(2, 2) corners of the centrelines, arcs included where they bulge past
         their end points (the tool follows the arc, not its chord); zeros if empty."""
-        return self.measure(lengths=False)[0]
+        return self.known[0].copy() if self.known is not None else self.measure(False)[0]
+
+    def extent_and_length(self) -> tuple[np.ndarray, float]:
+        """:meth:`extent` (2, 2) and the total length in mm, from one pass over the
+        arcs (none if known)."""
+        if self.known is not None:
+            return self.known[0].copy(), self.known[1]
+        extent, lengths = self.measure()
+        return extent, float(lengths.sum())
 
     def measure(self, lengths: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`extent` and, in the same pass over the arcs, each path's length.
@@ -313,6 +354,10 @@ class GroovesBuilder:
         self._stipple = np.zeros(0, dtype=np.int64)
         self._n_vertices = 0
         self._n_paths = 0
+        # Box (lo_x, lo_y, hi_x, hi_y) and length of the parts, while every part's are known.
+        self._box: list[float] | None = [math.inf, math.inf, -math.inf, -math.inf]
+        self._length = 0.0
+        self._noted = True
 
     def reserve(self, vertices: int, paths: int) -> None:
         """Room for at least this many vertices and paths in all (before any part)."""
@@ -344,6 +389,9 @@ class GroovesBuilder:
             offsets (paths,) (indices into the whole, so that first vertex
             plus the part's own) and stipples (paths,).
         """
+        if not self._noted:
+            self._box = None  # the previous part was never noted
+        self._noted = False
         v0, p0 = self._n_vertices, self._n_paths
         v1, p1 = v0 + vertices, p0 + paths
         self._vertices = self._room(self._vertices, v1)
@@ -354,6 +402,16 @@ class GroovesBuilder:
         return (v0, self._vertices[v0:v1], self._bulges[v0:v1], self._offsets[p0:p1],
                 self._stipple[p0:p1])
 
+    def note(self, box: np.ndarray, length: float) -> None:
+        """Record the extent of the part last extended, as lo_x, lo_y, hi_x, hi_y
+        (4,), and its total length (mm), so that :meth:`build` need not measure."""
+        if self._box is not None and not self._noted:
+            lo_x, lo_y, hi_x, hi_y = (float(v) for v in box)
+            b = self._box
+            self._box = [min(b[0], lo_x), min(b[1], lo_y), max(b[2], hi_x), max(b[3], hi_y)]
+            self._length += float(length)
+        self._noted = True
+
     def add(self, part: Grooves) -> None:
         """Append a part's paths after those already added."""
         if not part.n_paths:
@@ -361,6 +419,8 @@ class GroovesBuilder:
         base, v, b, o, s = self.extend(len(part.vertices), part.n_paths)
         v[:], b[:], s[:] = part.vertices, part.bulges, part.stipple
         o[:] = part.offsets[:-1] + base
+        extent, length = part.extent_and_length()
+        self.note(extent.ravel(), length)
 
     def build(self) -> Grooves:
         """The grooves added so far (the builder must not be used afterwards)."""
@@ -373,7 +433,10 @@ class GroovesBuilder:
             if len(a) > n:
                 a.resize((n,) + a.shape[1:], refcheck=False)  # shrinks in place
             arrays.append(a)
-        out = Grooves(*arrays)
+        known = None
+        if self._box is not None and self._noted and npath:
+            known = (np.array(self._box).reshape(2, 2), self._length)
+        out = Grooves(arrays[0], arrays[1], arrays[2], arrays[3], known=known)
         self.__init__()  # type: ignore[misc]
         return out
 

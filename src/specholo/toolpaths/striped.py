@@ -258,7 +258,11 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
         # Run r's vertices start at vertex_base[r] of the part, its paths' offsets
         # count from the first vertex of the whole.
         vertex_base = np.cumsum(n_vertices) - n_vertices
+        box, length = np.empty((len(idx), 4)), np.empty(len(idx))
         kernel.chain_fill(offsets, count, stripe, pts, tangent, keep, far.stipple[idx],
-                          vertex_base, path_base, base, v, b, o, s)
+                          vertex_base, path_base, base, v, b, o, s, box, length)
+        # The extent and length, found on the way, spare a pass over the grooves.
+        out.note(np.array([box[:, 0].min(), box[:, 1].min(), box[:, 2].max(),
+                           box[:, 3].max()]), float(length.sum()))
     out.add(dots_for(near, setup))
     return out.build(), dropped
