@@ -86,34 +86,33 @@ class Overlaps:
         }
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, parallel=True)
 def _sample_arcs(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np.ndarray,
                  step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points along arcs in order, each path's end point included (see below)."""
     k = bulge.size
     count = np.empty(k, np.int64)
     length = np.empty(k)
-    for i in range(k):
+    for i in nb.prange(k):
         cx, cy = end[i, 0] - start[i, 0], end[i, 1] - start[i, 1]
         chord = math.sqrt(cx * cx + cy * cy)
         sweep = 4.0 * math.atan(abs(bulge[i]))
         length[i] = chord * sweep / (2.0 * math.sin(0.5 * sweep)) if sweep > 1e-12 else chord
-        count[i] = max(1, int(math.ceil(length[i] / step)))
-    last = np.empty(k, np.bool_)
-    for i in range(k):
-        last[i] = i == k - 1 or path[i + 1] != path[i]
-    total = 0
-    for i in range(k):
-        total += count[i] + (1 if last[i] else 0)
+        last = i == k - 1 or path[i + 1] != path[i]
+        # Points of the arc, and its path's end point after the last arc.
+        count[i] = max(1, int(math.ceil(length[i] / step))) + (1 if last else 0)
+    first = np.cumsum(count) - count
+    total = first[-1] + count[-1] if k else 0
     pts = np.empty((total, 2))
     owner = np.empty(total, np.int64)
     share = np.zeros(total)
-    q = 0
-    for i in range(k):
+    for i in nb.prange(k):
         b = bulge[i]
         sx, sy, ex, ey = start[i, 0], start[i, 1], end[i, 0], end[i, 1]
-        n = count[i]
-        for j in range(n + (1 if last[i] else 0)):
+        last = i == k - 1 or path[i + 1] != path[i]
+        n = count[i] - (1 if last else 0)
+        q = first[i]
+        for j in range(count[i]):
             u = j / n
             # A point on the arc from its chord: bulge b turns the chord by
             # 2 atan(b u)-ish; use the exact form via the sagitta of the sub-arc.

@@ -40,6 +40,8 @@ _CHUNK = 1 << 20
 # Chunks traced at once: numpy's big operations and part of embree's work
 # release the GIL, so threads share the ray casts (1.2-1.3x on two cores).
 _WORKERS = max(1, min(4, os.cpu_count() or 1))
+# Fewest rays worth a chunk of their own.
+_MIN_SHARED = 1 << 14
 
 
 def _check(points: np.ndarray, normals: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -84,23 +86,27 @@ def visible(
     eyes = np.ascontiguousarray(np.broadcast_to(np.asarray(eyes, dtype=np.float64),
                                                 points.shape))
     result = np.zeros(len(points), dtype=bool)
+    # At least one chunk per worker once there are enough rays to share.
+    chunk = min(_CHUNK, max(_MIN_SHARED, -(-len(points) // _WORKERS)))
 
     def trace(lo: int) -> None:
-        sl = slice(lo, lo + _CHUNK)
+        sl = slice(lo, lo + chunk)
         result[sl] = _visible_rays(mesh, points[sl], normals[sl], eyes[sl], 0)
 
-    _each(trace, range(0, len(points), _CHUNK))
+    _each(trace, range(0, len(points), chunk), mesh)
     return result
 
 
-def _each(trace: Callable[[int], None], starts: range) -> None:
-    """trace(start) for every start: the first alone (it builds the mesh's ray
-    index, which the threads then share), the rest in threads."""
-    if len(starts):
-        trace(starts[0])
-    if len(starts) > 1:
-        with ThreadPoolExecutor(_WORKERS) as pool:
-            list(pool.map(trace, starts[1:]))
+def _each(trace: Callable[[int], None], starts: range, mesh: trimesh.Trimesh) -> None:
+    """trace(start) for every start, in threads, which share the mesh's ray index
+    (built first, so that no thread waits for it)."""
+    if len(starts) <= 1:
+        for lo in starts:
+            trace(lo)
+        return
+    _scene(mesh)
+    with ThreadPoolExecutor(_WORKERS) as pool:
+        list(pool.map(trace, starts))
 
 
 class _Scene:
@@ -324,7 +330,7 @@ def visible_intervals(
         m = sl.stop - sl.start
         seen[sl] = _visible_rays(mesh, points[sl], normals[sl], eyes, g).reshape(m, g)
 
-    _each(trace, range(0, n, per_chunk))
+    _each(trace, range(0, n, per_chunk), mesh)
 
     # Narrow every visible/hidden change on the grid, all at once.
     ti, tj = np.nonzero(seen[:, 1:] != seen[:, :-1])
