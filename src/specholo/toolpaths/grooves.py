@@ -72,16 +72,15 @@ def _arc_over_chord(t: float) -> float:
 @nb.njit(cache=True, inline="always")
 def grow_box(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int, lo_x: float,
              lo_y: float, hi_x: float, hi_y: float) -> tuple[float, float, float, float]:
-    """The box (lo_x, lo_y, hi_x, hi_y) grown by the path of vertices a .. b - 1, its
-    arcs counted where they bulge past their ends: a circle's extreme point in
-    each axis direction counts where the arc passes it."""
-    for i in range(a, b):
-        x, y = vertices[i, 0], vertices[i, 1]
-        lo_x, hi_x = min(lo_x, x), max(hi_x, x)
-        lo_y, hi_y = min(lo_y, y), max(hi_y, y)
+    """The box (lo_x, lo_y, hi_x, hi_y) grown by the arcs of the path of vertices
+    a .. b - 1 where they bulge past their ends (the box holds the vertices
+    already): a circle's extreme point in each axis direction counts where the
+    arc passes it."""
+    for i in range(a, b - 1):
         bulge = bulges[i]
-        if i + 1 >= b or bulge == 0.0:
+        if bulge == 0.0:
             continue
+        x, y = vertices[i, 0], vertices[i, 1]
         cx, cy = vertices[i + 1, 0] - x, vertices[i + 1, 1] - y
         if abs(bulge) <= 1.0:
             # A minor arc stays within its sagitta (|bulge| chord / 2, bounded
@@ -122,6 +121,11 @@ def measure_paths(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
     lo_x = lo_y = math.inf
     hi_x = hi_y = -math.inf
     total = 0.0
+    # The vertices' box first: few arcs bulge past it, and the others need no
+    # look at their circles (:func:`grow_box`).
+    for i in range(offsets[first] - base if first < stop else end, end):
+        lo_x, hi_x = min(lo_x, vertices[i, 0]), max(hi_x, vertices[i, 0])
+        lo_y, hi_y = min(lo_y, vertices[i, 1]), max(hi_y, vertices[i, 1])
     for q in range(first, stop):
         a = offsets[q] - base
         b = offsets[q + 1] - base if q + 1 < stop else end
@@ -148,6 +152,9 @@ def _extent(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
             a, b = offsets[j], offsets[j + 1]
             if measure:
                 lengths[j] = path_length(vertices, bulges, a, b)
+            for i in range(a, b):
+                lo_x, hi_x = min(lo_x, vertices[i, 0]), max(hi_x, vertices[i, 0])
+                lo_y, hi_y = min(lo_y, vertices[i, 1]), max(hi_y, vertices[i, 1])
             lo_x, lo_y, hi_x, hi_y = grow_box(vertices, bulges, a, b, lo_x, lo_y, hi_x, hi_y)
         box[c, 0], box[c, 1], box[c, 2], box[c, 3] = lo_x, lo_y, hi_x, hi_y
     out = np.empty((2, 2))
