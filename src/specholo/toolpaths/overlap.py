@@ -112,19 +112,22 @@ def _sample_arcs(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np
         last = i == k - 1 or path[i + 1] != path[i]
         n = count[i] - (1 if last else 0)
         q = first[i]
+        # A point on the arc from its chord: bulge b turns the chord by
+        # 2 atan(b u)-ish; use the exact form via the sagitta of the sub-arc
+        # (the arc's own constants found once, not per point).
+        half = 2.0 * math.atan(b)  # half the sweep
+        cx, cy = ex - sx, ey - sy
+        c = math.sqrt(cx * cx + cy * cy)
+        heading = math.atan2(cy, cx) - half
+        sin_half = math.sin(half)
         for j in range(count[i]):
             u = j / n
-            # A point on the arc from its chord: bulge b turns the chord by
-            # 2 atan(b u)-ish; use the exact form via the sagitta of the sub-arc.
-            half = 2.0 * math.atan(b)  # half the sweep
             if abs(b) < 1e-9:
                 x, y = sx + u * (ex - sx), sy + u * (ey - sy)
             else:
                 # Rotate the chord direction by -half, walk the sub-arc's chord.
-                cx, cy = ex - sx, ey - sy
-                c = math.sqrt(cx * cx + cy * cy)
-                ang = math.atan2(cy, cx) - half + u * half
-                sub = c * math.sin(u * half) / math.sin(half)
+                ang = heading + u * half
+                sub = c * math.sin(u * half) / sin_half
                 x, y = sx + sub * math.cos(ang), sy + sub * math.sin(ang)
             pts[q, 0], pts[q, 1] = x, y
             owner[q] = path[i]
@@ -289,6 +292,31 @@ def _crossed(pts: np.ndarray, stipple: np.ndarray, width: float, query: np.ndarr
     return out
 
 
+@nb.njit(cache=True)
+def _budget(stipple: np.ndarray, n_pairs: int, min_pairs: int) -> int:
+    """Sample pairs each pair of neighbouring paths may compare: the whole budget
+    shared out, at least ``min_pairs``."""
+    pairs_of = 0
+    for p in range(n_pairs):
+        if stipple[p] == stipple[p + 1]:
+            pairs_of += 1
+    return max(min_pairs, MAX_PAIRS // max(pairs_of, 1))
+
+
+@nb.njit(cache=True, inline="always")
+def _gap(pts: np.ndarray, first: np.ndarray, p: int, budget: int) -> float:
+    """Closest distance between path p's points and path p + 1's."""
+    best = np.inf  # squared: one root per pair of paths
+    # Two very long paths are compared on every few samples (bounded work).
+    pairs = (first[p + 1] - first[p]) * (first[p + 2] - first[p + 1])
+    stride = max(1, int(math.ceil(math.sqrt(pairs / budget))))
+    for i in range(first[p], first[p + 1], stride):
+        for j in range(first[p + 1], first[p + 2], stride):
+            dx, dy = pts[j, 0] - pts[i, 0], pts[j, 1] - pts[i, 1]
+            best = min(best, dx * dx + dy * dy)
+    return math.sqrt(best)
+
+
 @nb.njit(cache=True, parallel=True)
 def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, limit: float,
                     min_pairs: int = MIN_PAIRS) -> tuple[int, float]:
@@ -299,12 +327,7 @@ def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, lim
     Counted in blocks of pairs, not kept per pair: a million stipples make ~4e7.
     """
     n_pairs = max(first.size - 2, 0)
-    # Every pair of neighbours gets its share of the budget, at least MIN_PAIRS.
-    pairs_of = 0
-    for p in range(n_pairs):
-        if stipple[p] == stipple[p + 1]:
-            pairs_of += 1
-    budget = max(min_pairs, MAX_PAIRS // max(pairs_of, 1))
+    budget = _budget(stipple, n_pairs, min_pairs)
     blocks = min(n_pairs, 4096)
     near = np.zeros(blocks, np.int64)
     closest = np.full(blocks, np.inf)
@@ -312,20 +335,41 @@ def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, lim
         for p in range(b * n_pairs // blocks, (b + 1) * n_pairs // blocks):
             if stipple[p] != stipple[p + 1]:
                 continue
-            best = np.inf  # squared: one root per pair of paths
-            # Two very long paths are compared on every few samples (bounded work).
-            pairs = (first[p + 1] - first[p]) * (first[p + 2] - first[p + 1])
-            stride = max(1, int(math.ceil(math.sqrt(pairs / budget))))
-            for i in range(first[p], first[p + 1], stride):
-                for j in range(first[p + 1], first[p + 2], stride):
-                    dx, dy = pts[j, 0] - pts[i, 0], pts[j, 1] - pts[i, 1]
-                    best = min(best, dx * dx + dy * dy)
-            gap = math.sqrt(best)
+            gap = _gap(pts, first, p, budget)
             if gap > RETRACE:
                 closest[b] = min(closest[b], gap)
                 if gap < limit:
                     near[b] += 1
     return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf
+
+
+@nb.njit(cache=True, parallel=True)
+def _scan(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, stipple: np.ndarray,
+          limit: float, chosen: np.ndarray, x0: float, y0: float, side: float,
+          reach: float) -> tuple[int, float, np.ndarray]:
+    """:func:`_neighbour_gaps` of the vertices (with no floor on the pairs'
+    budget: the work stays bounded) and, in the same pass over the grooves,
+    which paths may come within ``reach`` of a chosen window (n_paths,) (see
+    :func:`_near_windows`)."""
+    n_paths = offsets.size - 1
+    n_pairs = max(n_paths - 1, 0)
+    budget = _budget(stipple, n_pairs, 1)
+    blocks = min(n_paths, 4096)
+    near = np.zeros(blocks, np.int64)
+    closest = np.full(blocks, np.inf)
+    passes = np.zeros(n_paths, np.bool_)
+    for b in nb.prange(blocks):
+        for p in range(b * n_paths // blocks, (b + 1) * n_paths // blocks):
+            passes[p] = _path_near(vertices, bulges, offsets[p], offsets[p + 1], chosen, x0,
+                                   y0, side, reach)
+            if p >= n_pairs or stipple[p] != stipple[p + 1]:
+                continue
+            gap = _gap(vertices, offsets, p, budget)
+            if gap > RETRACE:
+                closest[b] = min(closest[b], gap)
+                if gap < limit:
+                    near[b] += 1
+    return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf, passes
 
 
 @nb.njit(cache=True, parallel=True)
@@ -385,30 +429,32 @@ def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
     return out
 
 
-@nb.njit(cache=True, parallel=True)
-def _in_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
-                chosen: np.ndarray, x0: float, y0: float, side: float,
-                reach: float) -> np.ndarray:
+@nb.njit(cache=True, inline="always")
+def _path_near(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int, chosen: np.ndarray,
+               x0: float, y0: float, side: float, reach: float) -> bool:
+    """Whether the path of vertices a .. b - 1 may come within ``reach`` of a chosen
+    window: its box, padded by its largest sagitta (a bound: half the bulge times
+    the chord's x and y legs). Most paths on a large plate pass no chosen window,
+    and their arcs need no look (nor a flag per vertex)."""
+    lo_x = hi_x = vertices[a, 0]
+    lo_y = hi_y = vertices[a, 1]
+    sag = 0.0
+    for i in range(a + 1, b):
+        x, y = vertices[i, 0], vertices[i, 1]
+        lo_x, hi_x = min(lo_x, x), max(hi_x, x)
+        lo_y, hi_y = min(lo_y, y), max(hi_y, y)
+        sag = max(sag, 0.5 * abs(bulges[i - 1]) * (abs(x - vertices[i - 1, 0])
+                                                   + abs(y - vertices[i - 1, 1])))
+    return _touches(chosen, lo_x, lo_y, hi_x, hi_y, reach + sag, x0, y0, side)
+
+
+@nb.njit(cache=True)
+def _near_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
+                  passes: np.ndarray, chosen: np.ndarray, x0: float, y0: float, side: float,
+                  reach: float) -> np.ndarray:
     """(q,) indices, in order, of the vertices starting an arc (or a dot) that comes
     within ``reach`` of a chosen window (chosen[i, j]: the window at x0 + i side,
-    y0 + j side)."""
-    n_paths = offsets.size - 1
-    # The path's box first, padded by its largest sagitta (a bound: half the
-    # bulge times the chord's x and y legs): most paths on a large plate pass no
-    # chosen window, and their arcs need no look (nor a flag per vertex).
-    passes = np.zeros(n_paths, np.bool_)
-    for j in nb.prange(n_paths):
-        a, b = offsets[j], offsets[j + 1]
-        lo_x = hi_x = vertices[a, 0]
-        lo_y = hi_y = vertices[a, 1]
-        sag = 0.0
-        for i in range(a + 1, b):
-            x, y = vertices[i, 0], vertices[i, 1]
-            lo_x, hi_x = min(lo_x, x), max(hi_x, x)
-            lo_y, hi_y = min(lo_y, y), max(hi_y, y)
-            sag = max(sag, 0.5 * abs(bulges[i - 1]) * (abs(x - vertices[i - 1, 0])
-                                                       + abs(y - vertices[i - 1, 1])))
-        passes[j] = _touches(chosen, lo_x, lo_y, hi_x, hi_y, reach + sag, x0, y0, side)
+    y0 + j side), among the paths ``passes`` (n_paths,) flags (:func:`_path_near`)."""
     near = np.flatnonzero(passes)
     out = np.empty((offsets[near + 1] - offsets[near]).sum(), np.int64)
     q = 0
@@ -461,16 +507,10 @@ def _in_chosen(pts: np.ndarray, chosen: np.ndarray, x0: float, y0: float,
     return out[:q].copy()
 
 
-def _windowed(grooves: Grooves, width: float, step: float, total: float, lo: np.ndarray,
-              hi: np.ndarray, rng: np.random.Generator) -> tuple[int, float]:
-    """Crossings and crossed length of a large design, counted in random windows.
-
-    Square windows of side :data:`WINDOW` are drawn at random from a grid over
-    the grooves; every groove passing near one is sampled at ``step`` and
-    checked in full there, and the counts are scaled by all windows over those
-    drawn (an unbiased estimate, whatever the design's size). ``lo``, ``hi``:
-    the grooves' extent.
-    """
+def _windows(width: float, step: float, total: float, lo: np.ndarray, hi: np.ndarray,
+             rng: np.random.Generator) -> tuple[np.ndarray, int]:
+    """The random windows a large design's crossings are counted in: chosen
+    (nx, ny) over a grid of side :data:`WINDOW` from ``lo``, and how many."""
     nx, ny = (int(v) for v in np.ceil((hi - lo) / WINDOW).clip(1))
     area = (hi[0] - lo[0] + width) * (hi[1] - lo[1] + width)
     # Samples a window holds (with its margins), from the grooves' mean density.
@@ -478,12 +518,27 @@ def _windowed(grooves: Grooves, width: float, step: float, total: float, lo: np.
     k = int(min(nx * ny, max(MIN_WINDOWS, WINDOW_SAMPLES // max(per_window, 1.0))))
     flat = np.zeros(nx * ny, dtype=np.bool_)
     flat[rng.choice(nx * ny, k, replace=False)] = True
-    chosen = flat.reshape(nx, ny)
+    return flat.reshape(nx, ny), k
+
+
+def _windowed(grooves: Grooves, width: float, step: float, lo: np.ndarray,
+              chosen: np.ndarray, k: int, passes: np.ndarray,
+              rng: np.random.Generator) -> tuple[int, float]:
+    """Crossings and crossed length of a large design, counted in random windows.
+
+    Square windows of side :data:`WINDOW` are drawn at random from a grid over
+    the grooves (:func:`_windows`: ``chosen``, k of them); every groove passing
+    near one (``passes``, per path, from :func:`_scan`) is sampled at ``step``
+    and checked in full there, and the counts are scaled by all windows over
+    those drawn (an unbiased estimate, whatever the design's size). ``lo``: the
+    grooves' lower corner.
+    """
+    nx, ny = chosen.shape
     f = np.ascontiguousarray
     verts, bulges = f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float)
     offsets = f(grooves.offsets, dtype=np.int64)
-    near = _in_windows(verts, bulges, offsets, chosen, float(lo[0]), float(lo[1]), WINDOW,
-                       width + 2.0 * step)
+    near = _near_windows(verts, bulges, offsets, passes, chosen, float(lo[0]), float(lo[1]),
+                         WINDOW, width + 2.0 * step)
     path = np.searchsorted(offsets, near, side="right") - 1
     single = offsets[path + 1] - offsets[path] == 1
     arcs, dots = near[~single], near[single]
@@ -589,15 +644,18 @@ def _large_overlaps(grooves: Grooves, width: float, tolerance: float, total: flo
     crossed length are counted in random windows (:func:`_windowed`).
     """
     f = np.ascontiguousarray
-    stipple = f(grooves.stipple, dtype=np.int64)
-    # The pairs' budget is shared out with no floor: the work stays bounded.
-    near, closest = _neighbour_gaps(f(grooves.vertices, dtype=float),
-                                    f(grooves.offsets, dtype=np.int64), stipple,
-                                    width - tolerance, 1)
+    rng = rng if rng is not None else np.random.default_rng(0)
     lo, hi = extent
+    chosen, k = _windows(width - tolerance, step, total, lo, hi, rng)
+    # One pass over the grooves for the neighbours' gaps and the windows' paths.
+    near, closest, passes = _scan(
+        f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float),
+        f(grooves.offsets, dtype=np.int64), f(grooves.stipple, dtype=np.int64),
+        width - tolerance, chosen, float(lo[0]), float(lo[1]), WINDOW,
+        width - tolerance + 2.0 * step)
     area = float((hi[0] - lo[0] + width) * (hi[1] - lo[1] + width))
-    crossings, crossed = _windowed(grooves, width - tolerance, step, total, lo, hi,
-                                   rng if rng is not None else np.random.default_rng(0))
+    crossings, crossed = _windowed(grooves, width - tolerance, step, lo, chosen, k, passes,
+                                   rng)
     return Overlaps(width=width, neighbours=near, closest_neighbours=closest,
                     crossings=crossings, crossed_length=crossed, total_length=total,
                     coverage=total * width / area)
