@@ -317,6 +317,20 @@ def _gap(pts: np.ndarray, first: np.ndarray, p: int, budget: int) -> float:
     return math.sqrt(best)
 
 
+@nb.njit(cache=True, inline="always")
+def _tally(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, p: int, budget: int,
+           limit: float, near: np.ndarray, closest: np.ndarray, b: int) -> None:
+    """Path p's gap to path p + 1, when both draw one stipple, into block b's count
+    of gaps between :data:`RETRACE` and ``limit`` and its smallest beyond it."""
+    if stipple[p] != stipple[p + 1]:
+        return
+    gap = _gap(pts, first, p, budget)
+    if gap > RETRACE:
+        closest[b] = min(closest[b], gap)
+        if gap < limit:
+            near[b] += 1
+
+
 @nb.njit(cache=True, parallel=True)
 def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, limit: float,
                     min_pairs: int = MIN_PAIRS) -> tuple[int, float]:
@@ -333,13 +347,7 @@ def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, lim
     closest = np.full(blocks, np.inf)
     for b in nb.prange(blocks):
         for p in range(b * n_pairs // blocks, (b + 1) * n_pairs // blocks):
-            if stipple[p] != stipple[p + 1]:
-                continue
-            gap = _gap(pts, first, p, budget)
-            if gap > RETRACE:
-                closest[b] = min(closest[b], gap)
-                if gap < limit:
-                    near[b] += 1
+            _tally(pts, first, stipple, p, budget, limit, near, closest, b)
     return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf
 
 
@@ -362,13 +370,8 @@ def _scan(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, stipple
         for p in range(b * n_paths // blocks, (b + 1) * n_paths // blocks):
             passes[p] = _path_near(vertices, bulges, offsets[p], offsets[p + 1], chosen, x0,
                                    y0, side, reach)
-            if p >= n_pairs or stipple[p] != stipple[p + 1]:
-                continue
-            gap = _gap(vertices, offsets, p, budget)
-            if gap > RETRACE:
-                closest[b] = min(closest[b], gap)
-                if gap < limit:
-                    near[b] += 1
+            if p < n_pairs:
+                _tally(vertices, offsets, stipple, p, budget, limit, near, closest, b)
     return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf, passes
 
 
