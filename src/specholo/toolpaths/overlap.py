@@ -38,7 +38,7 @@ WINDOW = 0.5
 WINDOW_SAMPLES = 4_000_000
 MIN_WINDOWS = 50
 #: Most samples in the windows whose crossings are counted.
-MAX_QUERIES = 50_000
+MAX_QUERIES = 15_000
 
 
 @dataclass(frozen=True)
@@ -87,28 +87,48 @@ class Overlaps:
 
 
 @nb.njit(cache=True, parallel=True)
-def _sample_arcs(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np.ndarray,
-                 step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Points along arcs in order, each path's end point included (see below)."""
-    k = bulge.size
+def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, path: np.ndarray,
+                 step: float, dots: np.ndarray,
+                 dot_path: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points along arcs in order, each path's end point included, then the dots.
+
+    Args:
+        vertices (m, 2), bulges (m,): the grooves' vertices.
+        arcs (k,): the vertices starting the arcs sampled, and path (k,) their
+            paths (a path's arcs consecutive).
+        step: most distance between points, mm.
+        dots (d,): vertices of dots, appended as they are, and dot_path (d,)
+            their paths.
+
+    Returns:
+        points (s, 2), the path of each (s,) and the groove length each stands
+        for (s,), the arcs' in order and then the dots (no length).
+    """
+    k = arcs.size
     count = np.empty(k, np.int64)
     length = np.empty(k)
     for i in nb.prange(k):
-        cx, cy = end[i, 0] - start[i, 0], end[i, 1] - start[i, 1]
+        a = arcs[i]
+        cx, cy = vertices[a + 1, 0] - vertices[a, 0], vertices[a + 1, 1] - vertices[a, 1]
         chord = math.sqrt(cx * cx + cy * cy)
-        sweep = 4.0 * math.atan(abs(bulge[i]))
+        sweep = 4.0 * math.atan(abs(bulges[a]))
         length[i] = chord * sweep / (2.0 * math.sin(0.5 * sweep)) if sweep > 1e-12 else chord
         last = i == k - 1 or path[i + 1] != path[i]
         # Points of the arc, and its path's end point after the last arc.
         count[i] = max(1, int(math.ceil(length[i] / step))) + (1 if last else 0)
     first = np.cumsum(count) - count
     total = first[-1] + count[-1] if k else 0
-    pts = np.empty((total, 2))
-    owner = np.empty(total, np.int64)
-    share = np.zeros(total)
+    # Written once, dots included: fresh pages are slow to fault, so no second copy.
+    pts = np.empty((total + dots.size, 2))
+    owner = np.empty(total + dots.size, np.int64)
+    share = np.zeros(total + dots.size)
+    for i in nb.prange(dots.size):
+        pts[total + i, 0], pts[total + i, 1] = vertices[dots[i], 0], vertices[dots[i], 1]
+        owner[total + i] = dot_path[i]
     for i in nb.prange(k):
-        b = bulge[i]
-        sx, sy, ex, ey = start[i, 0], start[i, 1], end[i, 0], end[i, 1]
+        a = arcs[i]
+        b = bulges[a]
+        sx, sy, ex, ey = vertices[a, 0], vertices[a, 1], vertices[a + 1, 0], vertices[a + 1, 1]
         last = i == k - 1 or path[i + 1] != path[i]
         n = count[i] - (1 if last else 0)
         q = first[i]
@@ -144,12 +164,16 @@ def sample_centrelines(grooves: Grooves,
         points (s, 2), the path of each (s,) and the groove length each stands
         for (s,), in path order.
     """
-    seg = grooves.segments()
-    dots, dot_path = grooves.dots()
-    pts, path, share = _sample_arcs(seg.start, seg.end, seg.bulge, seg.path, step)
-    pts = np.concatenate([pts, dots.reshape(-1, 2)])
-    path = np.concatenate([path, dot_path])
-    share = np.concatenate([share, np.zeros(len(dot_path))])
+    f = np.ascontiguousarray
+    offsets = np.asarray(grooves.offsets, dtype=np.int64)
+    last = np.zeros(len(grooves.vertices), dtype=bool)
+    last[offsets[1:] - 1] = True
+    arcs = np.flatnonzero(~last)
+    path_of = np.searchsorted(offsets, arcs, side="right") - 1
+    dot_path = np.flatnonzero(grooves.is_dot)
+    pts, path, share = _sample_arcs(f(grooves.vertices, dtype=float),
+                                    f(grooves.bulges, dtype=float), arcs, path_of, step,
+                                    offsets[dot_path], dot_path)
     if np.all(path[1:] >= path[:-1]):
         return pts, path, share
     order = np.argsort(path, kind="stable")
@@ -550,11 +574,8 @@ def _windowed(grooves: Grooves, width: float, step: float, lo: np.ndarray,
                                       | (np.diff(path[~single]) != 0)])) - 1
     owner = np.concatenate([np.asarray(grooves.stipple)[path[~single]][
         np.flatnonzero(np.diff(np.concatenate([[-1], piece])))], grooves.stipple[path[single]]])
-    pts, piece_of, share = _sample_arcs(verts[arcs], verts[arcs + 1], bulges[arcs],
-                                        piece.astype(np.int64), step)
-    pts = np.concatenate([pts, verts[dots]])
-    piece_of = np.concatenate([piece_of, piece.max(initial=-1) + 1 + np.arange(len(dots))])
-    share = np.concatenate([share, np.zeros(len(dots))])
+    pts, piece_of, share = _sample_arcs(verts, bulges, arcs, piece.astype(np.int64), step,
+                                        dots, piece.max(initial=-1) + 1 + np.arange(len(dots)))
     if len(pts) == 0:
         return 0, 0.0
     query = _in_chosen(pts, chosen, float(lo[0]), float(lo[1]), WINDOW)
