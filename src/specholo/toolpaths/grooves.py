@@ -265,17 +265,19 @@ class Grooves:
         """(n_paths,) True for single-vertex paths (dimples)."""
         return self.path_sizes == 1
 
-    def segments(self) -> Segments:
-        """All arcs of all paths as flat arrays."""
-        m = len(self.vertices)
-        path_of_vertex = np.repeat(np.arange(self.n_paths), self.path_sizes)
-        last = np.zeros(m, dtype=bool)
+    def arcs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The first vertex (k,) and path (k,) of every arc (every vertex but a
+        path's last starts one)."""
+        last = np.zeros(len(self.vertices), dtype=bool)
         last[self.offsets[1:] - 1] = True
         first = np.flatnonzero(~last)
-        return Segments(
-            self.vertices[first], self.vertices[first + 1], self.bulges[first],
-            path_of_vertex[first],
-        )
+        return first, np.repeat(np.arange(self.n_paths), self.path_sizes)[first]
+
+    def segments(self) -> Segments:
+        """All arcs of all paths as flat arrays."""
+        first, path = self.arcs()
+        return Segments(self.vertices[first], self.vertices[first + 1], self.bulges[first],
+                        path)
 
     def dots(self) -> tuple[np.ndarray, np.ndarray]:
         """Dimples: positions (k, 2) and path indices (k,)."""

@@ -165,15 +165,12 @@ def sample_centrelines(grooves: Grooves,
         for (s,), in path order.
     """
     f = np.ascontiguousarray
-    offsets = np.asarray(grooves.offsets, dtype=np.int64)
-    last = np.zeros(len(grooves.vertices), dtype=bool)
-    last[offsets[1:] - 1] = True
-    arcs = np.flatnonzero(~last)
-    path_of = np.searchsorted(offsets, arcs, side="right") - 1
+    arcs, path_of = grooves.arcs()
     dot_path = np.flatnonzero(grooves.is_dot)
     pts, path, share = _sample_arcs(f(grooves.vertices, dtype=float),
                                     f(grooves.bulges, dtype=float), arcs, path_of, step,
-                                    offsets[dot_path], dot_path)
+                                    np.asarray(grooves.offsets, dtype=np.int64)[dot_path],
+                                    dot_path)
     if np.all(path[1:] >= path[:-1]):
         return pts, path, share
     order = np.argsort(path, kind="stable")
