@@ -210,3 +210,50 @@ def test_large_design_overlaps_estimated_in_windows_agree_with_the_full_count(mo
         assert e.neighbours == full.neighbours
         assert e.crossings == pytest.approx(full.crossings, rel=0.05)
         assert e.crossed_length == pytest.approx(full.crossed_length, rel=0.05)
+
+
+def test_classic_arcs_estimated_in_windows_agree_with_the_full_count(monkeypatch):
+    # A classic arc is tens of mm long: the windows sample only its parts near
+    # them, and the estimate must still agree with the full count.
+    import specholo.toolpaths.overlap as overlap
+    from specholo.pipeline import DesignConfig, design
+
+    d = design(BUNNY, DesignConfig(stipples=400, size=30.0, method="arc"), check_overlaps=False)
+    width = d.config.cutter().section(d.config.depth_mm).width
+    lengths = d.grooves.segments().lengths()
+    assert np.median(lengths) > 20 * overlap.PIECE
+    full = groove_overlaps(d.grooves, width, sample=None)
+    monkeypatch.setattr(overlap, "MAX_SAMPLES", 1000)
+    monkeypatch.setattr(overlap, "MIN_WINDOWS", 400)
+    monkeypatch.setattr(overlap, "MAX_QUERIES", 10**6)
+    assert full.crossings > 1000
+    for s in range(3):
+        e = groove_overlaps(d.grooves, width, rng=np.random.default_rng(s))
+        assert e.crossings == pytest.approx(full.crossings, rel=0.05)
+        assert e.crossed_length == pytest.approx(full.crossed_length, rel=0.05)
+
+
+def test_a_long_groove_is_sampled_only_where_it_passes_a_window():
+    import specholo.toolpaths.overlap as overlap
+
+    # A 20 mm arc (sweep 60 degrees) and one chosen window of side 0.5 mm on it.
+    r, sweep = 20.0 / (math.pi / 3), math.pi / 3
+    ends = r * np.array([[math.cos(-sweep / 2), math.sin(-sweep / 2)],
+                         [math.cos(sweep / 2), math.sin(sweep / 2)]])
+    v, b = ends, np.array([math.tan(sweep / 4), 0.0])
+    chosen = np.zeros((100, 100), dtype=bool)
+    chosen[50, 50] = True
+    x0, y0 = r - 25.25, -25.25  # the window centred on (r, 0), the arc's midpoint
+    reach = 0.1
+    arcs, u0, u1 = overlap._near_windows(v, b, np.array([0, 2]), np.array([True]), chosen,
+                                         x0, y0, overlap.WINDOW, reach, overlap.PIECE)
+    assert list(arcs) == [0]
+    part = (u1[0] - u0[0]) * 20.0
+    assert overlap.WINDOW <= part <= overlap.WINDOW + 2 * (reach + overlap.PIECE) + 1e-9
+    pts, _, share = overlap._sample_arcs(v, b, arcs, np.zeros(1, np.int64), 0.01,
+                                         np.zeros(0, np.int64), np.zeros(0, np.int64), u0, u1)
+    # The samples lie on the arc, by the window, and stand for the part's length.
+    assert np.allclose(np.hypot(pts[:, 0], pts[:, 1]), r)
+    assert np.all(np.abs(pts[:, 0] - r) < 0.01)
+    assert np.abs(pts[:, 1]).max() <= 0.25 + reach + overlap.PIECE + 1e-9
+    assert share.sum() == pytest.approx(part, rel=1e-9)

@@ -37,6 +37,9 @@ WINDOW = 0.5
 #: in all; and the fewest windows taken.
 WINDOW_SAMPLES = 4_000_000
 MIN_WINDOWS = 50
+#: Longest part of an arc looked at on its own for the windows, mm: a longer
+#: arc is sampled only where it passes one.
+PIECE = 0.5
 #: Most samples in the windows whose crossings are counted.
 MAX_QUERIES = 15_000
 
@@ -88,8 +91,8 @@ class Overlaps:
 
 @nb.njit(cache=True, parallel=True)
 def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, path: np.ndarray,
-                 step: float, dots: np.ndarray,
-                 dot_path: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 step: float, dots: np.ndarray, dot_path: np.ndarray, u0: np.ndarray,
+                 u1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points along arcs in order, each path's end point included, then the dots.
 
     Args:
@@ -99,12 +102,15 @@ def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, pat
         step: most distance between points, mm.
         dots (d,): vertices of dots, appended as they are, and dot_path (d,)
             their paths.
+        u0 (k,), u1 (k,): the part of each arc sampled, as fractions of its
+            sweep; both empty for whole arcs.
 
     Returns:
         points (s, 2), the path of each (s,) and the groove length each stands
         for (s,), the arcs' in order and then the dots (no length).
     """
     k = arcs.size
+    whole = u0.size == 0
     count = np.empty(k, np.int64)
     length = np.empty(k)
     for i in nb.prange(k):
@@ -113,6 +119,8 @@ def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, pat
         chord = math.sqrt(cx * cx + cy * cy)
         sweep = 4.0 * math.atan(abs(bulges[a]))
         length[i] = chord * sweep / (2.0 * math.sin(0.5 * sweep)) if sweep > 1e-12 else chord
+        if not whole:
+            length[i] *= u1[i] - u0[i]
         last = i == k - 1 or path[i + 1] != path[i]
         # Points of the arc, and its path's end point after the last arc.
         count[i] = max(1, int(math.ceil(length[i] / step))) + (1 if last else 0)
@@ -140,8 +148,9 @@ def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, pat
         c = math.sqrt(cx * cx + cy * cy)
         heading = math.atan2(cy, cx) - half
         sin_half = math.sin(half)
+        lo, span = (0.0, 1.0) if whole else (u0[i], u1[i] - u0[i])
         for j in range(count[i]):
-            u = j / n
+            u = j / n if whole else lo + span * j / n
             if abs(b) < 1e-9:
                 x, y = sx + u * (ex - sx), sy + u * (ey - sy)
             else:
@@ -154,6 +163,10 @@ def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, pat
             share[q] = length[i] / n if j < n else 0.0
             q += 1
     return pts, owner, share
+
+
+#: The parts of arcs :func:`_sample_arcs` takes for whole arcs.
+_WHOLE = np.zeros(0)
 
 
 def sample_centrelines(grooves: Grooves,
@@ -170,7 +183,7 @@ def sample_centrelines(grooves: Grooves,
     pts, path, share = _sample_arcs(f(grooves.vertices, dtype=float),
                                     f(grooves.bulges, dtype=float), arcs, path_of, step,
                                     np.asarray(grooves.offsets, dtype=np.int64)[dot_path],
-                                    dot_path)
+                                    dot_path, _WHOLE, _WHOLE)
     if np.all(path[1:] >= path[:-1]):
         return pts, path, share
     order = np.argsort(path, kind="stable")
@@ -475,12 +488,24 @@ def _path_near(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int, chosen:
 @nb.njit(cache=True)
 def _near_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
                   passes: np.ndarray, chosen: np.ndarray, x0: float, y0: float, side: float,
-                  reach: float) -> np.ndarray:
-    """(q,) indices, in order, of the vertices starting an arc (or a dot) that comes
-    within ``reach`` of a chosen window (chosen[i, j]: the window at x0 + i side,
-    y0 + j side), among the paths ``passes`` (n_paths,) flags (:func:`_path_near`)."""
+                  reach: float, piece: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The parts of arcs (and the dots) that come within ``reach`` of a chosen
+    window (chosen[i, j]: the window at x0 + i side, y0 + j side), among the
+    paths ``passes`` (n_paths,) flags (:func:`_path_near`).
+
+    An arc longer than ``piece`` mm is looked at a piece of that length at a
+    time, so a long groove (a classic arc's tens of mm) is sampled only where it
+    passes a window, not whole for every window it passes.
+
+    Returns:
+        (q,) the vertices starting those arcs (or dots), in order, and (q,) u0
+        and u1, the part of each arc, as fractions of its sweep (0 and 1 for a
+        whole arc; one arc may give several parts).
+    """
     near = np.flatnonzero(passes)
-    out = np.empty((offsets[near + 1] - offsets[near]).sum(), np.int64)
+    cap = (offsets[near + 1] - offsets[near]).sum() + 16
+    out = np.empty(cap, np.int64)
+    u0, u1 = np.empty(cap), np.empty(cap)
     q = 0
     for k in range(near.size):
         a, b = offsets[near[k]], offsets[near[k] + 1]
@@ -489,14 +514,57 @@ def _near_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
             x2, y2 = x1, y1
             if i + 1 < b:
                 x2, y2 = vertices[i + 1, 0], vertices[i + 1, 1]
-            # The arc stays within its sagitta of the chord.
             dx, dy = x2 - x1, y2 - y1
-            sag = 0.5 * abs(bulges[i]) * math.sqrt(dx * dx + dy * dy) if i + 1 < b else 0.0
-            if _touches(chosen, min(x1, x2), min(y1, y2), max(x1, x2), max(y1, y2),
-                        reach + sag, x0, y0, side):
-                out[q] = i
-                q += 1
-    return out[:q].copy()
+            chord = math.sqrt(dx * dx + dy * dy)
+            sweep = 4.0 * math.atan(abs(bulges[i])) if i + 1 < b else 0.0
+            length = chord * sweep / (2.0 * math.sin(0.5 * sweep)) if sweep > 1e-12 else chord
+            m = int(math.ceil(length / piece))
+            if q + max(m, 1) > cap:  # room for this arc's parts
+                cap = 2 * cap + m
+                out, u0, u1 = _grown(out, q, cap), _grown(u0, q, cap), _grown(u1, q, cap)
+            if m <= 1:
+                # The arc stays within its sagitta of the chord.
+                sag = 0.5 * abs(bulges[i]) * chord if i + 1 < b else 0.0
+                if _touches(chosen, min(x1, x2), min(y1, y2), max(x1, x2), max(y1, y2),
+                            reach + sag, x0, y0, side):
+                    out[q], u0[q], u1[q] = i, 0.0, 1.0
+                    q += 1
+                continue
+            # Pieces of sweep/m each, their ends on the arc as in _sample_arcs.
+            half = 2.0 * math.atan(bulges[i])
+            heading = math.atan2(dy, dx) - half
+            sin_half = math.sin(half)
+            sag = 0.5 * abs(math.tan(0.5 * half / m)) * length / m  # a piece's, at most
+            open_part = False
+            px, py = x1, y1
+            for j in range(1, m + 1):
+                u = j / m
+                if j == m:
+                    qx, qy = x2, y2
+                elif abs(bulges[i]) < 1e-9:
+                    qx, qy = x1 + u * dx, y1 + u * dy
+                else:
+                    sub = chord * math.sin(u * half) / sin_half
+                    qx = x1 + sub * math.cos(heading + u * half)
+                    qy = y1 + sub * math.sin(heading + u * half)
+                hit = _touches(chosen, min(px, qx), min(py, qy), max(px, qx), max(py, qy),
+                               reach + sag, x0, y0, side)
+                if hit and open_part:
+                    u1[q - 1] = u
+                elif hit:
+                    out[q], u0[q], u1[q] = i, (j - 1) / m, u
+                    q += 1
+                open_part = hit
+                px, py = qx, qy
+    return out[:q].copy(), u0[:q].copy(), u1[:q].copy()
+
+
+@nb.njit(cache=True)
+def _grown(a: np.ndarray, n: int, size: int) -> np.ndarray:
+    """A copy of a[:n] with room for ``size``."""
+    out = np.empty(size, a.dtype)
+    out[:n] = a[:n]
+    return out
 
 
 @nb.njit(cache=True, inline="always")
@@ -561,18 +629,22 @@ def _windowed(grooves: Grooves, width: float, step: float, lo: np.ndarray,
     f = np.ascontiguousarray
     verts, bulges = f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float)
     offsets = f(grooves.offsets, dtype=np.int64)
-    near = _near_windows(verts, bulges, offsets, passes, chosen, float(lo[0]), float(lo[1]),
-                         WINDOW, width + 2.0 * step)
+    near, u0, u1 = _near_windows(verts, bulges, offsets, passes, chosen, float(lo[0]),
+                                 float(lo[1]), WINDOW, width + 2.0 * step, PIECE)
     path = np.searchsorted(offsets, near, side="right") - 1
     single = offsets[path + 1] - offsets[path] == 1
     arcs, dots = near[~single], near[single]
-    # Pieces: runs of consecutive arcs of one path (a path may pass two windows).
+    u0, u1 = u0[~single], u1[~single]
+    # Pieces: runs of consecutive arcs of one path (a path may pass two windows),
+    # joined only where one arc's part runs to its end and the next from its start.
     piece = np.cumsum(np.concatenate([[True], (np.diff(arcs) != 1)
-                                      | (np.diff(path[~single]) != 0)])) - 1
+                                      | (np.diff(path[~single]) != 0)
+                                      | (u1[:-1] < 1.0) | (u0[1:] > 0.0)])) - 1
     owner = np.concatenate([np.asarray(grooves.stipple)[path[~single]][
         np.flatnonzero(np.diff(np.concatenate([[-1], piece])))], grooves.stipple[path[single]]])
     pts, piece_of, share = _sample_arcs(verts, bulges, arcs, piece.astype(np.int64), step,
-                                        dots, piece.max(initial=-1) + 1 + np.arange(len(dots)))
+                                        dots, piece.max(initial=-1) + 1 + np.arange(len(dots)),
+                                        u0, u1)
     if len(pts) == 0:
         return 0, 0.0
     query = _in_chosen(pts, chosen, float(lo[0]), float(lo[1]), WINDOW)
@@ -677,6 +749,7 @@ def _large_overlaps(grooves: Grooves, width: float, tolerance: float, total: flo
     area = float((hi[0] - lo[0] + width) * (hi[1] - lo[1] + width))
     crossings, crossed = _windowed(grooves, width - tolerance, step, lo, chosen, k, passes,
                                    rng)
+    # An estimate: where nearly every groove is crossed it can come out above the whole.
     return Overlaps(width=width, neighbours=near, closest_neighbours=closest,
-                    crossings=crossings, crossed_length=crossed, total_length=total,
+                    crossings=crossings, crossed_length=min(crossed, total), total_length=total,
                     coverage=total * width / area)
