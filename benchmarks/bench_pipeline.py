@@ -31,7 +31,7 @@ def run_one(n: int, method: str) -> dict[str, float]:
     t_design = time.perf_counter() - t0
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        parts = write_design(d, Path(tmp) / "out")
+        parts = write_design(d, Path(tmp) / "out").timings
         t_write = time.perf_counter() - t0
         size = sum(f.stat().st_size for f in (Path(tmp) / "out").iterdir())
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

@@ -241,3 +241,21 @@ def test_spacing_option(tmp_path: Path, capsys):
     assert len(pts) > 50
     d, _ = cKDTree(pts).query(pts, k=2)
     assert d[:, 1].min() >= 4.0 - 1e-9
+
+
+@pytest.mark.parametrize("stipples", [[], [{"id": 0, "x": 1.5, "y": -2.0, "z": -3.25,
+                                            "visible_deg": [[-45.0, 1e-7], [3.0, 45.0]]},
+                                           {"id": 1, "x": 0.1, "y": 0.2, "z": 0.3,
+                                            "visible_deg": []}]])
+def test_design_json_reads_back_as_written_with_a_stipple_a_line(stipples):
+    import io
+
+    from specholo.pipeline import dump_design_json
+
+    info = {"settings": {"a": 1, "name": "}, {"}, "stipples": stipples,
+            "machining": {"hours": 0.5, "notes": ["x", None]}}
+    fh = io.StringIO()
+    dump_design_json(info, fh)
+    assert json.loads(fh.getvalue()) == info
+    lines = fh.getvalue().splitlines()
+    assert sum(line.startswith('  {"id": ') for line in lines) == len(stipples)

@@ -188,7 +188,7 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     with console.status("designing..."):
         d = run_design(model, config)
     with console.status("writing..."):
-        write_design(d, out, wanted, command=_command_line())
+        written = write_design(d, out, wanted, command=_command_line())
     stats = (f"{len(d.points)} stipples, {d.grooves.n_paths} paths, "
              f"{d.grooves.total_length() / 1000:.2f} m of groove")
     click.echo(f"{config.method}: {stats} -> {out}")
@@ -212,7 +212,7 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
             click.echo("warning: most glints will be cut away by other grooves; use fewer "
                        "stipples, a finer tip (e.g. --tool drag --tool-radius 0.05 --depth "
                        "0.012) or a larger model (check with `specholo verify --cut`)", err=True)
-    mach = json.loads((out / "hologram.json").read_text())["machining"]
+    mach = written.machining
     travel = (f", air travel {mach['travel_mm'] / 1000:.1f} m (unordered "
               f"{mach['travel_unordered_mm'] / 1000:.1f} m)" if "travel_mm" in mach else "")
     click.echo(f"machining: about {mach['estimated_hours']:.1f} h, "
