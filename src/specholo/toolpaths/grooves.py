@@ -11,6 +11,7 @@ dot: a plunge that leaves a spherical dimple.
 from __future__ import annotations
 
 import math
+import zipfile
 from dataclasses import dataclass, field
 
 import numba as nb
@@ -334,10 +335,23 @@ class Grooves:
                        self.stipple[paths])
 
     def save(self, path: str) -> None:
-        """Write to an ``.npz`` file (the caller makes the write atomic)."""
-        with open(path, "wb") as fh:
-            np.savez_compressed(fh, vertices=self.vertices, bulges=self.bulges,
-                                offsets=self.offsets, stipple=self.stipple)
+        """Write to an ``.npz`` file (the caller makes the write atomic).
+
+        The vertices and bulges are stored as they are: doubles that deflate by
+        only 5% and 17%, at 40 MB/s (4.5 of the 19 s a design of 2 x 10^4
+        stipples took, minutes at 10^6). The offsets and stipple ids deflate to
+        a fifth, at the fastest level, which does as well here as the default.
+        """
+        with open(path, "wb") as fh, zipfile.ZipFile(fh, "w", zipfile.ZIP_DEFLATED,
+                                                     compresslevel=1) as zf:
+            for name, arr, deflate in (("vertices", self.vertices, False),
+                                       ("bulges", self.bulges, False),
+                                       ("offsets", self.offsets, True),
+                                       ("stipple", self.stipple, True)):
+                # A ZipInfo of its own keeps the 1980 timestamp: the same bytes every run.
+                member = f"{name}.npy" if deflate else zipfile.ZipInfo(f"{name}.npy")
+                with zf.open(member, "w", force_zip64=True) as out:
+                    np.lib.format.write_array(out, np.asanyarray(arr), allow_pickle=False)
 
     @classmethod
     def load(cls, path: str) -> Grooves:
