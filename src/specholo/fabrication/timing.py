@@ -173,7 +173,12 @@ def _cutting_time(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
             for i in range(k):
                 part += _trapezoid(length[i], cap[i], accel, entry[i], leave[i])
         total[blk] = part
-    return total.sum()
+    # Summed in a plain loop: numba would split total.sum() across the threads,
+    # and the same grooves would give other last bits on another machine.
+    seconds = 0.0
+    for blk in range(total.size):
+        seconds += total[blk]
+    return seconds
 
 
 def estimate_time(grooves: Grooves, depth: float, machining: Machining,
