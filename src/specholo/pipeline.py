@@ -782,17 +782,16 @@ def dump_design_json(info: dict[str, Any], fh: Any) -> None:
     values in the same order.
     """
     stipples = info.get("stipples")
-    mark = "\x00stipples\x00"  # a string no JSON value of a design holds
-    text = json.dumps({**info, "stipples": mark}, indent=1)
-    at = text.find(json.dumps(mark))
-    if not stipples or at < 0:
+    if not stipples:
         json.dump(info, fh, indent=1)
         return
-    fh.write(text[:at])
+    mark = json.dumps("\x00stipples\x00")  # a string no JSON value of a design holds
+    head, tail = json.dumps({**info, "stipples": json.loads(mark)}, indent=1).split(mark)
+    fh.write(head)
     fh.write("[\n  ")
     fh.write(json.dumps(stipples, separators=(", ", ": "))[1:-1].replace("}, {", "},\n  {"))
     fh.write("\n ]")
-    fh.write(text[at + len(json.dumps(mark)):])
+    fh.write(tail)
 
 
 def write_design(d: Design, out: str | os.PathLike[str],
@@ -1232,7 +1231,7 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
             d.model.mesh.export(tmp / "model.ply")
         info["files"] = sorted(p.name for p in tmp.iterdir()) + ["hologram.json"]
         with atomic_open(tmp / "hologram.json") as fh:
-            dump_design_json(info, fh)
+            json.dump(info, fh, indent=1)
         timings["data"] = time.perf_counter() - t0
     return {"timings": timings, "machining": machining, "files": info["files"]}
 

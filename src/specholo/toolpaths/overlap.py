@@ -151,18 +151,25 @@ def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, pat
         lo, span = (0.0, 1.0) if whole else (u0[i], u1[i] - u0[i])
         for j in range(count[i]):
             u = j / n if whole else lo + span * j / n
-            if abs(b) < 1e-9:
-                x, y = sx + u * (ex - sx), sy + u * (ey - sy)
-            else:
-                # Rotate the chord direction by -half, walk the sub-arc's chord.
-                ang = heading + u * half
-                sub = c * math.sin(u * half) / sin_half
-                x, y = sx + sub * math.cos(ang), sy + sub * math.sin(ang)
-            pts[q, 0], pts[q, 1] = x, y
+            pts[q, 0], pts[q, 1] = _on_arc(sx, sy, cx, cy, b, c, heading, half, sin_half, u)
             owner[q] = path[i]
             share[q] = length[i] / n if j < n else 0.0
             q += 1
     return pts, owner, share
+
+
+@nb.njit(cache=True, inline="always")
+def _on_arc(sx: float, sy: float, dx: float, dy: float, b: float, chord: float,
+            heading: float, half: float, sin_half: float, u: float) -> tuple[float, float]:
+    """The point a fraction u of the sweep along the arc from (sx, sy) with chord
+    (dx, dy) of length ``chord`` and bulge b; half = 2 atan(b), heading = the
+    chord's direction - half, sin_half = sin(half) (an arc's constants, found once)."""
+    if abs(b) < 1e-9:
+        return sx + u * dx, sy + u * dy
+    # Rotate the chord direction by -half, walk the sub-arc's chord.
+    ang = heading + u * half
+    sub = chord * math.sin(u * half) / sin_half
+    return sx + sub * math.cos(ang), sy + sub * math.sin(ang)
 
 
 #: The parts of arcs :func:`_sample_arcs` takes for whole arcs.
@@ -539,14 +546,8 @@ def _near_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
             px, py = x1, y1
             for j in range(1, m + 1):
                 u = j / m
-                if j == m:
-                    qx, qy = x2, y2
-                elif abs(bulges[i]) < 1e-9:
-                    qx, qy = x1 + u * dx, y1 + u * dy
-                else:
-                    sub = chord * math.sin(u * half) / sin_half
-                    qx = x1 + sub * math.cos(heading + u * half)
-                    qy = y1 + sub * math.sin(heading + u * half)
+                qx, qy = (x2, y2) if j == m else _on_arc(x1, y1, dx, dy, bulges[i], chord,
+                                                          heading, half, sin_half, u)
                 hit = _touches(chosen, min(px, qx), min(py, qy), max(px, qx), max(py, qy),
                                reach + sag, x0, y0, side)
                 if hit and open_part:
