@@ -29,6 +29,10 @@ from specholo.scene.loading import Model, available_memory, format_bytes, mesh_m
 # Candidates drawn per wanted stipple: more gives a tighter (more saturated)
 # Poisson-disk set, at a cost linear in the ratio; beyond 4 the gain is small.
 _CANDIDATES_PER_STIPPLE = 4
+# Fewest candidates drawn for a count: with 4 per stipple, a design of a few
+# stipples has too few to choose from, and two of them may land far closer
+# than the spacing their number allows (on a box, 7 stipples from 28 draws).
+_MIN_CANDIDATES = 256
 # Surface area per point of the greedy set of radius r from that many candidates,
 # in units of r^2 (measured on two models from 10^4 to 10^6 stipples: the set at
 # r = sqrt(area / (2.2 N)) holds N to 1.05 N points, so the search's first
@@ -204,7 +208,7 @@ def _stipple_mesh(
     if not area > 0:
         raise SpecholoError("mesh has zero surface area; cannot stipple it")
     if count is not None:
-        n_candidates = _CANDIDATES_PER_STIPPLE * count
+        n_candidates = max(_MIN_CANDIDATES, _CANDIDATES_PER_STIPPLE * count)
         if n_candidates > _MAX_CANDIDATES:
             raise SpecholoError(
                 f"stipple count {count} is too large "
@@ -244,7 +248,7 @@ def _stipple_cloud(
             return Stipples(points=points[distinct], normals=None)
         # Thin to as many candidates as a mesh would get, so the neighbour
         # graph stays small however dense the cloud is.
-        m = min(n, _CANDIDATES_PER_STIPPLE * count)
+        m = min(n, max(_MIN_CANDIDATES, _CANDIDATES_PER_STIPPLE * count))
         cand = distinct if m == n else np.sort(rng.choice(distinct, size=m, replace=False))
         sub = points[cand]
         nn = cKDTree(sub).query(sub, k=2)[0][:, 1]
