@@ -291,3 +291,74 @@ def test_random_designs(tmp_path, g, units, spindle):
             assert leaves
         if options.mill:
             check_canon(run_rs274(out), g, tool, machining, options)
+
+
+# ---------------------------------------------------------------------------
+# the compiled reading of plain lines reads as the line-by-line reader does
+
+
+def _random_program(rng: np.random.Generator, lines: int) -> str:
+    """Plain moves in many spellings among comments, modal changes and bad lines."""
+    def num(signed: bool = True) -> str:
+        v = rng.normal(0.0, 20.0)
+        text = rng.choice([f"{v:.5f}", f"{v:.1f}", f"{v:.0f}.", f"{v:.3f}".replace("0.", "."),
+                           f"{abs(v):.4f}", f"+{abs(v):.2f}", f"{v:.17f}", "-0", "0"])
+        return text.lstrip("+-") if not signed else text
+
+    odd = ["(stipple 7)", "  (a) (b)  ", "", "   ", "M3 S12000", "M5", "G91", "G90", "G20",
+           "G21", "G0 Z1", "G1 Z-0.05 F100", "(nested (comment))", "(unclosed", "G1 X1 (c)",
+           "g1 x2 y3", "G1 X 2", "/G1 X3 Y3", "%", "G4 P0.5", "G2 X1 Y1 R5", "G1 I1 J1",
+           "G10", "G1.5 X1", "G1 Y1 X2", "G1 X1 X2", "G1 X1 ; note", "M2", "G1 F-5 X1",
+           "G3 X\u00e91 Y0", "G1 X1e3", "G1\tX1\tY2", "G00 X1", "G001 Y2", "G03 X1 Y1 I1 J0"]
+    out = []
+    for _ in range(lines):
+        u = rng.random()
+        if u < 0.6:
+            g = rng.choice(["G0", "G1", "G2", "G3", "G01", "G02", "G03", "G00"])
+            words = [f"{w}{num(w != 'F')}" for w in "XYZIJF" if rng.random() < 0.5]
+            sep = rng.choice([" ", "", "  ", "\t"])
+            out.append(g + sep + sep.join(words) + rng.choice(["", " ", "\t"]))
+        else:
+            out.append(str(rng.choice(odd)))
+    return "\n".join(out)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("ending", ["\n", "\r\n"])
+def test_compiled_reading_gives_the_line_by_line_report(tmp_path, monkeypatch, seed, ending):
+    import specholo.fabrication.check as check
+
+    rng = np.random.default_rng(seed)
+    program = START + _random_program(rng, 3000) + ("\n" if seed % 2 else "")
+    path = tmp_path / "p.ngc"
+    path.write_bytes(program.replace("\n", ending).encode("utf-8"))
+    tight = Stock(-15.0, -15.0, 15.0, 15.0, 3.0)
+
+    def report() -> dict:
+        r = check_gcode(path, tight, 0.1, 1.0, (10.0, 1000.0), (1000.0, 24000.0),
+                        max_listed=10**6)
+        return {"lines": r.lines, "moves": r.moves, "total": r.total_violations,
+                "violations": r.violations}
+
+    # Blocks far smaller than a line's worth of bytes, and of a few lines, so
+    # that lines and blocks of moves straddle every boundary.
+    monkeypatch.setattr(check, "_READ_BYTES", 97)
+    monkeypatch.setattr(check, "_BLOCK_LINES", 7)
+    fast = report()
+    assert fast["moves"]["G2"] + fast["moves"]["G3"] > 100 and fast["total"] > 100
+
+    def refuse(*args):
+        raise check._LoneReturn
+
+    monkeypatch.setattr(check, "_read_bytes", refuse)
+    assert report() == fast
+    assert fast["lines"] == len(program.splitlines())
+
+
+def test_a_carriage_return_alone_ends_a_line(tmp_path):
+    path = tmp_path / "p.ngc"
+    path.write_bytes((START.replace("\n", "\r") + "G1 X99 F200\rG0 Z1\r").encode())
+    report = check_gcode(path, PLATE, 0.1, 1.0, (10.0, 1000.0), (1000.0, 24000.0))
+    assert report.lines == 7
+    assert caught(report) == [(6, "cut leaves the stock: X 0.00000..99.00000, Y 0.00000..0.00000 "
+                                  "outside X -40..40, Y -30..30")]

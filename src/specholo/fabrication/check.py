@@ -23,8 +23,10 @@ It reports, line by line:
   it does not know, and moves after the program end.
 
 Positions, units (G20 converts to mm, feeds too) and modes are followed line by
-line in Python; the moves are recorded in a table and checked together with
-numpy. Numbers are compared with a small allowance for the written rounding
+line; the moves are recorded in a table and checked together with numpy, a
+block of lines at a time. Plain motion lines and comments, nearly all of a
+large program, are read by a compiled reader of their own (:mod:`._check_kernel`),
+the rest in Python. Numbers are compared with a small allowance for the written rounding
 (``tolerance`` on positions, 10 ppm on rates).
 """
 
@@ -37,9 +39,11 @@ from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.fabrication import _check_kernel
 
 _INCH = 25.4
 # G codes times 10: plane XY, cutter compensation and tool length offsets off,
@@ -392,32 +396,41 @@ def _arc_bounds(m: np.ndarray) -> tuple[np.ndarray, ...]:
     The bounds take the ends and every axis extreme (0, 90, 180, 270 degrees
     about the centre) the arc sweeps over; the radius is the larger of start and end.
     """
-    sx, sy, ex, ey = m[:, _X0], m[:, _Y0], m[:, _X1], m[:, _Y1]
-    cx, cy = m[:, _CX], m[:, _CY]
-    r0 = np.hypot(sx - cx, sy - cy)
-    r1 = np.hypot(ex - cx, ey - cy)
-    r = np.maximum(r0, r1)
-    a0 = np.arctan2(sy - cy, sx - cx)
-    turn = np.arctan2(ey - cy, ex - cx) - a0
-    ccw = m[:, _KIND] == 3
-    full = (sx == ex) & (sy == ey)
-    two_pi = 2.0 * np.pi
-    sweep = np.where(ccw, np.mod(turn, two_pi), -np.mod(-turn, two_pi))
-    sweep = np.where(full, np.where(ccw, two_pi, -two_pi), sweep)
-    lo = np.minimum(a0, a0 + sweep)
-    hi = np.maximum(a0, a0 + sweep)
-    x0, x1 = np.minimum(sx, ex), np.maximum(sx, ex)
-    y0, y1 = np.minimum(sy, ey), np.maximum(sy, ey)
-    for k in range(4):
-        angle = 0.5 * np.pi * k
-        # the first copy of this angle at or after the sweep's start
-        swept = angle + two_pi * np.ceil((lo - angle) / two_pi) <= hi
-        px, py = cx + r * math.cos(angle), cy + r * math.sin(angle)
-        x0 = np.where(swept, np.minimum(x0, px), x0)
-        x1 = np.where(swept, np.maximum(x1, px), x1)
-        y0 = np.where(swept, np.minimum(y0, py), y0)
-        y1 = np.where(swept, np.maximum(y1, py), y1)
-    return x0, y0, x1, y1, r0, np.abs(r0 - r1)
+    m = np.ascontiguousarray(m, dtype=float)
+    out = np.empty((6, len(m)))
+    _arc_bounds_rows(m, out)
+    return tuple(out)
+
+
+@nb.njit(cache=True, parallel=True)
+def _arc_bounds_rows(m: np.ndarray, out: np.ndarray) -> None:
+    """:func:`_arc_bounds` row by row (compiled, both cores), into out (6, k)."""
+    two_pi = 2.0 * math.pi
+    for i in nb.prange(m.shape[0]):
+        sx, sy, ex, ey = m[i, _X0], m[i, _Y0], m[i, _X1], m[i, _Y1]
+        cx, cy = m[i, _CX], m[i, _CY]
+        r0 = math.hypot(sx - cx, sy - cy)
+        r1 = math.hypot(ex - cx, ey - cy)
+        r = max(r0, r1)
+        a0 = math.atan2(sy - cy, sx - cx)
+        turn = math.atan2(ey - cy, ex - cx) - a0
+        ccw = m[i, _KIND] == 3
+        if sx == ex and sy == ey:
+            sweep = two_pi if ccw else -two_pi
+        else:
+            sweep = np.mod(turn, two_pi) if ccw else -np.mod(-turn, two_pi)
+        lo, hi = min(a0, a0 + sweep), max(a0, a0 + sweep)
+        x0, x1 = min(sx, ex), max(sx, ex)
+        y0, y1 = min(sy, ey), max(sy, ey)
+        for k in range(4):
+            angle = 0.5 * math.pi * k
+            # the first copy of this angle at or after the sweep's start
+            if angle + two_pi * math.ceil((lo - angle) / two_pi) <= hi:
+                px, py = cx + r * math.cos(angle), cy + r * math.sin(angle)
+                x0, x1 = min(x0, px), max(x1, px)
+                y0, y1 = min(y0, py), max(y1, py)
+        out[0, i], out[1, i], out[2, i], out[3, i] = x0, y0, x1, y1
+        out[4, i], out[5, i] = r0, abs(r0 - r1)
 
 
 def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], stock: Stock,
@@ -439,7 +452,8 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], stock: Stock,
 
     moves_xy = ~(same(x0, x1) & same(y0, y1))
     z_known = ~(np.isnan(z0) | np.isnan(z1))
-    low = np.where(z_known, np.fmin(z0, z1), np.nan)
+    # + 0: the sign of a zero from fmin(0, -0) varies with its place in the array
+    low = np.where(z_known, np.fmin(z0, z1) + 0.0, np.nan)
     xy_known = ~(np.isnan(x0) | np.isnan(y0) | np.isnan(x1) | np.isnan(y1))
     with np.errstate(invalid="ignore"):
         rapid = kind == 0
@@ -500,14 +514,118 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], stock: Stock,
     return int(cut.sum())
 
 
+#: Program bytes read at a time, and most lines whose moves are checked together:
+#: the check's memory stays bounded however long the program.
+_READ_BYTES = 1 << 25
+_BLOCK_LINES = 1 << 20
+
+
+class _LoneReturn(Exception):
+    """The program ends a line with a carriage return alone."""
+
+
+def _read_text(path: str | os.PathLike[str], reader: _Reader,
+               checked: Callable[[np.ndarray], None]) -> tuple[int, _Reader]:
+    """Every line through the reader, as text; the moves checked a block at a time.
+
+    Returns:
+        The number of lines, and the reader (its counts of dwells and burns).
+    """
+    number = 0
+    with open(path, encoding="ascii", errors="replace") as fh:
+        for number, raw in enumerate(fh, 1):
+            reader.line(number, raw)
+            if len(reader.moves) >= _BLOCK_LINES * 12:
+                checked(np.frombuffer(reader.moves, dtype=float).reshape(-1, 12))
+                del reader.moves[:]
+    checked(np.frombuffer(reader.moves, dtype=float).reshape(-1, 12))
+    return number, reader
+
+
+def _read_bytes(path: str | os.PathLike[str], reader: _Reader,
+                checked: Callable[[np.ndarray], None]) -> tuple[int, _Reader]:
+    """:func:`_read_text`, with the plain lines read by the compiled reader.
+
+    The program is read in blocks of whole lines; in each, runs of plain motion
+    lines and comments go through :func:`_check_kernel.plain_lines` and every
+    other line through the reader, with the modal state handed between them.
+
+    Raises:
+        _LoneReturn: where a carriage return ends a line on its own (Python's
+            text mode splits lines there, and so must this).
+    """
+    number = 1  # of the block's first line
+    carry = b""
+    with open(path, "rb") as fh:
+        while True:
+            chunk = fh.read(_READ_BYTES)
+            data = carry + chunk
+            if not chunk:
+                if data:
+                    number = _read_block(data, number, False, reader, checked)
+                return number - 1, reader
+            cut = data.rfind(b"\n") + 1
+            carry = data[cut:]
+            if cut:
+                number = _read_block(data[:cut], number, True, reader, checked)
+
+
+def _read_block(block: bytes, number: int, ended: bool, reader: _Reader,
+                checked: Callable[[np.ndarray], None]) -> int:
+    """Read and check a block of lines (``ended``: its last line has its newline).
+
+    Returns:
+        The number of the line after the block.
+    """
+    buf = np.frombuffer(block, dtype=np.uint8)
+    returns = np.flatnonzero(buf == 13)
+    if len(returns) and (returns[-1] + 1 == len(buf)
+                         or np.any(buf[np.minimum(returns + 1, len(buf) - 1)] != 10)):
+        raise _LoneReturn
+    stops = np.flatnonzero(buf == 10)
+    if not ended:
+        stops = np.append(stops, len(buf))
+    starts = np.concatenate([[0], stops[:-1] + 1])
+    state = np.empty(6)
+    for lo in range(0, len(stops), _BLOCK_LINES):
+        hi = min(lo + _BLOCK_LINES, len(stops))
+        moves = np.empty((hi - lo, 12))  # a line moves once at most
+        row, i = 0, lo
+        while i < hi:
+            if reader.absolute and not reader.ended:
+                state[:] = (*reader.pos, reader.feed, reader.factor,
+                            -1.0 if reader.motion is None else reader.motion)
+                i, row = _check_kernel.plain_lines(
+                    buf, starts[:hi], stops[:hi], i, number + i,
+                    1.0 if reader.tool_on else 0.0, state, moves, row)
+                reader.pos = [float(v) for v in state[:3]]
+                reader.feed = float(state[_check_kernel.FEED])
+                reader.motion = None if state[_check_kernel.MOTION] < 0 else int(
+                    state[_check_kernel.MOTION])
+                if i == hi:
+                    break
+            raw = block[starts[i]:stops[i]]
+            if i < len(stops) - 1 or ended:  # text mode reads "\r\n" as "\n"
+                raw = (raw[:-1] if raw.endswith(b"\r") else raw) + b"\n"
+            reader.line(number + i, raw.decode("ascii", errors="replace"))
+            if reader.moves:
+                moves[row] = reader.moves
+                row += 1
+                del reader.moves[:]
+            i += 1
+        checked(moves[:row])
+    return number + len(stops)
+
+
 def check_gcode(path: str | os.PathLike[str], stock: Stock, max_depth: float, safe_z: float,
                 feed_range: tuple[float, float], spindle_range: tuple[float, float], *,
                 laser: bool = False, tolerance: float = 1e-4,
                 max_listed: int = 1000, spindle: bool = True) -> CheckReport:
     """Check that a G-code program stays inside the stock and runs safely.
 
-    Lines are read one by one for the modal state; the moves are then checked
-    together (vectorised).
+    Lines are read in order for the modal state (plain motion lines and
+    comments by a compiled reader, see :mod:`._check_kernel`); the moves are
+    checked together (vectorised), a block of lines at a time.
 
     Args:
         path: the program.
@@ -546,23 +664,33 @@ def check_gcode(path: str | os.PathLike[str], stock: Stock, max_depth: float, sa
         found.append((number, len(found), what))
 
     feeds = (float(feed_range[0]), float(feed_range[1]))
-    reader = _Reader(flag, laser, (float(spindle_range[0]), float(spindle_range[1])), stock,
-                     tolerance)
+    floor = -min(max_depth, stock.thickness)
     report = CheckReport(os.fspath(path))
+    kinds = np.zeros(4, dtype=np.int64)
+    cuts = 0
+
+    def checked(moves: np.ndarray) -> None:
+        """Check a block of the move table (rows are independent of each other)."""
+        nonlocal cuts
+        cuts += _check_moves(moves, flag, stock, floor, safe_z, feeds, laser, tolerance,
+                             spindle)
+        kinds[:] += np.bincount(moves[:, _KIND].astype(np.int64), minlength=4)
+
+    def reader() -> _Reader:
+        return _Reader(flag, laser, (float(spindle_range[0]), float(spindle_range[1])),
+                       stock, tolerance)
+
     try:
-        with open(path, encoding="ascii", errors="replace") as fh:
-            for number, raw in enumerate(fh, 1):
-                reader.line(number, raw)
-                report.lines = number
+        try:
+            report.lines, state = _read_bytes(path, reader(), checked)
+        except _LoneReturn:  # old Mac line ends: read as text, as Python splits them
+            found.clear()
+            kinds[:], cuts = 0, 0
+            report.lines, state = _read_text(path, reader(), checked)
     except OSError as exc:
         raise SpecholoError(f"cannot read G-code file {os.fspath(path)!r}: {exc.strerror}") from exc
-
-    moves = np.frombuffer(reader.moves, dtype=float).reshape(-1, 12)
-    cuts = _check_moves(moves, flag, stock, -min(max_depth, stock.thickness), safe_z, feeds,
-                        laser, tolerance, spindle)
-    kinds = np.bincount(moves[:, _KIND].astype(np.int64), minlength=4)
     report.moves = {"G0": int(kinds[0]), "G1": int(kinds[1]), "G2": int(kinds[2]),
-                    "G3": int(kinds[3]), "dwell": reader.dwells, "cutting": cuts + reader.burns}
+                    "G3": int(kinds[3]), "dwell": state.dwells, "cutting": cuts + state.burns}
     found.sort()
     report.total_violations = len(found)
     listed = found[:max_listed]
