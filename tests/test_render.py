@@ -267,3 +267,21 @@ def test_a_big_design_renders_a_run_of_paths_at_a_time(loaded: Loaded,
     parts = render_still(loaded.grooves, setup, cam)
     assert np.abs(whole.astype(int) - parts.astype(int)).max() <= 1
     assert luminance(whole).max() > 150  # there are glints to compare
+
+
+def test_a_big_design_is_searched_a_run_of_paths_at_a_time(loaded: Loaded,
+                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """The glints each of three eyes sees, found chunk by chunk (each chunk indexed
+    once for all of them), are those of the whole design."""
+    import specholo.simulation.verify as verify_module
+    from specholo.preview.render import glints_seen
+
+    setup = loaded.config.setup()
+    eyes = setup.viewer.eye(np.radians([-20.0, 0.0, 20.0]))
+    whole = glints_seen(loaded.grooves, setup.tool, eyes, setup.light)
+    monkeypatch.setattr(verify_module, "CHUNK_VERTICES", max(len(loaded.grooves.vertices) // 7,
+                                                             10))
+    parts = glints_seen(loaded.grooves, setup.tool, eyes, setup.light)
+    for w, p in zip(whole, parts, strict=True):
+        assert len(w) > 20  # there are glints to compare
+        np.testing.assert_allclose(np.unique(p, axis=0), np.unique(w, axis=0), atol=1e-9)

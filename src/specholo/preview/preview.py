@@ -9,8 +9,8 @@ import os
 import numpy as np
 
 from specholo.fabrication.atomic import atomic_open
+from specholo.preview.render import glints_seen
 from specholo.setup import Setup
-from specholo.simulation.glints import Engraved, find_glints
 from specholo.toolpaths.grooves import Grooves
 
 
@@ -48,26 +48,26 @@ def render_preview(grooves: Grooves, setup: Setup, path: str | os.PathLike[str],
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    eng = Engraved.from_grooves(grooves, setup.tool)
     limit = math.degrees(setup.viewer.half_range)
     az = sorted({max(-limit, min(limit, a)) for a in azimuths_deg})
+    eyes = setup.viewer.eye(np.radians(az))
+    # A large design is searched a run of paths at a time, each run for every eye.
+    seen = glints_seen(grooves, setup.tool, eyes, setup.light)
     fig, axes = plt.subplots(1, len(az), figsize=(4.2 * len(az), 4.4), facecolor="black")
     axes = np.atleast_1d(axes)
     lo, hi = grooves.bounds()
     corners = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0],
                         [lo[0], hi[1], 0], [lo[0], lo[1], 0]])
-    for ax, a in zip(axes, az, strict=True):
-        eye = setup.viewer.eye(np.array([math.radians(a)]))[0]
-        g = find_glints(eng, eye, setup.light)
+    for ax, a, eye, points in zip(axes, az, eyes, seen, strict=True):
         ax.set_facecolor("black")
         frame = project(corners, eye)
         ax.plot(frame[:, 0], frame[:, 1], color="#333333", lw=0.8)
-        if len(g.point):
-            uv = project(g.point, eye)
+        if len(points):
+            uv = project(points, eye)
             ax.scatter(uv[:, 0], uv[:, 1], s=2.0, c="white", linewidths=0, alpha=0.9)
         ax.set_aspect("equal")
         ax.set_axis_off()
-        ax.set_title(f"azimuth {a:+.0f}°  ({len(g.point)} glints)", color="#bbbbbb",
+        ax.set_title(f"azimuth {a:+.0f}°  ({len(points)} glints)", color="#bbbbbb",
                      fontsize=10)
     fig.tight_layout()
     buf = io.BytesIO()

@@ -29,7 +29,7 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
-from specholo.setup import Light, Setup
+from specholo.setup import Light, Setup, Tool
 from specholo.simulation.glints import Engraved, find_glints
 from specholo.toolpaths.grooves import Grooves
 
@@ -415,6 +415,41 @@ def glint_pixels(grooves: Grooves, setup: Setup, camera: Camera, light: Light | 
     return camera.project(g.point)
 
 
+def glints_seen(grooves: Grooves, tool: Tool, eyes: np.ndarray, light: Light) -> list[np.ndarray]:
+    """The glints each eye sees on the grooves.
+
+    A design of more than :data:`~specholo.simulation.verify.CHUNK_VERTICES`
+    vertices is searched a run of paths at a time (each glint lies on one path),
+    so its arc index stays a chunk's size; every chunk is indexed once for all
+    the eyes.
+
+    Args:
+        grooves: the grooves.
+        tool: the cutting tool.
+        eyes: (e, 3) eye positions, mm.
+        light: the light.
+
+    Returns:
+        (g_i, 3) glint points per eye.
+    """
+    from specholo.simulation.verify import CHUNK_VERTICES
+
+    eyes = np.asarray(eyes, dtype=float).reshape(-1, 3)
+    if len(grooves.vertices) <= CHUNK_VERTICES:
+        eng = Engraved.from_grooves(grooves, tool)
+        return [find_glints(eng, eye, light).point for eye in eyes]
+    sizes = np.cumsum(grooves.path_sizes)
+    cuts = np.searchsorted(sizes, np.arange(CHUNK_VERTICES, sizes[-1], CHUNK_VERTICES))
+    bounds = np.unique(np.concatenate([[0], cuts + 1, [grooves.n_paths]]))
+    found: list[list[np.ndarray]] = [[] for _ in eyes]
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        part = Engraved.from_grooves(grooves.take(np.arange(a, b)), tool)
+        for k, eye in enumerate(eyes):
+            found[k].append(find_glints(part, eye, light).point)
+        del part
+    return [np.concatenate(f) for f in found]
+
+
 def render_still(grooves: Grooves, setup: Setup, camera: Camera,
                  roughness: float = REFERENCE_ROUGHNESS, grooves_overlay: bool = False,
                  ghost: Any = None, light: Light | None = None,
@@ -448,16 +483,8 @@ def render_still(grooves: Grooves, setup: Setup, camera: Camera,
     def glints() -> tuple[np.ndarray, float]:
         if eng is not None:
             return find_glints(eng, camera.position(), light).point, spot_sigma(setup, roughness)
-        # a big design a run of paths at a time: each glint lies on one path
-        sizes = np.cumsum(grooves.path_sizes)
-        cuts = np.searchsorted(sizes, np.arange(CHUNK_VERTICES, sizes[-1], CHUNK_VERTICES))
-        bounds = np.unique(np.concatenate([[0], cuts + 1, [grooves.n_paths]]))
-        points = []
-        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-            part = Engraved.from_grooves(grooves.take(np.arange(a, b)), setup.tool)
-            points.append(find_glints(part, camera.position(), light).point)
-            del part
-        return np.concatenate(points), spot_sigma(setup, roughness)
+        return glints_seen(grooves, setup.tool, camera.position()[None], light)[0], \
+            spot_sigma(setup, roughness)
 
     def overlay() -> np.ndarray:
         assert eng is not None  # an overlay is never chunked
