@@ -269,3 +269,55 @@ def test_ordering_saves_time():
     assert after.cutting_s == pytest.approx(before.cutting_s)
     assert after.plunge_s == pytest.approx(before.plunge_s)
     assert after.stipples == before.stipples == n // 2
+
+
+def _random_strokes(seed: int, n: int) -> Grooves:
+    """n short arcs and dots scattered over a 100 mm plate, in random order."""
+    rng = np.random.default_rng(seed)
+    sizes = rng.integers(1, 5, n)
+    start = rng.uniform(-50.0, 50.0, (n, 2))
+    verts = np.repeat(start, sizes, axis=0) + rng.normal(0.0, 0.4, (int(sizes.sum()), 2))
+    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    bulges = rng.uniform(-0.5, 0.5, len(verts))
+    bulges[offsets[1:] - 1] = 0.0
+    return Grooves(verts, bulges, offsets, rng.integers(0, 50, n))
+
+
+def test_a_large_plate_is_ordered_a_tile_at_a_time(monkeypatch):
+    import specholo.fabrication.order as order_module
+
+    g = _random_strokes(3, 600)
+    whole, whole_stats = order_paths(g)
+    monkeypatch.setattr(order_module, "TILE_PATHS", 40)
+    out, stats = order_paths(g)
+    check(g, out, stats)
+    # 15 tiles in a serpentine: far less travel than the given order, and within
+    # a third of the tour over the whole plate at once.
+    assert stats.travel_after_mm < 0.15 * stats.travel_before_mm
+    assert stats.travel_after_mm < 1.35 * whole_stats.travel_after_mm
+
+
+def test_large_grooves_are_reordered_in_place(monkeypatch, tmp_path):
+    import specholo.fabrication.order as order_module
+
+    g = _random_strokes(4, 300)
+    copy = Grooves(g.vertices.copy(), g.bulges.copy(), g.offsets.copy(), g.stipple.copy())
+    expected, expected_stats = order_paths(copy)
+    monkeypatch.setattr(order_module, "IN_PLACE_BYTES", 0)
+    monkeypatch.setattr(order_module, "_BLOCK_VERTICES", 7)  # blocks of a path or two
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    out, stats = order_paths(g, scratch=scratch)
+    assert out is g and stats == expected_stats
+    for name in ("vertices", "bulges", "offsets", "stipple"):
+        assert np.array_equal(getattr(out, name), getattr(expected, name)), name
+    check(copy, out, stats)
+    assert list(scratch.iterdir()) == []  # the scratch files are gone
+    # Arrays that cannot be written are copied, and left as they were.
+    ro = Grooves(copy.vertices.copy(), copy.bulges.copy(), copy.offsets.copy(),
+                 copy.stipple.copy())
+    for a in (ro.vertices, ro.bulges, ro.offsets, ro.stipple):
+        a.flags.writeable = False
+    out2, _ = order_paths(ro, scratch=scratch)
+    assert out2 is not ro and np.array_equal(ro.vertices, copy.vertices)
+    assert np.array_equal(out2.vertices, expected.vertices)

@@ -801,6 +801,8 @@ def write_design(d: Design, out: str | os.PathLike[str],
 
     Every file but ``run.json`` is the same byte for byte for the same model,
     settings and software; ``run.json`` records this run (see :func:`run_record`).
+    Grooves of over a GB (:data:`~specholo.fabrication.order.IN_PLACE_BYTES`)
+    are put in cutting order in place: ``d.grooves`` is then in that order.
 
     Args:
         d: the design.
@@ -826,7 +828,12 @@ def write_design(d: Design, out: str | os.PathLike[str],
     grooves = d.grooves
     if d.config.order:
         t0 = time.perf_counter()
-        grooves, order_stats = order_paths(d.grooves)
+        # Grooves of over a GB are put in order in place, through a scratch file
+        # beside the output, so that memory never holds two copies of them.
+        near = Path(out).absolute().parent
+        while not near.is_dir() and near != near.parent:
+            near = near.parent
+        grooves, order_stats = order_paths(d.grooves, scratch=near)
         d = dataclasses.replace(d, grooves=grooves)
         timings["ordering"] = time.perf_counter() - t0
     info = hologram_json(d)

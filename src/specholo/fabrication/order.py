@@ -24,6 +24,9 @@ end with its sign flipped: the same arcs, cut the other way.
 
 from __future__ import annotations
 
+import math
+import os
+import tempfile
 from dataclasses import dataclass
 
 import numba as nb
@@ -103,14 +106,70 @@ def reorder(grooves: Grooves, order: np.ndarray, flip: np.ndarray) -> Grooves:
                    np.asarray(grooves.stipple, dtype=np.int64)[order])
 
 
+#: Grooves larger than this (bytes of vertices and bulges) are reordered in
+#: place when asked: the new order is staged in a scratch file, so that only
+#: one copy of the grooves is ever in memory (6 GB at a million stipples).
+IN_PLACE_BYTES = 1 << 30
+#: Vertices gathered at a time when reordering in place.
+_BLOCK_VERTICES = 1 << 23
+
+
+def reorder_in_place(grooves: Grooves, order: np.ndarray, flip: np.ndarray,
+                     scratch: str | os.PathLike[str]) -> Grooves:
+    """:func:`reorder` into the grooves' own arrays, staged in a scratch file.
+
+    The reordered paths are gathered a block at a time and written to a
+    temporary file in ``scratch``, then read back over the old order, so memory
+    holds one copy of the grooves and a block. Grooves whose arrays cannot be
+    written in place (read-only, not float64 or not contiguous) are copied
+    (:func:`reorder`).
+
+    Returns:
+        The same grooves object, its paths now in the new order.
+    """
+    v, b = grooves.vertices, grooves.bulges
+    arrays = (v, b, grooves.offsets, grooves.stipple)
+    if not all(isinstance(a, np.ndarray) and a.flags.writeable and a.flags.c_contiguous
+               for a in arrays) or v.dtype != np.float64 or b.dtype != np.float64 \
+            or grooves.offsets.dtype != np.int64:
+        return reorder(grooves, order, flip)
+    order = np.ascontiguousarray(order, dtype=np.int64)
+    flip = np.ascontiguousarray(flip, dtype=np.bool_)
+    offsets = grooves.offsets
+    new_offsets = np.concatenate([[0], np.cumsum(np.diff(offsets)[order])]).astype(np.int64)
+    cuts = np.searchsorted(new_offsets, np.arange(_BLOCK_VERTICES, new_offsets[-1],
+                                                  _BLOCK_VERTICES))
+    bounds = np.unique(np.concatenate([[0], cuts, [len(order)]]))
+    with tempfile.TemporaryFile(dir=scratch) as fv, tempfile.TemporaryFile(dir=scratch) as fb:
+        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+            part_v, part_b = _reordered(v, b, offsets, order[lo:hi], flip[lo:hi],
+                                        new_offsets[lo:hi + 1] - new_offsets[lo])
+            part_v.tofile(fv)
+            part_b.tofile(fb)
+            del part_v, part_b
+        for fh, a in ((fv, v), (fb, b)):
+            fh.seek(0)
+            flat = a.reshape(-1)
+            for lo in range(0, flat.size, 2 * _BLOCK_VERTICES):
+                part = np.fromfile(fh, dtype=np.float64, count=min(2 * _BLOCK_VERTICES,
+                                                                   flat.size - lo))
+                if not len(part):
+                    raise OSError(f"scratch file {fh.name} came back short")
+                flat[lo:lo + len(part)] = part
+    grooves.stipple[:] = grooves.stipple[order]
+    offsets[:] = new_offsets
+    return grooves
+
+
 @nb.njit(cache=True, parallel=True)
 def _reordered(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
                order: np.ndarray, flip: np.ndarray,
                new_offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (m, 2) and bulges (m,) of the reordered paths, written in place
-    (no per-vertex index arrays: 10^8 vertices would need gigabytes of them)."""
-    out_v = np.empty_like(vertices)
-    out_b = np.empty_like(bulges)
+    """Vertices and bulges of the paths ``order`` (new_offsets[-1] of them), written
+    in place (no per-vertex index arrays: 10^8 vertices would need gigabytes of
+    them); ``new_offsets`` (len(order) + 1,) are where each path starts."""
+    out_v = np.empty((new_offsets[-1], 2))
+    out_b = np.empty(new_offsets[-1])
     for k in nb.prange(order.size):
         a, b, dst = offsets[order[k]], offsets[order[k] + 1], new_offsets[k]
         size = b - a
@@ -671,13 +730,80 @@ def _improve_order(starts: np.ndarray, ends: np.ndarray, order: np.ndarray, flip
     return order[rest - 1], flip[rest - 1] ^ turned
 
 
-def order_paths(grooves: Grooves, neighbours: int = 8,
-                max_shift: int = 1000) -> tuple[Grooves, OrderStats]:
+#: Paths ordered together: past this many, the plate is cut into tiles of about
+#: this many paths, visited in a serpentine, and each is ordered on its own from
+#: where the last one ended (the ordering's memory stays a tile's).
+TILE_PATHS = 2_000_000
+
+
+def _tour(starts: np.ndarray, ends: np.ndarray, neighbours: int,
+          max_shift: int) -> tuple[np.ndarray, np.ndarray]:
+    """The nearest-neighbour tour from the origin, improved: (order, flip) (n,)."""
+    n = len(starts)
+    ends2 = np.empty((2 * n, 2))
+    ends2[0::2] = starts
+    ends2[1::2] = ends
+    order, flip = _nearest_neighbour_tour(ends2)
+    del ends2
+    if max_shift:
+        order, flip = _improve_order(starts, ends, order, flip, neighbours, max_shift)
+    return order, flip
+
+
+def _tiled_tour(starts: np.ndarray, ends: np.ndarray, neighbours: int,
+                max_shift: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_tour` a tile at a time (see :data:`TILE_PATHS`).
+
+    Paths go to the tile of their chord's midpoint, in rows of tiles about as
+    tall as wide, taken left to right and right to left in turn; each tile's tour
+    starts from the end of the last tile's.
+    """
+    n = len(starts)
+    mid = 0.5 * (starts + ends)
+    lo = np.array([mid[:, 0].min(), mid[:, 1].min()])
+    span = np.array([mid[:, 0].max(), mid[:, 1].max()]) - lo + 1e-9
+    tiles = math.ceil(n / TILE_PATHS)
+    rows = max(1, round(math.sqrt(tiles * span[1] / span[0])))
+    cols = max(1, math.ceil(tiles / rows))
+    r = np.minimum((rows * (mid[:, 1] - lo[1]) / span[1]).astype(np.int64), rows - 1)
+    c = np.minimum((cols * (mid[:, 0] - lo[0]) / span[0]).astype(np.int64), cols - 1)
+    del mid
+    tile = r * cols + np.where(r % 2 == 1, cols - 1 - c, c)
+    del r, c
+    by_tile = np.argsort(tile, kind="stable")
+    bounds = np.searchsorted(tile[by_tile], np.arange(rows * cols + 1))
+    del tile
+    order = np.empty(n, dtype=np.int64)
+    flip = np.empty(n, dtype=bool)
+    here = np.zeros(2)
+    for t in range(rows * cols):
+        a, b = bounds[t], bounds[t + 1]
+        if a == b:
+            continue
+        idx = by_tile[a:b]
+        # Measured from where the tool is, so the tour leaves from there.
+        o, f = _tour(starts[idx] - here, ends[idx] - here, neighbours, max_shift)
+        order[a:b], flip[a:b] = idx[o], f
+        last = idx[o[-1]]
+        here = starts[last] if f[-1] else ends[last]
+    return order, flip
+
+
+def _travel(starts: np.ndarray, ends: np.ndarray, order: np.ndarray, flip: np.ndarray) -> float:
+    """Air travel of the paths (starts, ends (n, 2)) cut in this order, mm."""
+    a = np.where(flip[:, None], ends[order], starts[order])
+    b = np.where(flip[:, None], starts[order], ends[order])
+    return travel_length(a, b)
+
+
+def order_paths(grooves: Grooves, neighbours: int = 8, max_shift: int = 1000,
+                scratch: str | os.PathLike[str] | None = None) -> tuple[Grooves, OrderStats]:
     """Reorder (and reverse) paths to shorten the air travel between them.
 
     A nearest-neighbour tour from the origin, improved by 2-opt and Or-opt
     moves toward each end's nearest ends. The result never travels further than
     the given order: if the tour does, the given order is improved instead.
+    Past :data:`TILE_PATHS` paths the plate is ordered a tile at a time.
 
     Args:
         grooves: n paths; the tool starts above the origin.
@@ -687,6 +813,9 @@ def order_paths(grooves: Grooves, neighbours: int = 8,
             paths, 1000 gives 3 % less travel than the greedy tour and 50 000
             gives 10 %, in several times the time; travel is a small share of
             the machining time either way.
+        scratch: a folder for a scratch file: grooves larger than
+            :data:`IN_PLACE_BYTES` are then reordered in their own arrays
+            (:func:`reorder_in_place`, the given grooves change). None: a copy.
 
     Returns:
         The reordered grooves (same arcs, stipple ids following their paths)
@@ -707,29 +836,32 @@ def order_paths(grooves: Grooves, neighbours: int = 8,
     n = grooves.n_paths
     starts, ends = path_ends(grooves)
     before = travel_length(starts, ends)
+    large = scratch is not None and grooves.vertices.nbytes + grooves.bulges.nbytes \
+        > IN_PLACE_BYTES
+
+    def done(order: np.ndarray, flip: np.ndarray) -> Grooves:
+        if large:
+            assert scratch is not None
+            return reorder_in_place(grooves, order, flip, scratch)
+        return reorder(grooves, order, flip)
+
     if n < 2:
         if n == 1 and np.hypot(*ends[0]) < np.hypot(*starts[0]):
-            out = reorder(grooves, np.zeros(1, dtype=np.int64), np.ones(1, dtype=bool))
+            out = done(np.zeros(1, dtype=np.int64), np.ones(1, dtype=bool))
             return out, OrderStats(1, before, travel_length(ends, starts), 1)
         return grooves, OrderStats(n, before, before, 0)
 
-    def travel(order: np.ndarray, flip: np.ndarray) -> float:
-        a = np.where(flip[:, None], ends[order], starts[order])
-        b = np.where(flip[:, None], starts[order], ends[order])
-        return travel_length(a, b)
-
-    ends2 = np.empty((2 * n, 2))
-    ends2[0::2] = starts
-    ends2[1::2] = ends
-    order, flip = _nearest_neighbour_tour(np.ascontiguousarray(ends2))
-    if max_shift:
-        order, flip = _improve_order(starts, ends, order, flip, neighbours, max_shift)
-    after = travel(order, flip)
+    tiled = n > TILE_PATHS
+    order, flip = (_tiled_tour if tiled else _tour)(starts, ends, neighbours, max_shift)
+    after = _travel(starts, ends, order, flip)
     if after > before:
+        if tiled:  # improving the given order would need the whole plate's memory
+            return grooves, OrderStats(n, before, before, 0)
         order, flip = np.arange(n), np.zeros(n, dtype=bool)
         if max_shift:
             order, flip = _improve_order(starts, ends, order, flip, neighbours, max_shift)
-        after = travel(order, flip)
+        after = _travel(starts, ends, order, flip)
         if after > before:  # only by rounding: keep the given order
             return grooves, OrderStats(n, before, before, 0)
-    return reorder(grooves, order, flip), OrderStats(n, before, after, int(flip.sum()))
+    del starts, ends
+    return done(order, flip), OrderStats(n, before, after, int(flip.sum()))
