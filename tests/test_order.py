@@ -321,3 +321,43 @@ def test_large_grooves_are_reordered_in_place(monkeypatch, tmp_path):
     out2, _ = order_paths(ro, scratch=scratch)
     assert out2 is not ro and np.array_equal(ro.vertices, copy.vertices)
     assert np.array_equal(out2.vertices, expected.vertices)
+
+
+def test_travel_and_time_summed_a_block_of_paths_at_a_time(monkeypatch):
+    import specholo.fabrication.order as order_module
+    import specholo.fabrication.timing as timing_module
+
+    g = _random_strokes(5, 50)
+    ordered, stats = order_paths(g)
+    machining = Machining(feed=300.0, plunge=100.0, safe_z=1.0, spindle=0.0)
+    whole = (travel(g), travel(ordered), estimate_time(g, 0.05, machining))
+    for hops in (1, 3, 7):
+        monkeypatch.setattr(order_module, "HOPS", hops)
+        monkeypatch.setattr(timing_module, "HOPS", hops)
+        assert travel(g) == pytest.approx(whole[0], rel=1e-13)
+        assert order_module._travel(*order_module.path_ends(g), *_order_of(g, ordered)) == \
+            pytest.approx(whole[1], rel=1e-13)
+        estimate = estimate_time(g, 0.05, machining)
+        assert estimate.rapid_s == pytest.approx(whole[2].rapid_s, rel=1e-13)
+        assert estimate.total_s == pytest.approx(whole[2].total_s, rel=1e-13)
+    assert stats.travel_after_mm == pytest.approx(whole[1], rel=1e-13)
+    assert travel_length(np.zeros((0, 2)), np.zeros((0, 2))) == 0.0
+
+
+def _order_of(g: Grooves, out: Grooves) -> tuple[np.ndarray, np.ndarray]:
+    """Which path of g each path of out is, and whether it is cut backwards."""
+    starts, ends = g.vertices[g.offsets[:-1]], g.vertices[g.offsets[1:] - 1]
+    order, flip = [], []
+    for j in range(out.n_paths):
+        a, b = out.vertices[out.offsets[j]], out.vertices[out.offsets[j + 1] - 1]
+        fwd = np.flatnonzero((starts == a).all(1) & (ends == b).all(1) & ~np.isin(
+            np.arange(g.n_paths), order))
+        if len(fwd):
+            order.append(int(fwd[0]))
+            flip.append(False)
+        else:
+            back = np.flatnonzero((starts == b).all(1) & (ends == a).all(1) & ~np.isin(
+                np.arange(g.n_paths), order))
+            order.append(int(back[0]))
+            flip.append(True)
+    return np.array(order), np.array(flip)

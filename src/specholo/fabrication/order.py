@@ -70,6 +70,11 @@ def path_ends(grooves: Grooves) -> tuple[np.ndarray, np.ndarray]:
     return verts[offsets[:-1]], verts[offsets[1:] - 1]
 
 
+#: Paths whose air travel is summed at a time: the temporaries of a million-stipple
+#: design (38 million paths) would otherwise take gigabytes.
+HOPS = 1 << 22
+
+
 def travel_length(starts: np.ndarray, ends: np.ndarray) -> float:
     """XY air travel of cutting paths in the given order from the origin, mm.
 
@@ -77,10 +82,41 @@ def travel_length(starts: np.ndarray, ends: np.ndarray) -> float:
         starts: (n, 2) first point of each path as cut.
         ends: (n, 2) last point of each path as cut.
     """
-    if len(starts) == 0:
-        return 0.0
-    before = np.vstack([np.zeros((1, 2)), ends[:-1]])
-    return float(np.linalg.norm(starts - before, axis=1).sum())
+    return _travel(starts, ends)
+
+
+def hop_lengths(starts: np.ndarray, ends: np.ndarray, lo: int, hi: int,
+                order: np.ndarray | None = None,
+                flip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Air travel (hi - lo,) onto the lo-th .. (hi - 1)-th path cut, mm, and where the
+    last of them ends (2,).
+
+    Paths are cut in ``order`` (n,) (default as given), those where ``flip`` (n,)
+    is set from their end; the first leaves from the origin.
+    """
+    if order is None:
+        a, b = starts[lo:hi], ends[lo:hi]
+        prev = ends[lo - 1:lo] if lo else np.zeros((1, 2))
+    else:
+        assert flip is not None
+        o, f = order[lo:hi], flip[lo:hi, None]
+        a = np.where(f, ends[o], starts[o])
+        b = np.where(f, starts[o], ends[o])
+        if lo:
+            p = order[lo - 1]
+            prev = (starts if flip[lo - 1] else ends)[p:p + 1]
+        else:
+            prev = np.zeros((1, 2))
+    return np.linalg.norm(a - np.vstack([prev, b[:-1]]), axis=1), b[-1]
+
+
+def _travel(starts: np.ndarray, ends: np.ndarray, order: np.ndarray | None = None,
+            flip: np.ndarray | None = None) -> float:
+    """:func:`travel_length` of the paths cut in ``order``, flipped where ``flip``
+    is set (default: as given), :data:`HOPS` paths at a time."""
+    n = len(starts) if order is None else len(order)
+    return sum((float(hop_lengths(starts, ends, lo, min(lo + HOPS, n), order, flip)[0].sum())
+               for lo in range(0, n, HOPS)), 0.0)
 
 
 def reorder(grooves: Grooves, order: np.ndarray, flip: np.ndarray) -> Grooves:
@@ -789,13 +825,6 @@ def _tiled_tour(starts: np.ndarray, ends: np.ndarray, neighbours: int,
     return order, flip
 
 
-def _travel(starts: np.ndarray, ends: np.ndarray, order: np.ndarray, flip: np.ndarray) -> float:
-    """Air travel of the paths (starts, ends (n, 2)) cut in this order, mm."""
-    a = np.where(flip[:, None], ends[order], starts[order])
-    b = np.where(flip[:, None], starts[order], ends[order])
-    return travel_length(a, b)
-
-
 def order_paths(grooves: Grooves, neighbours: int = 8, max_shift: int = 1000,
                 scratch: str | os.PathLike[str] | None = None) -> tuple[Grooves, OrderStats]:
     """Reorder (and reverse) paths to shorten the air travel between them.
@@ -831,7 +860,8 @@ def order_paths(grooves: Grooves, neighbours: int = 8, max_shift: int = 1000,
         raise SpecholoError(f"max shift must be >= 0, got {max_shift}")
     if np.any(grooves.path_sizes < 1):
         raise SpecholoError("grooves contain an empty path")
-    if not np.all(np.isfinite(grooves.vertices)):
+    v = grooves.vertices
+    if not all(np.isfinite(v[lo:lo + HOPS]).all() for lo in range(0, len(v), HOPS)):
         raise SpecholoError("grooves contain non-finite vertices")
     n = grooves.n_paths
     starts, ends = path_ends(grooves)

@@ -30,6 +30,7 @@ import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.fabrication.order import HOPS, hop_lengths
 from specholo.setup import Machining
 from specholo.toolpaths.grooves import Grooves
 
@@ -224,8 +225,9 @@ def estimate_time(grooves: Grooves, depth: float, machining: Machining,
 
     starts = verts[offsets[:-1]]
     ends = verts[offsets[1:] - 1]
-    travel = np.linalg.norm(starts - np.vstack([np.zeros((1, 2)), ends[:-1]]), axis=1)
-    rapid_s = float(trapezoid_time(travel, rapid_rate, accel).sum())
+    # A block of paths at a time: the temporaries stay small at any size.
+    rapid_s = sum((float(trapezoid_time(hop_lengths(starts, ends, lo, min(lo + HOPS, n))[0],
+                                       rapid_rate, accel).sum()) for lo in range(0, n, HOPS)), 0.0)
     plunge_s = 0.0
     dwell_s = dwell if n else 0.0
     if laser:
