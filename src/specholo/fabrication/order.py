@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numba as nb
@@ -355,7 +356,7 @@ def _nearest_live(x: float, y: float, xs: np.ndarray, ys: np.ndarray, alive: np.
     return best_p
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, parallel=True, nogil=True)
 def _knn(pts: np.ndarray, out: np.ndarray, shift: int) -> None:
     """The k nearest other points of every point, nearest first.
 
@@ -447,7 +448,7 @@ def _shrink_boxes(leaf: int, xs: np.ndarray, ys: np.ndarray, alive: np.ndarray, 
                 y1 = max(y1, box[child, 3])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _nearest_neighbour_tour(ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Greedy tour from the origin over paths given by their ends.
 
@@ -581,7 +582,7 @@ def _push(queue: np.ndarray, queued: np.ndarray, tail: int, count: int, v: int) 
     return tail, count
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _improve(pts: np.ndarray, cand: np.ndarray, tour: np.ndarray, flip: np.ndarray,
              max_shift: int) -> int:
     """2-opt and Or-opt moves until no candidate move gains; returns the moves made.
@@ -788,11 +789,13 @@ def _tour(starts: np.ndarray, ends: np.ndarray, neighbours: int,
 
 def _tiled_tour(starts: np.ndarray, ends: np.ndarray, neighbours: int,
                 max_shift: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_tour` a tile at a time (see :data:`TILE_PATHS`).
+    """:func:`_tour` a tile at a time (see :data:`TILE_PATHS`), two tiles at once.
 
     Paths go to the tile of their chord's midpoint, in rows of tiles about as
-    tall as wide, taken left to right and right to left in turn; each tile's tour
-    starts from the end of the last tile's.
+    tall as wide, taken left to right and right to left in turn. Each tile's tour
+    leaves from the middle of the tile before it (the origin for the first), so
+    the tiles are independent: the tours (compiled, free of the interpreter's
+    lock) run on both cores.
     """
     n = len(starts)
     mid = 0.5 * (starts + ends)
@@ -811,17 +814,22 @@ def _tiled_tour(starts: np.ndarray, ends: np.ndarray, neighbours: int,
     del tile
     order = np.empty(n, dtype=np.int64)
     flip = np.empty(n, dtype=bool)
-    here = np.zeros(2)
-    for t in range(rows * cols):
+    filled = [t for t in range(rows * cols) if bounds[t] < bounds[t + 1]]
+    entry = {filled[0]: np.zeros(2)}
+    for before, t in zip(filled[:-1], filled[1:], strict=True):
+        idx = by_tile[bounds[before]:bounds[before + 1]]
+        entry[t] = 0.5 * np.array([np.mean(starts[idx, 0] + ends[idx, 0]),
+                                   np.mean(starts[idx, 1] + ends[idx, 1])])
+
+    def one(t: int) -> None:
         a, b = bounds[t], bounds[t + 1]
-        if a == b:
-            continue
         idx = by_tile[a:b]
-        # Measured from where the tool is, so the tour leaves from there.
-        o, f = _tour(starts[idx] - here, ends[idx] - here, neighbours, max_shift)
+        # Measured from the entry, so the tour leaves from there.
+        o, f = _tour(starts[idx] - entry[t], ends[idx] - entry[t], neighbours, max_shift)
         order[a:b], flip[a:b] = idx[o], f
-        last = idx[o[-1]]
-        here = starts[last] if f[-1] else ends[last]
+
+    with ThreadPoolExecutor(2) as pool:
+        list(pool.map(one, filled))
     return order, flip
 
 
