@@ -259,3 +259,32 @@ def test_design_json_reads_back_as_written_with_a_stipple_a_line(stipples):
     assert json.loads(fh.getvalue()) == info
     lines = fh.getvalue().splitlines()
     assert sum(line.startswith('  {"id": ') for line in lines) == len(stipples)
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 20])
+def test_design_json_stipples_written_a_block_at_a_time(n, monkeypatch):
+    """Stipples made a few at a time give the bytes of the whole list at once."""
+    import io
+
+    import numpy as np
+
+    from specholo.pipeline import StippleRows, dump_design_json
+    from specholo.toolpaths.common import make_runs
+
+    rng = np.random.default_rng(n)
+    points = rng.normal(0.0, 10.0, (n, 3))
+    ids = np.sort(rng.integers(0, max(n, 1), 3 * n))  # some with no run, some with several
+    start = rng.uniform(-0.8, 0.0, len(ids))
+    runs = make_runs(points, ids, start, start + 0.3)
+    rows = StippleRows(points, runs)
+    whole = [row for block in rows.blocks(10**6) for row in block]
+    assert [r["id"] for r in whole] == list(range(n))
+    assert sum(len(r["visible_deg"]) for r in whole) == len(ids)
+    info = {"settings": {"a": 1}, "stipples": rows, "machining": {"hours": 0.5}}
+    fh_blocks, fh_list = io.StringIO(), io.StringIO()
+    original = StippleRows.blocks
+    monkeypatch.setattr(StippleRows, "blocks", lambda self, size=3: original(self, 3))
+    dump_design_json(info, fh_blocks)
+    dump_design_json({**info, "stipples": whole}, fh_list)
+    assert fh_blocks.getvalue() == fh_list.getvalue()
+    assert json.loads(fh_blocks.getvalue())["stipples"] == whole

@@ -15,6 +15,7 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -567,19 +568,39 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
                   views, overlaps, plate)
 
 
-def _intervals_deg(runs: Runs, n: int) -> list[list[list[float]]]:
-    out: list[list[list[float]]] = [[] for _ in range(n)]
-    for s, a, b in zip(runs.stipple.tolist(), np.degrees(runs.start).tolist(),
-                       np.degrees(runs.end).tolist(), strict=True):
-        out[s].append([round(a, 4), round(b, 4)])
-    return out
+class StippleRows:
+    """The stipples of ``hologram.json`` (id, position, visible azimuths in degrees),
+    made a block at a time as they are written: as one list, a million
+    stipples' dictionaries would hold ~1 GB for the whole of the writing."""
+
+    def __init__(self, points: np.ndarray, runs: Runs) -> None:
+        self.points = points
+        self.runs = runs
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def blocks(self, size: int = 1 << 16) -> Iterator[list[dict[str, Any]]]:
+        """Lists of up to ``size`` stipples' rows, in id order."""
+        by_id = np.argsort(self.runs.stipple, kind="stable")  # each stipple's runs in order
+        ids = self.runs.stipple[by_id]
+        for a in range(0, len(self.points), size):
+            b = min(a + size, len(self.points))
+            lo, hi = np.searchsorted(ids, [a, b])
+            iv: list[list[list[float]]] = [[] for _ in range(b - a)]
+            for s, x, y in zip(ids[lo:hi].tolist(),
+                               np.degrees(self.runs.start[by_id[lo:hi]]).tolist(),
+                               np.degrees(self.runs.end[by_id[lo:hi]]).tolist(), strict=True):
+                iv[s - a].append([round(x, 4), round(y, 4)])
+            yield [{"id": i, "x": float(p[0]), "y": float(p[1]), "z": float(p[2]),
+                    "visible_deg": iv[i - a]}
+                   for i, p in enumerate(self.points[a:b].tolist(), start=a)]
 
 
 def hologram_json(d: Design) -> dict[str, Any]:
     """The design's settings, figures and stipples, for ``hologram.json``."""
     setup = d.config.setup()
     lo, hi = d.grooves.bounds()
-    iv = _intervals_deg(d.runs, len(d.points))
     return {
         "specholo_version": __version__,
         "settings": asdict(d.config),
@@ -599,8 +620,7 @@ def hologram_json(d: Design) -> dict[str, Any]:
                   "groove_length_mm": d.grooves.total_length(),
                   "dropped_stipples": d.dropped.tolist(),
                   "dropped_reasons": drop_reasons(d.points, d.dropped, setup)},
-        "stipples": [{"id": i, "x": float(p[0]), "y": float(p[1]), "z": float(p[2]),
-                      "visible_deg": iv[i]} for i, p in enumerate(d.points.tolist())],
+        "stipples": StippleRows(d.points, d.runs),
     }
 
 
@@ -779,17 +799,22 @@ def dump_design_json(info: dict[str, Any], fh: Any) -> None:
 
     json writes an indented file in pure Python (15 s for a million
     stipples); the stipples' list goes through its C encoder instead, the same
-    values in the same order.
+    values in the same order, a block at a time when they are
+    :class:`StippleRows`.
     """
     stipples = info.get("stipples")
     if not stipples:
-        json.dump(info, fh, indent=1)
+        json.dump({**info, "stipples": []} if isinstance(stipples, StippleRows) else info, fh,
+                  indent=1)
         return
     mark = json.dumps("\x00stipples\x00")  # a string no JSON value of a design holds
     head, tail = json.dumps({**info, "stipples": json.loads(mark)}, indent=1).split(mark)
     fh.write(head)
     fh.write("[\n  ")
-    fh.write(json.dumps(stipples, separators=(", ", ": "))[1:-1].replace("}, {", "},\n  {"))
+    blocks = stipples.blocks() if isinstance(stipples, StippleRows) else [stipples]
+    for k, block in enumerate(blocks):
+        fh.write(",\n  " if k else "")
+        fh.write(json.dumps(block, separators=(", ", ": "))[1:-1].replace("}, {", "},\n  {"))
     fh.write("\n ]")
     fh.write(tail)
 
