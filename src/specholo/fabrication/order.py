@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -142,6 +143,9 @@ def reorder(grooves: Grooves, order: np.ndarray, flip: np.ndarray) -> Grooves:
     return Grooves(vertices, bulges, new_offsets,
                    np.asarray(grooves.stipple, dtype=np.int64)[order])
 
+
+#: Held while a parallel kernel runs, when tiles are toured from two threads.
+_PARALLEL = threading.Lock()
 
 #: Grooves larger than this (bytes of vertices and bulges) are reordered in
 #: place when asked: the new order is staged in a scratch file, so that only
@@ -752,7 +756,8 @@ def _improve_order(starts: np.ndarray, ends: np.ndarray, order: np.ndarray, flip
     cand = np.empty((len(pts), k + 1), dtype=np.int64)
     cand[0] = -1
     cand[1:, 0] = 0
-    _knn(pts[1:], cand[1:, 1:], 1)
+    with _PARALLEL:  # both cores already; numba's workqueue layer allows one at a time
+        _knn(pts[1:], cand[1:, 1:], 1)
     tour = np.arange(n + 1)
     flips = np.zeros(n + 1, dtype=np.int64)  # by node, not by tour position
     _improve(pts, cand, tour, flips, max_shift)
