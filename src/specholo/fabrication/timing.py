@@ -182,6 +182,14 @@ def _cutting_time(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
     return seconds
 
 
+def _distinct(ids: np.ndarray) -> int:
+    """How many different values ids (k,) holds: counted in a table where the
+    ids are small non-negative integers (as stipple ids are), not sorted."""
+    if ids.size and ids.dtype.kind in "iu" and 0 <= ids.min() and ids.max() < 4 * ids.size:
+        return int(np.count_nonzero(np.bincount(ids)))
+    return len(np.unique(ids))
+
+
 def estimate_time(grooves: Grooves, depth: float, machining: Machining,
                   accel: float = 250.0, rapid: float = 3000.0, junction_deviation: float = 0.01,
                   dwell: float = 0.0, laser: bool = False, dot_time: float = 0.1) -> TimeEstimate:
@@ -216,18 +224,22 @@ def estimate_time(grooves: Grooves, depth: float, machining: Machining,
     if np.any(grooves.path_sizes < 1):
         raise SpecholoError("grooves contain an empty path")
     n = grooves.n_paths
-    stipples = len(np.unique(grooves.stipple))
+    stipples = _distinct(np.asarray(grooves.stipple))
     feed = machining.feed / 60.0
     plunge_rate = machining.plunge / 60.0
     rapid_rate = rapid / 60.0
     offsets = np.asarray(grooves.offsets, dtype=np.int64)
     verts = np.ascontiguousarray(grooves.vertices, dtype=float).reshape(-1, 2)
 
-    starts = verts[offsets[:-1]]
-    ends = verts[offsets[1:] - 1]
+    def hops(lo: int, hi: int) -> np.ndarray:
+        """Air travel onto paths lo .. hi - 1, from their ends and the one before."""
+        a = max(lo - 1, 0)
+        starts, ends = verts[offsets[a:hi]], verts[offsets[a + 1:hi + 1] - 1]
+        return hop_lengths(starts, ends, lo - a, hi - a)[0]
+
     # A block of paths at a time: the temporaries stay small at any size.
-    rapid_s = sum((float(trapezoid_time(hop_lengths(starts, ends, lo, min(lo + HOPS, n))[0],
-                                       rapid_rate, accel).sum()) for lo in range(0, n, HOPS)), 0.0)
+    rapid_s = sum((float(trapezoid_time(hops(lo, min(lo + HOPS, n)), rapid_rate, accel).sum())
+                   for lo in range(0, n, HOPS)), 0.0)
     plunge_s = 0.0
     dwell_s = dwell if n else 0.0
     if laser:
