@@ -26,6 +26,9 @@ X, Y, Z, FEED, FACTOR, MOTION = range(6)
 #: Columns of a move row, as the reader writes them.
 ROW = 12
 _TENS = np.array([10.0**k for k in range(23)])
+#: Each byte's place among the words X Y Z I J F, -1 for any other byte.
+_WORD_OF = np.full(256, -1, dtype=np.int64)
+_WORD_OF[np.frombuffer(b"XYZIJF", dtype=np.uint8)] = np.arange(6)
 _MAX_MANTISSA = 10**14  # so a mantissa of 15 digits stays below 2^53
 _NOT_TAKEN, _NOTHING = -1, -2
 
@@ -121,20 +124,7 @@ def _plain(buf: np.ndarray, a: int, b: int, words: np.ndarray) -> int:
             i += 1
         if i == b:
             return motion
-        c = buf[i]
-        k = -1
-        if c == 88:
-            k = 0
-        elif c == 89:
-            k = 1
-        elif c == 90:
-            k = 2
-        elif c == 73:
-            k = 3
-        elif c == 74:
-            k = 4
-        elif c == 70:
-            k = 5
+        k = _WORD_OF[buf[i]]
         if k <= last:
             return _NOT_TAKEN
         value, i = _number(buf, i + 1, b, k != 5)
@@ -143,7 +133,7 @@ def _plain(buf: np.ndarray, a: int, b: int, words: np.ndarray) -> int:
         words[k] = value
         last = k
         # A word must end at whitespace, the next word or the line's end.
-        if i < b and not _space(buf[i]) and buf[i] not in (88, 89, 90, 73, 74, 70):
+        if i < b and not _space(buf[i]) and _WORD_OF[buf[i]] < 0:
             return _NOT_TAKEN
 
 

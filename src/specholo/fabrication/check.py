@@ -682,15 +682,15 @@ def check_gcode(path: str | os.PathLike[str], stock: Stock, max_depth: float, sa
 
     try:
         try:
-            report.lines, state = _read_bytes(path, reader(), checked)
+            report.lines, used = _read_bytes(path, reader(), checked)
         except _LoneReturn:  # old Mac line ends: read as text, as Python splits them
             found.clear()
             kinds[:], cuts = 0, 0
-            report.lines, state = _read_text(path, reader(), checked)
+            report.lines, used = _read_text(path, reader(), checked)
     except OSError as exc:
         raise SpecholoError(f"cannot read G-code file {os.fspath(path)!r}: {exc.strerror}") from exc
     report.moves = {"G0": int(kinds[0]), "G1": int(kinds[1]), "G2": int(kinds[2]),
-                    "G3": int(kinds[3]), "dwell": state.dwells, "cutting": cuts + state.burns}
+                    "G3": int(kinds[3]), "dwell": used.dwells, "cutting": cuts + used.burns}
     found.sort()
     report.total_violations = len(found)
     listed = found[:max_listed]

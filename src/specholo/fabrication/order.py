@@ -89,9 +89,8 @@ def travel_length(starts: np.ndarray, ends: np.ndarray) -> float:
 
 def hop_lengths(starts: np.ndarray, ends: np.ndarray, lo: int, hi: int,
                 order: np.ndarray | None = None,
-                flip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Air travel (hi - lo,) onto the lo-th .. (hi - 1)-th path cut, mm, and where the
-    last of them ends (2,).
+                flip: np.ndarray | None = None) -> np.ndarray:
+    """Air travel (hi - lo,) onto the lo-th .. (hi - 1)-th path cut, mm.
 
     Paths are cut in ``order`` (n,) (default as given), those where ``flip`` (n,)
     is set from their end; the first leaves from the origin.
@@ -109,7 +108,7 @@ def hop_lengths(starts: np.ndarray, ends: np.ndarray, lo: int, hi: int,
             prev = (starts if flip[lo - 1] else ends)[p:p + 1]
         else:
             prev = np.zeros((1, 2))
-    return np.linalg.norm(a - np.vstack([prev, b[:-1]]), axis=1), b[-1]
+    return np.linalg.norm(a - np.vstack([prev, b[:-1]]), axis=1)
 
 
 def _travel(starts: np.ndarray, ends: np.ndarray, order: np.ndarray | None = None,
@@ -117,7 +116,7 @@ def _travel(starts: np.ndarray, ends: np.ndarray, order: np.ndarray | None = Non
     """:func:`travel_length` of the paths cut in ``order``, flipped where ``flip``
     is set (default: as given), :data:`HOPS` paths at a time."""
     n = len(starts) if order is None else len(order)
-    return sum((float(hop_lengths(starts, ends, lo, min(lo + HOPS, n), order, flip)[0].sum())
+    return sum((float(hop_lengths(starts, ends, lo, min(lo + HOPS, n), order, flip).sum())
                for lo in range(0, n, HOPS)), 0.0)
 
 
@@ -773,8 +772,8 @@ def _improve_order(starts: np.ndarray, ends: np.ndarray, order: np.ndarray, flip
 
 
 #: Paths ordered together: past this many, the plate is cut into tiles of about
-#: this many paths, visited in a serpentine, and each is ordered on its own from
-#: where the last one ended (the ordering's memory stays a tile's).
+#: this many paths, visited in a serpentine, each ordered on its own
+#: (:func:`_tiled_tour`; the ordering's memory stays a tile's).
 TILE_PATHS = 2_000_000
 
 

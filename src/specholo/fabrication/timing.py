@@ -235,7 +235,7 @@ def estimate_time(grooves: Grooves, depth: float, machining: Machining,
         """Air travel onto paths lo .. hi - 1, from their ends and the one before."""
         a = max(lo - 1, 0)
         starts, ends = verts[offsets[a:hi]], verts[offsets[a + 1:hi + 1] - 1]
-        return hop_lengths(starts, ends, lo - a, hi - a)[0]
+        return hop_lengths(starts, ends, lo - a, hi - a)
 
     # A block of paths at a time: the temporaries stay small at any size.
     rapid_s = sum((float(trapezoid_time(hops(lo, min(lo + HOPS, n)), rapid_rate, accel).sum())
