@@ -29,6 +29,7 @@ from specholo.fabrication.gcode import (
     chunk_bounds,
     format_number,
     is_straight,
+    path_chunks,
     read_gcode,
     split_wide_arcs,
     wide_arcs,
@@ -744,6 +745,28 @@ def test_chunk_bounds():
     assert chunk_bounds(np.zeros(0, dtype=np.int64), 4).tolist() == [0]
     with pytest.raises(ValueError, match="got 0"):
         chunk_bounds(sizes, 0)
+
+
+def test_path_chunks_read_from_the_offsets(monkeypatch):
+    """Chunks found from the offsets, a block of paths at a time, are the same
+    as from the sizes: whole, for a subset of paths and for a slice whose
+    offsets do not start at 0."""
+    import specholo.fabrication.gcode as gcode_module
+
+    rng = np.random.default_rng(3)
+    sizes = rng.integers(1, 9, 200)
+    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    g = Grooves(np.zeros((offsets[-1], 2)), np.zeros(offsets[-1]), offsets, np.arange(200))
+    paths = rng.permutation(200)[:150]
+    tail = Grooves(g.vertices, g.bulges, offsets[50:] - 0, np.arange(150))  # starts at 50's
+    for block in (1, 7, 1 << 22):
+        monkeypatch.setattr(gcode_module, "_BLOCK_PATHS", block)
+        for rows in (1, 5, 16, 10_000):
+            assert path_chunks(g, rows).tolist() == chunk_bounds(sizes, rows).tolist()
+            assert path_chunks(g, rows, paths).tolist() == \
+                chunk_bounds(sizes[paths], rows).tolist()
+            assert path_chunks(tail, rows).tolist() == chunk_bounds(sizes[50:], rows).tolist()
+    assert path_chunks(Grooves.empty(), 4).tolist() == [0]
 
 
 def test_chunks_change_nothing(tmp_path, groove_example, monkeypatch):

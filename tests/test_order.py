@@ -304,7 +304,8 @@ def test_large_grooves_are_reordered_in_place(monkeypatch, tmp_path):
     copy = Grooves(g.vertices.copy(), g.bulges.copy(), g.offsets.copy(), g.stipple.copy())
     expected, expected_stats = order_paths(copy)
     monkeypatch.setattr(order_module, "IN_PLACE_BYTES", 0)
-    monkeypatch.setattr(order_module, "_BLOCK_VERTICES", 7)  # blocks of a path or two
+    monkeypatch.setattr(order_module, "_BLOCK_PATHS", 2)
+    monkeypatch.setattr(order_module, "_READ_VALUES", 7)
     scratch = tmp_path / "scratch"
     scratch.mkdir()
     out, stats = order_paths(g, scratch=scratch)
@@ -335,7 +336,7 @@ def test_travel_and_time_summed_a_block_of_paths_at_a_time(monkeypatch):
         monkeypatch.setattr(order_module, "HOPS", hops)
         monkeypatch.setattr(timing_module, "HOPS", hops)
         assert travel(g) == pytest.approx(whole[0], rel=1e-13)
-        assert order_module._travel(*order_module.path_ends(g), *_order_of(g, ordered)) == \
+        assert order_module._travel(g.vertices, g.offsets, *_order_of(g, ordered)) == \
             pytest.approx(whole[1], rel=1e-13)
         estimate = estimate_time(g, 0.05, machining)
         assert estimate.rapid_s == pytest.approx(whole[2].rapid_s, rel=1e-13)

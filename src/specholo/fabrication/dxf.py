@@ -51,9 +51,9 @@ from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import (
     TextRows,
     check_grooves,
-    chunk_bounds,
     format_number,
     is_straight,
+    path_chunks,
 )
 from specholo.fabrication.svg import Layer, drawing_bounds, plan_layers, take_paths
 from specholo.setup import Tool
@@ -219,8 +219,7 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     with atomic_open(path, "wb") as fh:
         fh.write(doc.encode(drawing[:at]))
         for layer, first in zip(layers, first_handles, strict=True):
-            sizes = grooves.path_sizes[layer.paths]
-            bounds = chunk_bounds(sizes, _CHUNK_ROWS)
+            bounds = path_chunks(grooves, _CHUNK_ROWS, layer.paths)
             for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
                 g = take_paths(grooves, layer.paths[a:b])
                 if layer.dots:

@@ -24,6 +24,7 @@ end with its sign flipped: the same arcs, cut the other way.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import tempfile
@@ -73,8 +74,8 @@ def path_ends(grooves: Grooves) -> tuple[np.ndarray, np.ndarray]:
 
 
 #: Paths whose air travel is summed at a time: the temporaries of a million-stipple
-#: design (38 million paths) would otherwise take gigabytes.
-HOPS = 1 << 22
+#: design (38 million paths) would otherwise take gigabytes (a block's are ~100 MB).
+HOPS = 1 << 20
 
 
 def travel_length(starts: np.ndarray, ends: np.ndarray) -> float:
@@ -84,40 +85,35 @@ def travel_length(starts: np.ndarray, ends: np.ndarray) -> float:
         starts: (n, 2) first point of each path as cut.
         ends: (n, 2) last point of each path as cut.
     """
-    return _travel(starts, ends)
+    n = len(starts)
+    return sum((float(hop_lengths(starts, ends, lo, min(lo + HOPS, n)).sum())
+                for lo in range(0, n, HOPS)), 0.0)
 
 
-def hop_lengths(starts: np.ndarray, ends: np.ndarray, lo: int, hi: int,
-                order: np.ndarray | None = None,
-                flip: np.ndarray | None = None) -> np.ndarray:
-    """Air travel (hi - lo,) onto the lo-th .. (hi - 1)-th path cut, mm.
-
-    Paths are cut in ``order`` (n,) (default as given), those where ``flip`` (n,)
-    is set from their end; the first leaves from the origin.
-    """
-    if order is None:
-        a, b = starts[lo:hi], ends[lo:hi]
-        prev = ends[lo - 1:lo] if lo else np.zeros((1, 2))
-    else:
-        assert flip is not None
-        o, f = order[lo:hi], flip[lo:hi, None]
-        a = np.where(f, ends[o], starts[o])
-        b = np.where(f, starts[o], ends[o])
-        if lo:
-            p = order[lo - 1]
-            prev = (starts if flip[lo - 1] else ends)[p:p + 1]
-        else:
-            prev = np.zeros((1, 2))
-    return np.linalg.norm(a - np.vstack([prev, b[:-1]]), axis=1)
+def hop_lengths(starts: np.ndarray, ends: np.ndarray, lo: int, hi: int) -> np.ndarray:
+    """Air travel (hi - lo,) onto the lo-th .. (hi - 1)-th path of (starts, ends)
+    (n, 2), mm; the first path leaves from the origin."""
+    prev = ends[lo - 1:lo] if lo else np.zeros((1, 2))
+    return np.linalg.norm(starts[lo:hi] - np.vstack([prev, ends[lo:hi - 1]]), axis=1)
 
 
-def _travel(starts: np.ndarray, ends: np.ndarray, order: np.ndarray | None = None,
+def _travel(verts: np.ndarray, offsets: np.ndarray, order: np.ndarray | None = None,
             flip: np.ndarray | None = None) -> float:
-    """:func:`travel_length` of the paths cut in ``order``, flipped where ``flip``
-    is set (default: as given), :data:`HOPS` paths at a time."""
-    n = len(starts) if order is None else len(order)
-    return sum((float(hop_lengths(starts, ends, lo, min(lo + HOPS, n), order, flip).sum())
-               for lo in range(0, n, HOPS)), 0.0)
+    """:func:`travel_length` of the paths of (verts, offsets) cut in ``order``,
+    flipped where ``flip`` is set (default: as given), :data:`HOPS` paths at a
+    time: the path ends are gathered a block at a time, never all at once."""
+    n = len(offsets) - 1 if order is None else len(order)
+    total, prev = 0.0, np.zeros((1, 2))
+    for lo in range(0, n, HOPS):
+        hi = min(lo + HOPS, n)
+        p = np.arange(lo, hi) if order is None else order[lo:hi]
+        a, b = verts[offsets[p]], verts[offsets[p + 1] - 1]
+        if flip is not None:
+            f = flip[lo:hi, None]
+            a, b = np.where(f, b, a), np.where(f, a, b)
+        total += float(np.linalg.norm(a - np.vstack([prev, b[:-1]]), axis=1).sum())
+        prev = b[-1:]
+    return total
 
 
 def reorder(grooves: Grooves, order: np.ndarray, flip: np.ndarray) -> Grooves:
@@ -150,17 +146,20 @@ _PARALLEL = threading.Lock()
 #: place when asked: the new order is staged in a scratch file, so that only
 #: one copy of the grooves is ever in memory (6 GB at a million stipples).
 IN_PLACE_BYTES = 1 << 30
-#: Vertices gathered at a time when reordering in place.
-_BLOCK_VERTICES = 1 << 23
+#: Paths gathered at a time when reordering in place (~40 MB of a striped
+#: design's arcs), and values read back at a time.
+_BLOCK_PATHS = 1 << 18
+_READ_VALUES = 1 << 22
 
 
 def reorder_in_place(grooves: Grooves, order: np.ndarray, flip: np.ndarray,
                      scratch: str | os.PathLike[str]) -> Grooves:
     """:func:`reorder` into the grooves' own arrays, staged in a scratch file.
 
-    The reordered paths are gathered a block at a time and written to a
-    temporary file in ``scratch``, then read back over the old order, so memory
-    holds one copy of the grooves and a block. Grooves whose arrays cannot be
+    The reordered paths (vertices, bulges, offsets and stipple ids) are gathered
+    a block at a time and written to temporary files in ``scratch``, then read
+    back over the old order, so memory holds one copy of the grooves and a
+    block. Grooves whose arrays cannot be
     written in place (read-only, not float64 or not contiguous) are copied
     (:func:`reorder`).
 
@@ -175,29 +174,29 @@ def reorder_in_place(grooves: Grooves, order: np.ndarray, flip: np.ndarray,
         return reorder(grooves, order, flip)
     order = np.ascontiguousarray(order, dtype=np.int64)
     flip = np.ascontiguousarray(flip, dtype=np.bool_)
-    offsets = grooves.offsets
-    new_offsets = np.concatenate([[0], np.cumsum(np.diff(offsets)[order])]).astype(np.int64)
-    cuts = np.searchsorted(new_offsets, np.arange(_BLOCK_VERTICES, new_offsets[-1],
-                                                  _BLOCK_VERTICES))
-    bounds = np.unique(np.concatenate([[0], cuts, [len(order)]]))
-    with tempfile.TemporaryFile(dir=scratch) as fv, tempfile.TemporaryFile(dir=scratch) as fb:
-        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
-            part_v, part_b = _reordered(v, b, offsets, order[lo:hi], flip[lo:hi],
-                                        new_offsets[lo:hi + 1] - new_offsets[lo])
-            part_v.tofile(fv)
-            part_b.tofile(fb)
+    offsets, stipple = grooves.offsets, grooves.stipple
+    with contextlib.ExitStack() as stack:
+        files = [stack.enter_context(tempfile.TemporaryFile(dir=scratch)) for _ in range(4)]
+        total = 0
+        for lo in range(0, len(order), _BLOCK_PATHS):
+            o, f = order[lo:lo + _BLOCK_PATHS], flip[lo:lo + _BLOCK_PATHS]
+            starts = np.zeros(len(o) + 1, dtype=np.int64)
+            np.cumsum(offsets[o + 1] - offsets[o], out=starts[1:])
+            part_v, part_b = _reordered(v, b, offsets, o, f, starts)
+            for fh, part in zip(files, (part_v, part_b, starts[:-1] + total, stipple[o]),
+                                strict=True):
+                part.tofile(fh)
+            total += int(starts[-1])
             del part_v, part_b
-        for fh, a in ((fv, v), (fb, b)):
+        # Read back over the old order only now: every block gathered from it.
+        for fh, a in zip(files, (v, b, offsets[:-1], stipple), strict=True):
             fh.seek(0)
             flat = a.reshape(-1)
-            for lo in range(0, flat.size, 2 * _BLOCK_VERTICES):
-                part = np.fromfile(fh, dtype=np.float64, count=min(2 * _BLOCK_VERTICES,
-                                                                   flat.size - lo))
+            for lo in range(0, flat.size, _READ_VALUES):
+                part = np.fromfile(fh, dtype=a.dtype, count=min(_READ_VALUES, flat.size - lo))
                 if not len(part):
                     raise OSError(f"scratch file {fh.name} came back short")
                 flat[lo:lo + len(part)] = part
-    grooves.stipple[:] = grooves.stipple[order]
-    offsets[:] = new_offsets
     return grooves
 
 
@@ -773,8 +772,8 @@ def _improve_order(starts: np.ndarray, ends: np.ndarray, order: np.ndarray, flip
 
 #: Paths ordered together: past this many, the plate is cut into tiles of about
 #: this many paths, visited in a serpentine, each ordered on its own
-#: (:func:`_tiled_tour`; the ordering's memory stays a tile's).
-TILE_PATHS = 2_000_000
+#: (:func:`_tiled_tour`; the ordering's memory stays two tiles', ~0.25 GB each).
+TILE_PATHS = 500_000
 
 
 def _tour(starts: np.ndarray, ends: np.ndarray, neighbours: int,
@@ -791,7 +790,13 @@ def _tour(starts: np.ndarray, ends: np.ndarray, neighbours: int,
     return order, flip
 
 
-def _tiled_tour(starts: np.ndarray, ends: np.ndarray, neighbours: int,
+def _ends(verts: np.ndarray, offsets: np.ndarray,
+          paths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First and last vertex (k, 2) of the paths ``paths`` (k,)."""
+    return verts[offsets[paths]], verts[offsets[paths + 1] - 1]
+
+
+def _tiled_tour(verts: np.ndarray, offsets: np.ndarray, neighbours: int,
                 max_shift: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_tour` a tile at a time (see :data:`TILE_PATHS`), two tiles at once.
 
@@ -799,37 +804,51 @@ def _tiled_tour(starts: np.ndarray, ends: np.ndarray, neighbours: int,
     tall as wide, taken left to right and right to left in turn. Each tile's tour
     leaves from the middle of the tile before it (the origin for the first), so
     the tiles are independent: the tours (compiled, free of the interpreter's
-    lock) run on both cores.
+    lock) run on both cores. Path ends are gathered a block or a tile at a time,
+    and the order is written over the tile sort, so past the grooves memory
+    holds the order and two tiles' tours.
     """
-    n = len(starts)
-    mid = 0.5 * (starts + ends)
-    lo = np.array([mid[:, 0].min(), mid[:, 1].min()])
-    span = np.array([mid[:, 0].max(), mid[:, 1].max()]) - lo + 1e-9
+    n = len(offsets) - 1
+    blocks = [(lo, min(lo + HOPS, n)) for lo in range(0, n, HOPS)]
+
+    def mids(lo: int, hi: int) -> np.ndarray:
+        s, e = _ends(verts, offsets, np.arange(lo, hi))
+        return 0.5 * (s + e)
+
+    lo = np.full(2, np.inf)
+    hi = np.full(2, -np.inf)
+    for a, b in blocks:
+        m = mids(a, b)
+        lo, hi = np.minimum(lo, m.min(axis=0)), np.maximum(hi, m.max(axis=0))
+    span = hi - lo + 1e-9
     tiles = math.ceil(n / TILE_PATHS)
     rows = max(1, round(math.sqrt(tiles * span[1] / span[0])))
     cols = max(1, math.ceil(tiles / rows))
-    r = np.minimum((rows * (mid[:, 1] - lo[1]) / span[1]).astype(np.int64), rows - 1)
-    c = np.minimum((cols * (mid[:, 0] - lo[0]) / span[0]).astype(np.int64), cols - 1)
-    del mid
-    tile = r * cols + np.where(r % 2 == 1, cols - 1 - c, c)
-    del r, c
-    by_tile = np.argsort(tile, kind="stable")
-    bounds = np.searchsorted(tile[by_tile], np.arange(rows * cols + 1))
+    tile = np.empty(n, dtype=np.int32)
+    sums = np.zeros((rows * cols, 2))
+    for a, b in blocks:
+        m = mids(a, b)
+        r = np.minimum((rows * (m[:, 1] - lo[1]) / span[1]).astype(np.int64), rows - 1)
+        c = np.minimum((cols * (m[:, 0] - lo[0]) / span[0]).astype(np.int64), cols - 1)
+        t = r * cols + np.where(r % 2 == 1, cols - 1 - c, c)
+        tile[a:b] = t
+        for k in range(2):
+            sums[:, k] += np.bincount(t, weights=m[:, k], minlength=rows * cols)
+    bounds = np.concatenate([[0], np.cumsum(np.bincount(tile, minlength=rows * cols))])
+    order = np.argsort(tile, kind="stable")  # by tile; each tile's tour is written over it
     del tile
-    order = np.empty(n, dtype=np.int64)
     flip = np.empty(n, dtype=bool)
     filled = [t for t in range(rows * cols) if bounds[t] < bounds[t + 1]]
     entry = {filled[0]: np.zeros(2)}
     for before, t in zip(filled[:-1], filled[1:], strict=True):
-        idx = by_tile[bounds[before]:bounds[before + 1]]
-        entry[t] = 0.5 * np.array([np.mean(starts[idx, 0] + ends[idx, 0]),
-                                   np.mean(starts[idx, 1] + ends[idx, 1])])
+        entry[t] = sums[before] / (bounds[before + 1] - bounds[before])
 
     def one(t: int) -> None:
         a, b = bounds[t], bounds[t + 1]
-        idx = by_tile[a:b]
+        idx = order[a:b].copy()
+        s, e = _ends(verts, offsets, idx)
         # Measured from the entry, so the tour leaves from there.
-        o, f = _tour(starts[idx] - entry[t], ends[idx] - entry[t], neighbours, max_shift)
+        o, f = _tour(s - entry[t], e - entry[t], neighbours, max_shift)
         order[a:b], flip[a:b] = idx[o], f
 
     with ThreadPoolExecutor(2) as pool:
@@ -870,14 +889,15 @@ def order_paths(grooves: Grooves, neighbours: int = 8, max_shift: int = 1000,
         raise SpecholoError(f"neighbours must be at least 1, got {neighbours}")
     if max_shift < 0:
         raise SpecholoError(f"max shift must be >= 0, got {max_shift}")
-    if np.any(grooves.path_sizes < 1):
+    if grooves.has_empty_path():
         raise SpecholoError("grooves contain an empty path")
     v = grooves.vertices
     if not all(np.isfinite(v[lo:lo + HOPS]).all() for lo in range(0, len(v), HOPS)):
         raise SpecholoError("grooves contain non-finite vertices")
     n = grooves.n_paths
-    starts, ends = path_ends(grooves)
-    before = travel_length(starts, ends)
+    offsets = np.asarray(grooves.offsets, dtype=np.int64)
+    verts = np.asarray(v, dtype=float).reshape(-1, 2)
+    before = _travel(verts, offsets)
     large = scratch is not None and grooves.vertices.nbytes + grooves.bulges.nbytes \
         > IN_PLACE_BYTES
 
@@ -888,22 +908,27 @@ def order_paths(grooves: Grooves, neighbours: int = 8, max_shift: int = 1000,
         return reorder(grooves, order, flip)
 
     if n < 2:
-        if n == 1 and np.hypot(*ends[0]) < np.hypot(*starts[0]):
+        s, e = _ends(verts, offsets, np.arange(n))
+        if n == 1 and np.hypot(*e[0]) < np.hypot(*s[0]):
             out = done(np.zeros(1, dtype=np.int64), np.ones(1, dtype=bool))
-            return out, OrderStats(1, before, travel_length(ends, starts), 1)
+            return out, OrderStats(1, before, travel_length(e, s), 1)
         return grooves, OrderStats(n, before, before, 0)
 
-    tiled = n > TILE_PATHS
-    order, flip = (_tiled_tour if tiled else _tour)(starts, ends, neighbours, max_shift)
-    after = _travel(starts, ends, order, flip)
-    if after > before:
-        if tiled:  # improving the given order would need the whole plate's memory
+    if n > TILE_PATHS:
+        order, flip = _tiled_tour(verts, offsets, neighbours, max_shift)
+        after = _travel(verts, offsets, order, flip)
+        if after > before:  # improving the given order would need the whole plate's memory
             return grooves, OrderStats(n, before, before, 0)
-        order, flip = np.arange(n), np.zeros(n, dtype=bool)
-        if max_shift:
-            order, flip = _improve_order(starts, ends, order, flip, neighbours, max_shift)
-        after = _travel(starts, ends, order, flip)
-        if after > before:  # only by rounding: keep the given order
-            return grooves, OrderStats(n, before, before, 0)
-    del starts, ends
+    else:
+        starts, ends = _ends(verts, offsets, np.arange(n))
+        order, flip = _tour(starts, ends, neighbours, max_shift)
+        after = _travel(verts, offsets, order, flip)
+        if after > before:
+            order, flip = np.arange(n), np.zeros(n, dtype=bool)
+            if max_shift:
+                order, flip = _improve_order(starts, ends, order, flip, neighbours, max_shift)
+            after = _travel(verts, offsets, order, flip)
+            if after > before:  # only by rounding: keep the given order
+                return grooves, OrderStats(n, before, before, 0)
+        del starts, ends
     return done(order, flip), OrderStats(n, before, after, int(flip.sum()))

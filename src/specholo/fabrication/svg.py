@@ -34,9 +34,9 @@ from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import (
     TextRows,
     check_grooves,
-    chunk_bounds,
     format_number,
     is_straight,
+    path_chunks,
     slice_paths,
 )
 from specholo.setup import Tool
@@ -233,7 +233,7 @@ def drawing_bounds(grooves: Grooves, half: float = 0.0) -> np.ndarray | None:
         :func:`arc_bounds`) and the dots, or None if there is no vertex.
     """
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
-    bounds = chunk_bounds(grooves.path_sizes, _CHUNK_ROWS)
+    bounds = path_chunks(grooves, _CHUNK_ROWS)
     for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
         g = slice_paths(grooves, a, b)
         dots, _ = g.dots()
@@ -356,7 +356,7 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
                           f' stroke-width="{num(layer.width)}" stroke-linecap="round"'
                           ' stroke-linejoin="round">\n')
             fh.write(group.encode("ascii"))
-            bounds = chunk_bounds(grooves.path_sizes[layer.paths], _CHUNK_ROWS)
+            bounds = path_chunks(grooves, _CHUNK_ROWS, layer.paths)
             for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
                 g = take_paths(grooves, layer.paths[a:b])
                 fh.write(_dot_text(g, num(0.5 * layer.width)) if layer.dots else _path_text(g))

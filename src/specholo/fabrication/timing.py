@@ -221,7 +221,7 @@ def estimate_time(grooves: Grooves, depth: float, machining: Machining,
         if not math.isfinite(v) or v < 0 or (v == 0 and not zero_ok):
             raise SpecholoError(f"{name} must be a finite number "
                                 f"{'>= 0' if zero_ok else '> 0'}, got {v:g}")
-    if np.any(grooves.path_sizes < 1):
+    if grooves.has_empty_path():
         raise SpecholoError("grooves contain an empty path")
     n = grooves.n_paths
     stipples = _distinct(np.asarray(grooves.stipple))

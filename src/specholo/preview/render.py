@@ -438,8 +438,8 @@ def glints_seen(grooves: Grooves, tool: Tool, eyes: np.ndarray, light: Light) ->
     if len(grooves.vertices) <= CHUNK_VERTICES:
         eng = Engraved.from_grooves(grooves, tool)
         return [find_glints(eng, eye, light).point for eye in eyes]
-    sizes = np.cumsum(grooves.path_sizes)
-    cuts = np.searchsorted(sizes, np.arange(CHUNK_VERTICES, sizes[-1], CHUNK_VERTICES))
+    ends = grooves.offsets[1:] - grooves.offsets[0] if grooves.offsets[0] else grooves.offsets[1:]
+    cuts = np.searchsorted(ends, np.arange(CHUNK_VERTICES, ends[-1], CHUNK_VERTICES))
     bounds = np.unique(np.concatenate([[0], cuts + 1, [grooves.n_paths]]))
     found: list[list[np.ndarray]] = [[] for _ in eyes]
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):

@@ -261,6 +261,11 @@ class Grooves:
         """Number of vertices of each path, shape (n_paths,)."""
         return np.diff(self.offsets)
 
+    def has_empty_path(self) -> bool:
+        """Whether some path has no vertex (read from the offsets, no per-path sizes)."""
+        o = self.offsets
+        return bool(np.any(o[1:] <= o[:-1]))
+
     @property
     def is_dot(self) -> np.ndarray:
         """(n_paths,) True for single-vertex paths (dimples)."""
