@@ -171,6 +171,12 @@ def test_chunks(tmp_path, groove_example, monkeypatch):
     parts = tmp_path / "parts.dxf"
     write_dxf(parts, g, Tool(), depths=depths)
     assert parts.read_bytes() == whole.read_bytes()
+    from specholo.fabrication import gcode
+
+    monkeypatch.setattr(gcode, "WRITER_THREADS", 1)  # and made in one thread
+    one = tmp_path / "one.dxf"
+    write_dxf(one, g, Tool(), depths=depths)
+    assert one.read_bytes() == whole.read_bytes()
     check_drawing(parts, g, Tool(), depths)
     # handles are unique and below $HANDSEED
     doc = ezdxf.readfile(parts)

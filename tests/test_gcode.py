@@ -784,3 +784,48 @@ def test_chunks_change_nothing(tmp_path, groove_example, monkeypatch):
     assert again.cutting_length_mm == pytest.approx(stats.cutting_length_mm, rel=1e-12)
     assert again.rapid_length_mm == pytest.approx(stats.rapid_length_mm, rel=1e-12)
     assert parts.read_bytes() == whole.read_bytes()
+    monkeypatch.setattr(gcode, "WRITER_THREADS", 1)  # and made in one thread
+    one = tmp_path / "one.ngc"
+    write_gcode(one, g, Tool(), Machining())
+    assert one.read_bytes() == whole.read_bytes()
+
+
+def test_chunks_made_in_threads_come_in_order(monkeypatch):
+    """Chunks made by two threads are used in order; an error in one reaches the
+    caller; leaving early cancels the rest; where numba's threading layer
+    forbids concurrent kernels, the calling thread makes every chunk."""
+    import threading
+    import time
+
+    from specholo.fabrication import gcode
+
+    rng = np.random.default_rng(0)
+    delays = rng.uniform(0, 0.004, 40)
+    makers: set[int] = set()
+
+    def make(lo: int, hi: int) -> tuple[int, int]:
+        makers.add(threading.get_ident())
+        time.sleep(delays[lo])
+        return lo, hi
+
+    bounds = np.arange(41)
+    assert list(gcode.in_order(make, bounds)) == [(i, i + 1) for i in range(40)]
+    assert threading.get_ident() not in makers
+
+    def fail(lo: int, hi: int) -> int:
+        if lo == 7:
+            raise ValueError("chunk 7")
+        return lo
+
+    with pytest.raises(ValueError, match="chunk 7"):
+        list(gcode.in_order(fail, bounds))
+    made: list[int] = []
+    for lo in gcode.in_order(lambda lo, hi: made.append(lo) or lo, bounds, ahead=2):
+        if lo == 3:
+            break
+    assert len(made) <= 3 + 2 + 2  # the chunks in flight, not all 40
+
+    makers.clear()
+    monkeypatch.setattr(gcode, "concurrent_kernels_safe", lambda: False)
+    assert list(gcode.in_order(make, bounds)) == [(i, i + 1) for i in range(40)]
+    assert makers == {threading.get_ident()}

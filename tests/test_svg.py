@@ -311,3 +311,9 @@ def test_chunks_change_nothing(tmp_path, groove_example, monkeypatch):
     parts = tmp_path / "parts.svg"
     write_svg(parts, g, Tool(), depths=depths)
     assert parts.read_bytes() == whole.read_bytes()
+    from specholo.fabrication import gcode
+
+    monkeypatch.setattr(gcode, "WRITER_THREADS", 1)  # and made in one thread
+    one = tmp_path / "one.svg"
+    write_svg(one, g, Tool(), depths=depths)
+    assert one.read_bytes() == whole.read_bytes()

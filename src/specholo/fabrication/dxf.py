@@ -52,6 +52,7 @@ from specholo.fabrication.gcode import (
     TextRows,
     check_grooves,
     format_number,
+    in_order,
     is_straight,
     path_chunks,
 )
@@ -219,13 +220,13 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     with atomic_open(path, "wb") as fh:
         fh.write(doc.encode(drawing[:at]))
         for layer, first in zip(layers, first_handles, strict=True):
-            bounds = path_chunks(grooves, _CHUNK_ROWS, layer.paths)
-            for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+            def entities(a: int, b: int, layer: Layer = layer, first: int = first) -> bytes:
                 g = take_paths(grooves, layer.paths[a:b])
                 if layer.dots:
-                    chunk = _circles(g, first + a, layer.name, owner, 0.5 * layer.width)
-                else:
-                    chunk = _polylines(g, first + a, layer.name, owner)
+                    return _circles(g, first + a, layer.name, owner, 0.5 * layer.width)
+                return _polylines(g, first + a, layer.name, owner)
+
+            for chunk in in_order(entities, path_chunks(grooves, _CHUNK_ROWS, layer.paths)):
                 fh.write(chunk)
         fh.write(doc.encode(drawing[at:]))
     return layers

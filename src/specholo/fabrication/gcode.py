@@ -51,14 +51,17 @@ from __future__ import annotations
 import math
 import os
 import re
-from collections.abc import Sequence
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from operator import itemgetter
-from typing import Literal
+from typing import Literal, TypeVar
 
 import numba as nb
 import numpy as np
 
+from specholo._threads import concurrent_kernels_safe
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.setup import Machining, Tool
@@ -326,7 +329,7 @@ _OP_TEXT, _OP_CHOICE, _OP_NUMBER, _OP_TRIMMED, _OP_HEX = 0, 1, 2, 3, 4
 _MAX_NUMBER_BYTES = 21
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _write_rows(n: int, ops: np.ndarray, pool: np.ndarray, options: np.ndarray, masks: np.ndarray,
                 columns: np.ndarray, out: np.ndarray) -> int:
     """Write the rows of a :class:`TextRows` into ``out``; returns the bytes written.
@@ -474,6 +477,38 @@ def _bounds_at(ends: np.ndarray, rows: int) -> np.ndarray:
         before = int(ends[lo - 1]) if lo else 0
         bounds.append(max(int(np.searchsorted(ends, before + rows, side="right")), lo + 1))
     return np.asarray(bounds, dtype=np.int64)
+
+
+T = TypeVar("T")
+
+#: Threads that make a writer's chunks; the file is written in order as they come.
+WRITER_THREADS = 2
+
+
+def in_order(make: Callable[[int, int], T], bounds: np.ndarray,
+             ahead: int = 4) -> Iterator[T]:
+    """``make(lo, hi)`` for every chunk of ``bounds`` (c + 1,), made by
+    :data:`WRITER_THREADS` threads (the compiled formatting releases the
+    interpreter's lock) and yielded in chunk order, at most ``ahead`` chunks
+    made before they are used. Leaving early cancels the chunks not begun.
+    One thread where numba's threading layer forbids concurrent parallel
+    kernels (:func:`specholo._threads.concurrent_kernels_safe`)."""
+    pairs = list(zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True))
+    if WRITER_THREADS < 2 or len(pairs) < 2 or not concurrent_kernels_safe():
+        for lo, hi in pairs:
+            yield make(lo, hi)
+        return
+    pool = ThreadPoolExecutor(WRITER_THREADS)
+    try:
+        waiting: deque[Future[T]] = deque()
+        for lo, hi in pairs:
+            waiting.append(pool.submit(make, lo, hi))
+            if len(waiting) > ahead:
+                yield waiting.popleft().result()
+        while waiting:
+            yield waiting.popleft().result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def slice_paths(grooves: Grooves, lo: int, hi: int) -> Grooves:
@@ -671,50 +706,60 @@ def write_gcode(
     n_lines = len(head) + len(tail)
     cutting = rapid = 0.0
     chords = 0
-    end = np.zeros(2)  # the job starts above the origin
-    bounds = path_chunks(grooves, _CHUNK_ROWS)
+    offsets = grooves.offsets
+
+    def chunk(lo: int, hi: int) -> tuple[bytes, int, int, float, float]:
+        """Paths lo:hi as program text: (text, lines, chords added, cutting and
+        rapid length). Chunks are independent: the rapid onto path lo leaves
+        from the end of path lo - 1 (the origin for the first)."""
+        part = slice_paths(grooves, lo, hi)
+        rows = _move_rows(part, scale, opt.max_arc_offset)
+        g = rows.grooves
+        starts = g.vertices[g.offsets[:-1]]
+        ends = g.vertices[g.offsets[1:] - 1]
+        before = grooves.vertices[offsets[lo] - 1] if lo else np.zeros(2)
+        # from the last groove's end (or the origin) to each groove's start
+        hops = float(chord_lengths(np.vstack([before, ends[:-1]]), starts).sum())
+        texts = []
+        for r in range(0, len(g.vertices), _CHUNK_ROWS):
+            s = slice(r, r + _CHUNK_ROWS)
+            t = TextRows(len(rows.code[s]))
+            f = rows.first[s]
+            t.text(stipple_open, f)
+            t.number(rows.stipple[s], 0, f)
+            t.choice([stipple_close + "G0", "G1", "G2", "G3"], rows.code[s])
+            t.text(" X")
+            t.number(rows.qv[s, 0], dec)
+            t.text(" Y")
+            t.number(rows.qv[s, 1], dec)
+            a = rows.code[s] >= 2
+            t.text(" I", a)
+            t.number(rows.qij[s, 0], dec, a)
+            t.text(" J", a)
+            t.number(rows.qij[s, 1], dec, a)
+            t.text(feed, rows.second[s])
+            if rapid_text:
+                t.text(rapid_text, f)
+            t.text("\n")
+            t.text(start_text, f)
+            if dot_text:
+                t.text(dot_text, f & rows.last[s])
+            t.text(end_text, rows.last[s])
+            texts.append(t.tobytes())
+        text = b"".join(texts)
+        return (text, text.count(b"\n"), len(g.vertices) - len(part.vertices), rows.length,
+                hops)
+
     with atomic_open(path, "wb") as fh:
         fh.write(("\n".join(head) + "\n").encode("ascii"))
-        for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
-            part = slice_paths(grooves, lo, hi)
-            rows = _move_rows(part, scale, opt.max_arc_offset)
-            g = rows.grooves
-            chords += len(g.vertices) - len(part.vertices)
+        for text, lines, added, length, hops in in_order(chunk, path_chunks(grooves, _CHUNK_ROWS)):
+            chords += added
             if chords > _MAX_CHORDS:
                 raise SpecholoError(f"wide arcs would need more than {_MAX_CHORDS:.0e} chords")
-            cutting += rows.length
-            starts = g.vertices[g.offsets[:-1]]
-            ends = g.vertices[g.offsets[1:] - 1]
-            # from the last groove's end (or the origin) to each groove's start
-            rapid += float(chord_lengths(np.vstack([end, ends[:-1]]), starts).sum())
-            end = ends[-1]
-            for r in range(0, len(g.vertices), _CHUNK_ROWS):
-                s = slice(r, r + _CHUNK_ROWS)
-                t = TextRows(len(rows.code[s]))
-                f = rows.first[s]
-                t.text(stipple_open, f)
-                t.number(rows.stipple[s], 0, f)
-                t.choice([stipple_close + "G0", "G1", "G2", "G3"], rows.code[s])
-                t.text(" X")
-                t.number(rows.qv[s, 0], dec)
-                t.text(" Y")
-                t.number(rows.qv[s, 1], dec)
-                a = rows.code[s] >= 2
-                t.text(" I", a)
-                t.number(rows.qij[s, 0], dec, a)
-                t.text(" J", a)
-                t.number(rows.qij[s, 1], dec, a)
-                t.text(feed, rows.second[s])
-                if rapid_text:
-                    t.text(rapid_text, f)
-                t.text("\n")
-                t.text(start_text, f)
-                if dot_text:
-                    t.text(dot_text, f & rows.last[s])
-                t.text(end_text, rows.last[s])
-                text = t.tobytes()
-                n_lines += text.count(b"\n")
-                fh.write(text)
+            cutting += length
+            rapid += hops
+            n_lines += lines
+            fh.write(text)
         if tail:
             fh.write(("\n".join(tail) + "\n").encode("ascii"))
 

@@ -35,6 +35,7 @@ from specholo.fabrication.gcode import (
     TextRows,
     check_grooves,
     format_number,
+    in_order,
     is_straight,
     path_chunks,
     slice_paths,
@@ -232,17 +233,18 @@ def drawing_bounds(grooves: Grooves, half: float = 0.0) -> np.ndarray | None:
         (2, 2) lower-left and upper-right corners in mm of the arcs (see
         :func:`arc_bounds`) and the dots, or None if there is no vertex.
     """
-    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
-    bounds = path_chunks(grooves, _CHUNK_ROWS)
-    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+    def box(a: int, b: int) -> np.ndarray | None:
         g = slice_paths(grooves, a, b)
         dots, _ = g.dots()
         segs = g.segments()
         parts = [dots - half, dots + half] + ([arc_bounds(segs)] if len(segs) else [])
-        if any(len(p) for p in parts):
-            box = _corners(parts)
-            lo = np.minimum(lo, box[0])
-            hi = np.maximum(hi, box[1])
+        return _corners(parts) if any(len(p) for p in parts) else None
+
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for part in in_order(box, path_chunks(grooves, _CHUNK_ROWS)):
+        if part is not None:
+            lo = np.minimum(lo, part[0])
+            hi = np.maximum(hi, part[1])
     return np.stack([lo, hi]) if np.isfinite(lo).all() else None
 
 
@@ -356,9 +358,11 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
                           f' stroke-width="{num(layer.width)}" stroke-linecap="round"'
                           ' stroke-linejoin="round">\n')
             fh.write(group.encode("ascii"))
-            bounds = path_chunks(grooves, _CHUNK_ROWS, layer.paths)
-            for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+            def text(a: int, b: int, layer: Layer = layer) -> bytes:
                 g = take_paths(grooves, layer.paths[a:b])
-                fh.write(_dot_text(g, num(0.5 * layer.width)) if layer.dots else _path_text(g))
+                return _dot_text(g, num(0.5 * layer.width)) if layer.dots else _path_text(g)
+
+            for chunk in in_order(text, path_chunks(grooves, _CHUNK_ROWS, layer.paths)):
+                fh.write(chunk)
             fh.write(b"</g>\n")
         fh.write(b"</svg>\n")
