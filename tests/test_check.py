@@ -355,6 +355,31 @@ def test_compiled_reading_gives_the_line_by_line_report(tmp_path, monkeypatch, s
     assert fast["lines"] == len(program.splitlines())
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_moves_checked_in_two_threads_give_the_same_report(tmp_path, monkeypatch, seed):
+    """Each block's rows split between two threads beside the reading: the same
+    violations in the same order as checked in the reading thread."""
+    import specholo.fabrication.check as check
+
+    rng = np.random.default_rng(100 + seed)
+    path = tmp_path / "p.ngc"
+    path.write_text(START + _random_program(rng, 3000) + "\n")
+    tight = Stock(-15.0, -15.0, 15.0, 15.0, 3.0)
+
+    def report() -> dict:
+        r = check_gcode(path, tight, 0.1, 1.0, (10.0, 1000.0), (1000.0, 24000.0),
+                        max_listed=10**6)
+        return {"lines": r.lines, "moves": r.moves, "total": r.total_violations,
+                "violations": r.violations}
+
+    monkeypatch.setattr(check, "_BLOCK_LINES", 50)
+    monkeypatch.setattr(check, "_SPLIT_ROWS", 1)
+    split = report()
+    assert split["total"] > 100
+    monkeypatch.setattr(check, "concurrent_kernels_safe", lambda: False)
+    assert report() == split
+
+
 def test_a_carriage_return_alone_ends_a_line(tmp_path):
     path = tmp_path / "p.ngc"
     path.write_bytes((START.replace("\n", "\r") + "G1 X99 F200\rG0 Z1\r").encode())

@@ -37,11 +37,13 @@ import os
 import re
 from array import array
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numba as nb
 import numpy as np
 
+from specholo._threads import concurrent_kernels_safe
 from specholo.errors import SpecholoError
 from specholo.fabrication import _check_kernel
 
@@ -536,9 +538,9 @@ def _read_text(path: str | os.PathLike[str], reader: _Reader,
         for number, raw in enumerate(fh, 1):
             reader.line(number, raw)
             if len(reader.moves) >= _BLOCK_LINES * 12:
-                checked(np.frombuffer(reader.moves, dtype=float).reshape(-1, 12))
+                checked(np.array(reader.moves, dtype=float).reshape(-1, 12))
                 del reader.moves[:]
-    checked(np.frombuffer(reader.moves, dtype=float).reshape(-1, 12))
+    checked(np.array(reader.moves, dtype=float).reshape(-1, 12))
     return number, reader
 
 
@@ -617,6 +619,57 @@ def _read_block(block: bytes, number: int, ended: bool, reader: _Reader,
     return number + len(stops)
 
 
+#: Fewest rows of the move table worth splitting between two threads.
+_SPLIT_ROWS = 1 << 16
+
+
+class _Checks:
+    """Blocks of the move table checked beside the reading: each block's rows
+    are split between two threads (numpy's loops and the compiled arc bounds
+    release the interpreter's lock) while the next block is read. The blocks
+    are checked one at a time and a line's moves are checked after the line
+    was read, so every violation is flagged after those the reader flagged on
+    the same line, as when checked in the reading thread.
+    """
+
+    def __init__(self, check: Callable[[np.ndarray], tuple[int, np.ndarray]]) -> None:
+        self.check = check
+        self.cuts = 0
+        self.kinds = np.zeros(4, dtype=np.int64)
+        self.pending: list[Future[tuple[int, np.ndarray]]] = []
+        self.pool = ThreadPoolExecutor(2) if concurrent_kernels_safe() else None
+
+    def __enter__(self) -> _Checks:
+        return self
+
+    def add(self, moves: np.ndarray) -> None:
+        """Check a block of rows (not changed by the caller afterwards)."""
+        self._collect()
+        if self.pool is None or len(moves) < 2 * _SPLIT_ROWS:
+            self._count(self.check(moves))
+            return
+        half = len(moves) // 2
+        self.pending = [self.pool.submit(self.check, part) for part in (moves[:half],
+                                                                       moves[half:])]
+
+    def _count(self, result: tuple[int, np.ndarray]) -> None:
+        self.cuts += result[0]
+        self.kinds += result[1]
+
+    def _collect(self) -> None:
+        pending, self.pending = self.pending, []
+        for future in pending:
+            self._count(future.result())
+
+    def __exit__(self, kind: object, *rest: object) -> None:
+        try:
+            if kind is None:
+                self._collect()
+        finally:
+            if self.pool is not None:
+                self.pool.shutdown(wait=True, cancel_futures=True)
+
+
 def check_gcode(path: str | os.PathLike[str], stock: Stock, max_depth: float, safe_z: float,
                 feed_range: tuple[float, float], spindle_range: tuple[float, float], *,
                 laser: bool = False, tolerance: float = 1e-4,
@@ -666,15 +719,13 @@ def check_gcode(path: str | os.PathLike[str], stock: Stock, max_depth: float, sa
     feeds = (float(feed_range[0]), float(feed_range[1]))
     floor = -min(max_depth, stock.thickness)
     report = CheckReport(os.fspath(path))
-    kinds = np.zeros(4, dtype=np.int64)
-    cuts = 0
 
-    def checked(moves: np.ndarray) -> None:
-        """Check a block of the move table (rows are independent of each other)."""
-        nonlocal cuts
-        cuts += _check_moves(moves, flag, stock, floor, safe_z, feeds, laser, tolerance,
-                             spindle)
-        kinds[:] += np.bincount(moves[:, _KIND].astype(np.int64), minlength=4)
+    def check_part(moves: np.ndarray) -> tuple[int, np.ndarray]:
+        """Cuts and move kinds (4,) of some rows of the move table (rows are
+        independent of each other)."""
+        return (_check_moves(moves, flag, stock, floor, safe_z, feeds, laser, tolerance,
+                             spindle),
+                np.bincount(moves[:, _KIND].astype(np.int64), minlength=4))
 
     def reader() -> _Reader:
         return _Reader(flag, laser, (float(spindle_range[0]), float(spindle_range[1])),
@@ -682,13 +733,15 @@ def check_gcode(path: str | os.PathLike[str], stock: Stock, max_depth: float, sa
 
     try:
         try:
-            report.lines, used = _read_bytes(path, reader(), checked)
+            with _Checks(check_part) as checks:
+                report.lines, used = _read_bytes(path, reader(), checks.add)
         except _LoneReturn:  # old Mac line ends: read as text, as Python splits them
             found.clear()
-            kinds[:], cuts = 0, 0
-            report.lines, used = _read_text(path, reader(), checked)
+            with _Checks(check_part) as checks:
+                report.lines, used = _read_text(path, reader(), checks.add)
     except OSError as exc:
         raise SpecholoError(f"cannot read G-code file {os.fspath(path)!r}: {exc.strerror}") from exc
+    cuts, kinds = checks.cuts, checks.kinds
     report.moves = {"G0": int(kinds[0]), "G1": int(kinds[1]), "G2": int(kinds[2]),
                     "G3": int(kinds[3]), "dwell": used.dwells, "cutting": cuts + used.burns}
     found.sort()
