@@ -323,6 +323,14 @@ def _random_program(rng: np.random.Generator, lines: int) -> str:
     return "\n".join(out)
 
 
+def _full_report(path) -> dict:
+    """Every figure and violation of a check against a tight stock."""
+    tight = Stock(-15.0, -15.0, 15.0, 15.0, 3.0)
+    r = check_gcode(path, tight, 0.1, 1.0, (10.0, 1000.0), (1000.0, 24000.0), max_listed=10**6)
+    return {"lines": r.lines, "moves": r.moves, "total": r.total_violations,
+            "violations": r.violations}
+
+
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("ending", ["\n", "\r\n"])
 def test_compiled_reading_gives_the_line_by_line_report(tmp_path, monkeypatch, seed, ending):
@@ -332,13 +340,9 @@ def test_compiled_reading_gives_the_line_by_line_report(tmp_path, monkeypatch, s
     program = START + _random_program(rng, 3000) + ("\n" if seed % 2 else "")
     path = tmp_path / "p.ngc"
     path.write_bytes(program.replace("\n", ending).encode("utf-8"))
-    tight = Stock(-15.0, -15.0, 15.0, 15.0, 3.0)
 
     def report() -> dict:
-        r = check_gcode(path, tight, 0.1, 1.0, (10.0, 1000.0), (1000.0, 24000.0),
-                        max_listed=10**6)
-        return {"lines": r.lines, "moves": r.moves, "total": r.total_violations,
-                "violations": r.violations}
+        return _full_report(path)
 
     # Blocks far smaller than a line's worth of bytes, and of a few lines, so
     # that lines and blocks of moves straddle every boundary.
@@ -364,13 +368,9 @@ def test_moves_checked_in_two_threads_give_the_same_report(tmp_path, monkeypatch
     rng = np.random.default_rng(100 + seed)
     path = tmp_path / "p.ngc"
     path.write_text(START + _random_program(rng, 3000) + "\n")
-    tight = Stock(-15.0, -15.0, 15.0, 15.0, 3.0)
 
     def report() -> dict:
-        r = check_gcode(path, tight, 0.1, 1.0, (10.0, 1000.0), (1000.0, 24000.0),
-                        max_listed=10**6)
-        return {"lines": r.lines, "moves": r.moves, "total": r.total_violations,
-                "violations": r.violations}
+        return _full_report(path)
 
     monkeypatch.setattr(check, "_BLOCK_LINES", 50)
     monkeypatch.setattr(check, "_SPLIT_ROWS", 1)
