@@ -31,7 +31,7 @@ from specholo.hosts.surfaces import (
     Plane,
     Sphere,
 )
-from specholo.scene.motion import Family, MotionSpec, Position, SceneKey, rot_z
+from specholo.scene.motion import MODES, Family, MotionSpec, Position, SceneKey, rot_z
 from specholo.setup import Machining, Tool
 
 #: Keys each table of a composition may hold (anything else is refused).
@@ -60,17 +60,89 @@ def _table(data: Any, name: str) -> dict[str, Any]:
     return data
 
 
-def _num(table: dict[str, Any], key: str, default: float | None, where: str,
-         lo: float = -math.inf, hi: float = math.inf, positive: bool = False) -> float | None:
-    v = table.get(key, default)
-    if v is None:
+def _name(where: str, key: str) -> str:
+    """A setting as the composition spells it: "stipples", "light.elevation", "scene 2: size"."""
+    if where == "top":
+        return key
+    return f"{where}: {key}" if where.startswith("scene ") else f"{where}.{key}"
+
+
+def _opt(table: dict[str, Any], key: str, where: str, lo: float = -math.inf,
+         hi: float = math.inf, positive: bool = False, open_ends: bool = False,
+         why: str = "") -> float | None:
+    """``table[key]`` as a float within its range, or None when the key is absent.
+
+    Absent is the only "no value": 0 is a value like any other (a default is never
+    put in place of a setting that was given).
+    """
+    if key not in table:
         return None
+    v = table[key]
+    name = _name(where, key)
     if isinstance(v, bool) or not isinstance(v, int | float):
-        raise SpecholoError(f"composition: {where}.{key} must be a number, got {v!r}")
-    v = float(v)
-    if not math.isfinite(v) or v < lo or v > hi or (positive and v <= 0):
-        raise SpecholoError(f"composition: {where}.{key} = {v:g} is out of range")
+        raise SpecholoError(f"composition: {name} must be a number, got {v!r}")
+    try:
+        x = float(v)
+    except OverflowError:  # an integer beyond any float
+        x = math.inf
+    inside = (lo < x < hi) if open_ends else (lo <= x <= hi)
+    if not (math.isfinite(x) and inside and (x > 0 or not positive)):
+        if positive and math.isinf(hi):
+            need = "it must be positive"
+        else:
+            need = (f"it must be in {'(' if open_ends else '['}{lo:g}, {hi:g}"
+                    f"{')' if open_ends else ']'}")
+        raise SpecholoError(f"composition: {name} = {v!r} is out of range: {need}{why}")
+    return x
+
+
+def _num(table: dict[str, Any], key: str, default: float, where: str,
+         lo: float = -math.inf, hi: float = math.inf, positive: bool = False,
+         open_ends: bool = False, why: str = "") -> float:
+    """``table[key]`` as a float within its range, ``default`` when absent."""
+    v = _opt(table, key, where, lo, hi, positive, open_ends, why)
+    return default if v is None else v
+
+
+def _int(table: dict[str, Any], key: str, default: int, where: str, lo: int, hi: int) -> int:
+    """``table[key]`` as a whole number in [lo, hi], ``default`` when absent.
+
+    A float with a fraction is refused rather than truncated (1.9 stipples is a
+    mistake, not a request for one); 3.0 is the whole number it spells.
+    """
+    if key not in table:
+        return default
+    v = table[key]
+    name = _name(where, key)
+    if isinstance(v, bool) or not isinstance(v, int | float) or (
+            isinstance(v, float) and not v.is_integer()):
+        raise SpecholoError(f"composition: {name} must be a whole number, got {v!r}")
+    n = int(v)
+    if not lo <= n <= hi:
+        raise SpecholoError(f"composition: {name} = {v!r} is out of range: it must be in "
+                            f"[{lo}, {hi}]")
+    return n
+
+
+def _str(table: dict[str, Any], key: str, default: str, where: str,
+         choices: tuple[str, ...]) -> str:
+    """``table[key]`` as one of ``choices``, ``default`` when absent."""
+    v = table.get(key, default)
+    if not isinstance(v, str) or v not in choices:
+        raise SpecholoError(f"composition: {_name(where, key)} must be one of "
+                            f"{', '.join(repr(c) for c in choices)}, got {v!r}")
     return v
+
+
+def _vector(row: dict[str, Any], key: str, default: tuple[float, ...] | None,
+            what: str) -> tuple[float, float, float]:
+    """``row[key]`` as 3 finite numbers (not strings or booleans)."""
+    v = row.get(key, default)
+    if not (isinstance(v, list | tuple) and len(v) == 3 and all(
+            isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c)
+            for c in v)):
+        raise SpecholoError(f"composition: {what} {key} must be 3 numbers, got {v!r}")
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 @dataclass
@@ -103,54 +175,75 @@ class Composition:
     settings: dict[str, Any] = field(default_factory=dict)
 
 
+#: Host kinds a composition may name.
+HOST_KINDS = ("plane", "cylinder", "sphere", "heightfield", "mesh", "panels")
+
+
 def _host(t: dict[str, Any], base: Path) -> Host:
     kind = t.get("kind", "plane")
+    if not isinstance(kind, str) or kind not in HOST_KINDS:
+        raise SpecholoError(f"composition: unknown host kind {kind!r} "
+                            f"({', '.join(HOST_KINDS)})")
     if kind == "plane":
-        return Plane(_num(t, "width", None, "host", positive=True) or math.inf,
-                     _num(t, "height", None, "host", positive=True) or math.inf)
+        width = _opt(t, "width", "host", positive=True)
+        height = _opt(t, "height", "host", positive=True)
+        return Plane(math.inf if width is None else width,
+                     math.inf if height is None else height)
     if kind == "cylinder":
-        return Cylinder(_num(t, "radius", 40.0, "host", positive=True) or 40.0,
-                        _num(t, "height", 80.0, "host", positive=True) or 80.0)
+        return Cylinder(_num(t, "radius", 40.0, "host", positive=True),
+                        _num(t, "height", 80.0, "host", positive=True))
     if kind == "sphere":
-        return Sphere(_num(t, "radius", 50.0, "host", positive=True) or 50.0)
+        return Sphere(_num(t, "radius", 50.0, "host", positive=True))
     if kind in ("heightfield", "mesh"):
-        if "file" not in t or not isinstance(t["file"], str):
+        if "file" not in t or not isinstance(t["file"], str) or not t["file"]:
             raise SpecholoError(f"composition: a {kind} host needs host.file")
         path = (base / t["file"]).resolve()
         if kind == "heightfield":
-            try:
-                with np.load(path) as z:
-                    return HeightField(z["x"], z["y"], z["z"])
-            except (OSError, KeyError, ValueError) as exc:
-                raise SpecholoError(f"composition: cannot read height field {path}: "
-                                    "need an .npz with arrays x, y, z") from exc
+            return _height_field(path)
         from specholo.scene.loading import load_model
 
         model = load_model(path)
         if model.mesh is None:
             raise SpecholoError(f"composition: mesh host {path} has no faces")
         return MeshHost(model.mesh)
-    if kind == "panels":
-        rows = t.get("panels")
-        if not isinstance(rows, list) or not rows:
-            raise SpecholoError("composition: a panels host needs [[host.panels]] entries")
-        panels = []
-        for r in rows:
-            if not isinstance(r, dict) or set(r) - {"centre", "normal", "up", "width", "height"}:
-                raise SpecholoError("composition: each panel has centre, normal, up, width, "
-                                    "height")
-            try:
-                panels.append(Panel(tuple(float(v) for v in r["centre"]),  # type: ignore[arg-type]
-                                    tuple(float(v) for v in r["normal"]),  # type: ignore[arg-type]
-                                    float(r["width"]), float(r["height"]),
-                                    tuple(float(v) for v in r.get("up", (0, 1, 0)))))  # type: ignore[arg-type]
-            except (KeyError, TypeError, ValueError) as exc:
-                raise SpecholoError(f"composition: bad panel {r!r}") from exc
-            if len(panels[-1].centre) != 3 or len(panels[-1].normal) != 3:
-                raise SpecholoError("composition: panel centre and normal need 3 numbers")
-        return Panels(panels)
-    raise SpecholoError(f"composition: unknown host kind {kind!r} (plane, cylinder, sphere, "
-                        "heightfield, mesh, panels)")
+    rows = t.get("panels")
+    if not isinstance(rows, list) or not rows:
+        raise SpecholoError("composition: a panels host needs [[host.panels]] entries")
+    panels = []
+    for k, r in enumerate(rows):
+        if not isinstance(r, dict) or set(r) - {"centre", "normal", "up", "width", "height"}:
+            raise SpecholoError("composition: each panel has centre, normal, up, width, "
+                                "height")
+        where = f"host.panels[{k}]"
+        width = _opt(r, "width", where, positive=True)
+        height = _opt(r, "height", where, positive=True)
+        if width is None or height is None:
+            raise SpecholoError(f"composition: {where} needs a width and a height")
+        panels.append(Panel(_vector(r, "centre", None, where), _vector(r, "normal", None, where),
+                            width, height, _vector(r, "up", (0.0, 1.0, 0.0), where)))
+    return Panels(panels)
+
+
+def _height_field(path: Path) -> HeightField:
+    """A height-field host from an .npz of arrays x, y and z."""
+    import zipfile
+
+    refusal = f"composition: cannot read height field {path}: need an .npz with arrays x, y, z"
+    try:
+        z = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise SpecholoError(refusal) from exc
+    # A .npy holds one bare array (no x and y to place it), not an archive.
+    if not isinstance(z, np.lib.npyio.NpzFile):
+        raise SpecholoError(refusal + f" (got a single {getattr(z, 'shape', '?')} array)")
+    try:
+        with z:
+            x, y, heights = z["x"], z["y"], z["z"]
+        return HeightField(x, y, heights)
+    except SpecholoError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        raise SpecholoError(refusal) from exc
 
 
 def read_composition(path: str | os.PathLike[str]) -> Composition:
@@ -172,16 +265,55 @@ def read_composition(path: str | os.PathLike[str]) -> Composition:
     return parse_composition(text, p.resolve().parent)
 
 
+#: Why a light elevation of 0 or 180 degrees is refused.
+GRAZING = "; a light in the plate's plane only grazes it and lights none of it"
+
+
+def _frames(pattern: Any, base: Path, k: int) -> list[Path]:
+    """The files a scene's ``frames`` pattern matches, in name order."""
+    if not isinstance(pattern, str) or not pattern.strip():
+        raise SpecholoError(f"composition: scene {k}: frames must be a file pattern such as "
+                            f"\"frame_*.obj\", got {pattern!r}")
+    # A pattern walks folders and takes whatever it matches, so it is kept to the
+    # composition's own folder: a shared composition cannot sweep up files from
+    # elsewhere on the disk, or walk the whole file system with "/**" (a file
+    # outside is named on its own, with model = "...").
+    if Path(pattern).is_absolute() or ".." in Path(pattern).parts:
+        raise SpecholoError(f"composition: scene {k}: frames {pattern!r} must match files in "
+                            "the composition's folder (a relative pattern without '..')")
+    try:
+        root = base.resolve()
+        files = sorted(base.glob(pattern))
+        outside = next((f for f in files if not f.resolve().is_relative_to(root)), None)
+    except (OSError, ValueError, NotImplementedError, RuntimeError) as exc:
+        # ValueError: a malformed pattern ("**x") or a NUL byte; RuntimeError: a
+        # symbolic link loop (Python 3.11's resolve).
+        raise SpecholoError(f"composition: scene {k}: cannot use frames {pattern!r}: "
+                            f"{' '.join(str(exc).split()) or type(exc).__name__}") from exc
+    if outside is not None:
+        raise SpecholoError(f"composition: scene {k}: frames {pattern!r} matches {outside}, "
+                            f"a link to a file outside the composition's folder {root}")
+    if not files:
+        raise SpecholoError(f"composition: scene {k}: no file matches {pattern!r}")
+    return files
+
+
 def parse_composition(text: str, base: Path) -> Composition:
-    """Parse a composition's TOML text; model and host files are relative to ``base``."""
+    """Parse a composition's TOML text; model and host files are relative to ``base``.
+
+    Every setting is checked for its type and range: a whole number where one is
+    meant (1.9 stipples is refused, not truncated), and a setting that is given is
+    never replaced by its default (0 is a value).
+    """
     import tomllib
 
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecholoError(f"composition is not valid TOML: {exc}") from exc
+    except RecursionError as exc:  # tomllib parses nested arrays and tables recursively
+        raise SpecholoError("composition is not valid TOML: nested too deeply") from exc
     top = _table(data, "")
-    mode = top.get("mode", "walk")
     light = _table(top.get("light"), "light")
     viewer = _table(top.get("viewer"), "viewer")
     tool_t = _table(top.get("tool"), "tool")
@@ -189,24 +321,30 @@ def parse_composition(text: str, base: Path) -> Composition:
     host = _host(_table(top.get("host"), "host"), base)
     deg = math.radians
     motion = MotionSpec(
-        mode=str(mode),
-        view_distance=_num(viewer, "distance", 600.0, "viewer", 10, 1e7) or 600.0,
-        eye_height=_num(viewer, "height", 0.0, "viewer", -1e5, 1e5) or 0.0,
-        ipd=_num(viewer, "ipd", 64.0, "viewer", 1, 1000) or 64.0,
-        half_range=deg(_num(viewer, "range", 30.0, "viewer", 0, 79) or 0.0),
-        light_elevation=deg(_num(light, "elevation", 45.0, "light", 0, 180) or 45.0),
-        light_distance=_num(light, "distance", None, "light", positive=True),
-        light_stop=deg(_num(light, "stop", 60.0, "light", 0, 180) or 60.0),
-        step=deg(_num(top, "step", 0.25, "top", 0.01, 2.0) or 0.25),
+        mode=_str(top, "mode", "walk", "top", MODES),
+        view_distance=_num(viewer, "distance", 600.0, "viewer", 10, 1e7),
+        eye_height=_num(viewer, "height", 0.0, "viewer", -1e5, 1e5),
+        ipd=_num(viewer, "ipd", 64.0, "viewer", 1, 1000),
+        half_range=deg(_num(viewer, "range", 30.0, "viewer", 0, 79)),
+        # Elevations 0 and 180 put the light in the plate's plane, where it grazes
+        # the plate and lights none of it: the ends are refused, not replaced.
+        light_elevation=deg(_num(light, "elevation", 45.0, "light", 0, 180, open_ends=True,
+                                 why=GRAZING)),
+        light_distance=_opt(light, "distance", "light", positive=True),
+        light_stop=deg(_num(light, "stop", 60.0, "light", 0, 180, open_ends=True,
+                            why=GRAZING)),
+        step=deg(_num(top, "step", 0.25, "top", 0.01, 2.0)),
     )
-    tool = Tool(_num(tool_t, "radius", 0.05, "tool", 0.001, 25) or 0.05,
-                _num(tool_t, "depth", 0.02, "tool", 1e-4, 25) or 0.02)
-    axes = int(_num(mach, "axes", 3, "machining", 3, 4) or 3)
-    machining = Machining(_num(mach, "feed", 300.0, "machining", positive=True) or 300.0,
-                          _num(mach, "plunge", 100.0, "machining", positive=True) or 100.0,
-                          _num(mach, "safe_z", 1.0, "machining", positive=True) or 1.0,
-                          _num(mach, "spindle", 0.0, "machining", 0, 1e6) or 0.0)
-    count = int(_num(top, "stipples", 400, "top", 1, 1e6) or 400)
+    tool = Tool(_num(tool_t, "radius", 0.05, "tool", 0.001, 25),
+                _num(tool_t, "depth", 0.02, "tool", 1e-4, 25))
+    axes = _int(mach, "axes", 3, "machining", 3, 4)
+    machining = Machining(_num(mach, "feed", 300.0, "machining", positive=True),
+                          _num(mach, "plunge", 100.0, "machining", positive=True),
+                          _num(mach, "safe_z", 1.0, "machining", positive=True),
+                          _num(mach, "spindle", 0.0, "machining", 0, 1e6))
+    count = _int(top, "stipples", 400, "top", 1, 1_000_000)
+    band = _num(top, "band", max(0.2, tool.width), "top", positive=True)
+    seed = _int(top, "seed", 0, "top", 0, 2**32)
     rows = top.get("scene")
     if not isinstance(rows, list) or not rows:
         raise SpecholoError("composition: needs at least one [[scene]] with a model")
@@ -216,26 +354,30 @@ def parse_composition(text: str, base: Path) -> Composition:
     scenes = []
     for k, raw in enumerate(rows):
         s = _table(raw, "scene")
-        if isinstance(s.get("frames"), str) == isinstance(s.get("model"), str):
+        if ("frames" in s) == ("model" in s):
             raise SpecholoError(f"composition: scene {k + 1} needs model = \"file\" or "
                                 "frames = \"pattern*.obj\" (one of them)")
-        if isinstance(s.get("frames"), str):
-            files = sorted(base.glob(s["frames"]))
-            if not files:
-                raise SpecholoError(f"composition: scene {k + 1}: no file matches "
-                                    f"{s['frames']!r}")
+        if "frames" in s:
+            files = _frames(s["frames"], base, k + 1)
         else:
-            files = [(base / s["model"]).resolve()]
-        start = _num(s, "from", None, "scene")
-        stop = _num(s, "to", None, "scene")
+            if not isinstance(s["model"], str) or not s["model"]:
+                raise SpecholoError(f"composition: scene {k + 1}: model must be a file name, "
+                                    f"got {s['model']!r}")
+            files = [base / s["model"]]
+        where = f"scene {k + 1}"
+        start = _opt(s, "from", where)
+        stop = _opt(s, "to", where)
         first = a if start is None else max(deg(start), a)
         last = b if stop is None else min(deg(stop), b)
         if not last > first:
             raise SpecholoError(f"composition: scene {k + 1} shows over an empty interval")
-        shift = s.get("shift", [0.0, 0.0, 0.0])
-        if not (isinstance(shift, list) and len(shift) == 3
-                and all(isinstance(v, int | float) and math.isfinite(v) for v in shift)):
-            raise SpecholoError(f"composition: scene {k + 1} shift must be 3 numbers (mm/deg)")
+        shift = _vector(s, "shift", (0.0, 0.0, 0.0), where)
+        size = _num(s, "size", 40.0, where, positive=True)
+        center_z = _num(s, "center_z", -30.0, where, -1e4, 1e4)
+        # Turn in degrees per degree, shift in mm per degree of the driver.
+        turn = _num(s, "turn", 0.0, where, -100, 100)
+        stipples = _int(s, "stipples", count, where, 1, 1_000_000)
+        yaw = deg(_num(s, "yaw", 0.0, where, -360, 360))
         # A numbered sequence shares the scene's interval out evenly, in name order.
         edges = np.linspace(first, last, len(files) + 1)
         for i, f in enumerate(files):
@@ -243,19 +385,21 @@ def parse_composition(text: str, base: Path) -> Composition:
             start_r = lo - 1.0 if edges[i] <= a + 1e-9 else float(edges[i])
             stop_r = hi + 1.0 if edges[i + 1] >= b - 1e-9 else float(edges[i + 1])
             scenes.append(SceneSpec(
-                model=f.resolve(),
-                size=_num(s, "size", 40.0, "scene", positive=True) or 40.0,
-                center_z=_num(s, "center_z", -30.0, "scene", -1e4, 1e4) or 0.0,
-                start=start_r, stop=stop_r,
-                # Turn in degrees per degree, shift in mm per degree of the driver.
-                turn=_num(s, "turn", 0.0, "scene", -100, 100) or 0.0,
-                shift=tuple(float(v) * 180.0 / math.pi for v in shift),  # type: ignore[arg-type]
-                stipples=int(_num(s, "stipples", count, "scene", 1, 1e6) or count),
-                yaw=deg(_num(s, "yaw", 0.0, "scene", -360, 360) or 0.0)))
-    band = _num(top, "band", max(0.2, tool.width), "top", positive=True) or 0.2
-    seed = int(_num(top, "seed", 0, "top", 0, 2**32) or 0)
+                model=_resolved(f, k + 1), size=size, center_z=center_z,
+                start=start_r, stop=stop_r, turn=turn,
+                shift=(shift[0] * 180.0 / math.pi, shift[1] * 180.0 / math.pi,
+                       shift[2] * 180.0 / math.pi),
+                stipples=stipples, yaw=yaw))
     settings = {"text": text, "base": str(base)}
     return Composition(motion, host, tool, machining, axes, band, seed, scenes, settings)
+
+
+def _resolved(path: Path, k: int) -> Path:
+    try:
+        return path.resolve()
+    except (OSError, ValueError, RuntimeError) as exc:  # RuntimeError: a link loop (3.11)
+        raise SpecholoError(f"composition: scene {k}: cannot use {path}: "
+                            f"{' '.join(str(exc).split()) or type(exc).__name__}") from exc
 
 
 @dataclass

@@ -265,7 +265,8 @@ def _decode(p: Path, data: bytes) -> str:
 def _as_text(data: bytes) -> bytes:
     """Text-format bytes as valid UTF-8: stray bytes (say in a comment) become U+FFFD.
 
-    trimesh would otherwise guess the encoding with a package that may be missing.
+    trimesh would otherwise guess the encoding with a package that may be missing
+    (charset_normalizer), and report that import's failure instead of the file's.
     """
     try:
         data.decode("utf-8")
@@ -295,6 +296,7 @@ def _read_with_trimesh(p: Path, ext: str, data: bytes) -> Model:
         _check_ply_header(p, data)
     elif ext == ".off":
         _check_off_header(p, data)
+        data = _as_text(data)
     elif ext == ".stl":
         data = _check_stl(p, data)
     elif ext == ".obj":
