@@ -35,7 +35,7 @@ from specholo.fabrication.tools import (
 )
 from specholo.setup import ACRYLIC_INDEX, MAX_INDEX, BackLight, Light, Machining, Setup, Viewer
 from specholo.toolpaths.common import Runs, make_runs
-from specholo.toolpaths.grooves import Grooves
+from specholo.toolpaths.grooves import MAX_COORDINATE, Grooves
 from specholo.toolpaths.overlap import Overlaps, groove_overlaps
 
 METHODS = ("striped", "hyperbola", "arc", "ridged")
@@ -948,37 +948,65 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
         from_gcode: read the grooves from ``hologram.gcode`` (the file that will be
             cut) instead of ``grooves.npz``.
     """
-    import trimesh
+    from specholo.readback import read_mesh
 
     folder = Path(folder)
-    meta = folder / "hologram.json"
-    if not meta.is_file():
-        raise SpecholoError(f"{folder} holds no hologram.json: not a design folder")
-    try:
-        info = json.loads(meta.read_text())
-        if isinstance(info, dict) and info.get("design") == "conforming":
-            raise SpecholoError(f"{folder} holds a composed design (specholo compose): verify "
-                                "reads it, and its pictures are preview.png and preview.gif")
-        config = DesignConfig.from_dict(info["settings"])
-        if config.method == "ridged":
-            raise SpecholoError(f"{folder} holds a ridged design (a height field, no "
-                                "grooves): render, verify and view read it")
-        with np.load(folder / "stipples.npz") as data:
-            points = data["points"]
-            normals = data["normals"] if len(data["normals"]) else None
-        if from_gcode:
-            from specholo.fabrication.gcode import read_gcode
-            grooves = read_gcode(folder / "hologram.gcode")
-        else:
-            grooves = Grooves.load(str(folder / "grooves.npz"))
-        mesh = None
-        if (folder / "model.ply").is_file():
-            mesh = trimesh.load(folder / "model.ply", force="mesh", process=False)
-    except SpecholoError:
-        raise
-    except (OSError, KeyError, ValueError, TypeError) as exc:
-        raise SpecholoError(f"cannot read design in {folder}: {exc}") from exc
+    info = _design_json(folder)
+    if info.get("design") == "conforming":
+        raise SpecholoError(f"{folder} holds a composed design (specholo compose): verify "
+                            "reads it, and its pictures are preview.png and preview.gif")
+    config = _settings(folder, info)
+    if config.method == "ridged":
+        raise SpecholoError(f"{folder} holds a ridged design (a height field, no "
+                            "grooves): render, verify and view read it")
+    points, normals = load_stipples(folder / "stipples.npz")
+    if from_gcode:
+        from specholo.fabrication.gcode import read_gcode
+
+        grooves = read_gcode(folder / "hologram.gcode")
+        grooves.validate(len(points), str(folder / "hologram.gcode"))
+    else:
+        grooves = Grooves.load(folder / "grooves.npz", len(points))
+    # A model.ply that exists is read (or refused): skipping one that cannot be
+    # read would verify without the occlusion the design had.
+    mesh = read_mesh(folder / "model.ply") if (folder / "model.ply").exists() else None
     return Loaded(config, points, normals, grooves, mesh)
+
+
+def _design_json(folder: Path) -> dict[str, Any]:
+    """A design folder's hologram.json, a JSON object."""
+    from specholo.readback import read_json, table
+
+    meta = folder / "hologram.json"
+    if not meta.exists():
+        raise SpecholoError(f"{folder} holds no hologram.json: not a design folder")
+    return table(read_json(meta), str(meta))
+
+
+def _settings(folder: Path, info: dict[str, Any]) -> DesignConfig:
+    """The settings a design's hologram.json records, checked as any config is."""
+    meta = folder / "hologram.json"
+    if "settings" not in info:
+        raise SpecholoError(f"{meta} holds no settings: not a design folder")
+    try:
+        return DesignConfig.from_dict(info["settings"])
+    except SpecholoError as exc:
+        raise SpecholoError(f"{meta}: {exc}") from exc
+
+
+def load_stipples(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """A design's stipples.npz: the points (n, 3) and their normals (n, 3), or None
+    where the model was a point cloud (stored as (0, 3))."""
+    from specholo.readback import ArraySpec, load_arrays, within
+
+    a = load_arrays(path, {"points": ArraySpec((None, 3), finite=True),
+                           "normals": ArraySpec((None, 3), finite=True)})
+    points, normals = a["points"], a["normals"]
+    if not within(points, -MAX_COORDINATE, MAX_COORDINATE):
+        raise SpecholoError(f"{path}: points must lie within {MAX_COORDINATE:g} mm")
+    if len(normals) not in (0, len(points)):
+        raise SpecholoError(f"{path}: {len(normals)} normals for {len(points)} points")
+    return points, normals if len(normals) else None
 
 
 def _visibility(loaded: Loaded) -> Any:
@@ -1271,10 +1299,12 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
 def is_ridged_folder(folder: str | os.PathLike[str]) -> bool:
     """Whether a design folder holds a ridged design (by its ``hologram.json``, else
     by its ``plate.npz``)."""
+    from specholo.readback import read_json
+
     folder = Path(folder)
     try:
-        info = json.loads((folder / "hologram.json").read_text())
-    except (OSError, ValueError):
+        info = read_json(folder / "hologram.json")
+    except SpecholoError:
         return (folder / "plate.npz").is_file()
     if not isinstance(info, dict):
         return False
@@ -1304,33 +1334,20 @@ class LoadedRidged:
 
 def load_ridged_design(folder: str | os.PathLike[str]) -> LoadedRidged:
     """Read a ridged design folder written by :func:`write_ridged_design`."""
-    import trimesh
-
+    from specholo.readback import read_mesh, within
     from specholo.toolpaths.ridged import load_ridged
 
     folder = Path(folder)
-    meta = folder / "hologram.json"
-    if not meta.is_file():
-        raise SpecholoError(f"{folder} holds no hologram.json: not a design folder")
-    try:
-        info = json.loads(meta.read_text())
-        config = DesignConfig.from_dict(info["settings"])
-        if config.method != "ridged":
-            raise SpecholoError(f"{folder} holds a {config.method} design, not a ridged one")
-        heights = load_ridged(folder)
-        with np.load(folder / "stipples.npz") as data:
-            points = data["points"]
-            normals = data["normals"] if len(data["normals"]) else None
-        mesh = None
-        if (folder / "model.ply").is_file():
-            mesh = trimesh.load(folder / "model.ply", force="mesh", process=False)
-    except SpecholoError:
-        raise
-    except (OSError, KeyError, ValueError, TypeError) as exc:
-        raise SpecholoError(f"cannot read design in {folder}: {exc}") from exc
+    config = _settings(folder, _design_json(folder))
+    if config.method != "ridged":
+        raise SpecholoError(f"{folder} holds a {config.method} design, not a ridged one")
+    heights = load_ridged(folder)
+    points, normals = load_stipples(folder / "stipples.npz")
+    mesh = read_mesh(folder / "model.ply") if (folder / "model.ply").exists() else None
     if heights.labels is None:
         raise SpecholoError(f"{folder / 'plate.npz'} holds no stipple labels")
-    if len(points) and int(heights.labels.max()) >= len(points):
+    # Labels index the stipples (-1: no stipple) in the compiled glint search.
+    if not within(heights.labels, -1, len(points) - 1):
         raise SpecholoError(f"{folder / 'plate.npz'} does not match {folder / 'stipples.npz'}")
     return LoadedRidged(config, points, normals, heights, mesh)
 

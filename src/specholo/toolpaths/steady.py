@@ -37,6 +37,11 @@ SHAPES = ("scoop", "flat")
 CLEARANCE = 1.1
 #: Scoop radius bounds, mm.
 RADIUS_RANGE = (2.0, 200.0)
+#: Share of the cut's depth by which a glinting wall point must stay below the
+#: plate over the light's range: the glint's drift is predicted to first order
+#: and the cut is a polyline, which put glints of the shallowest scoops 0.6 um
+#: out of the plate at the range's ends.
+WALL_MARGIN = 0.1
 
 
 @dataclass(frozen=True)
@@ -108,7 +113,9 @@ class SteadyDesign:
         radius: (c,) each scoop's radius in the plane of t and h, mm (inf: flat).
         shape: "scoop" or "flat".
         dropped: stipples left out because no scoop short of
-            ``RADIUS_RANGE[1]`` keeps the other eye's glint off it.
+            ``RADIUS_RANGE[1]`` keeps the other eye's glint off it, or keeps its
+            own glint inside the cut over the light's range without cutting
+            deeper than the depth.
     """
 
     setup: SteadySetup
@@ -160,42 +167,56 @@ def design_steady(points: np.ndarray, setup: SteadySetup, tool: Tool,
     clear = np.ones(n, dtype=bool)
     for e in range(2):  # two eyes: the work inside is over all stipples at once
         eye, other = eyes[e], eyes[1 - e]
-        # the glinting ball point P on the sightline, at the depth its wall reaches
-        p_pt = _at_depth(eye, points, 0.0)
-        for _ in range(3):
+        # A scoop whose tangent slopes (t_z != 0) is a circle that dips below its
+        # glint point, by up to four times the depth asked: the cut is raised by
+        # that dip so its deepest tip is at -d, and the glint point P rides up its
+        # sightline by as much. A second pass finds h, and so the scoop, at the
+        # raised P (the same turn of t: h turns by ~1e-4 rad).
+        lift = np.zeros(n)  # how far P is raised
+        turn: np.ndarray | None = None
+        for _ in range(2 if shape == "scoop" else 1):
+            # the glinting ball point P on the sightline, at the depth its wall reaches
+            p_pt = _at_depth(eye, points, 0.0)
+            for _ in range(3):
+                h = unit_half(p_pt, eye, light)
+                reach = d - r_ball * (1.0 - h[:, 2])  # P's depth below the plate, unraised
+                if np.any(reach <= 0):
+                    worst = math.degrees(math.acos(float(h[:, 2].min())))
+                    raise SpecholoError(f"the views need walls tilted {worst:.1f} deg, more "
+                                        f"than the {r_ball:g} mm ball at {d:g} mm depth "
+                                        "offers; cut deeper")
+                p_pt = _at_depth(eye, points, -np.maximum(reach - lift, 0.0))
             h = unit_half(p_pt, eye, light)
-            depth = d - r_ball * (1.0 - h[:, 2])  # P's depth below the plate
-            if np.any(depth <= 0):
-                worst = math.degrees(math.acos(float(h[:, 2].min())))
-                raise SpecholoError(f"the views need walls tilted {worst:.1f} deg, more than "
-                                    f"the {r_ball:g} mm ball at {d:g} mm depth offers; "
-                                    "cut deeper")
-            p_pt = _at_depth(eye, points, -depth)
-        h = unit_half(p_pt, eye, light)
-        h2 = unit_half(p_pt, eye, setup.light(mid + da))
-        h1 = unit_half(p_pt, eye, setup.light(mid - da))
-        for hh in (unit_half(p_pt, eye, setup.light(mid + f * setup.half_range))
-                   for f in (-1.0, 1.0)):
-            if np.any(d - r_ball * (1.0 - hh[:, 2]) <= 0):
-                raise SpecholoError("over the light's range the views need walls steeper than "
-                                    f"the {r_ball:g} mm ball at {d:g} mm offers; cut deeper "
-                                    "or narrow the range")
-        dh = (h2 - h1) / (2 * da)
-        centre = p_pt + r_ball * h
-        if shape == "scoop":
-            steps = [setup.light(mid + f * setup.half_range) for f in (-1.0, -0.5, 0.0, 0.5, 1.0)]
-            t, rp, ok = _choose_scoop(h, dh, depth, r_ball,
-                                      [unit_half(p_pt, eye, la) for la in steps],
-                                      [unit_half(p_pt, other, la) for la in steps])
-            clear &= ok
-        else:  # in the plate's plane, perpendicular to h's in-plane part
-            t = np.stack([-h[:, 1], h[:, 0], np.zeros(n)], axis=1)
-            t /= np.linalg.norm(t, axis=1, keepdims=True)
-            rp = np.full(n, RADIUS_RANGE[0] * 9.0)  # only sets the flat cut's length
-        # the tip's height -d + u t_z + u^2 h_z / 2Rp reaches the plate at both ends
-        # (a flat cut: where its ball's tip would, were it a scoop)
+            reach = d - r_ball * (1.0 - h[:, 2])
+            h2 = unit_half(p_pt, eye, setup.light(mid + da))
+            h1 = unit_half(p_pt, eye, setup.light(mid - da))
+            for hh in (unit_half(p_pt, eye, setup.light(mid + f * setup.half_range))
+                       for f in (-1.0, 1.0)):
+                if np.any(d - r_ball * (1.0 - hh[:, 2]) <= 0):
+                    raise SpecholoError("over the light's range the views need walls steeper "
+                                        f"than the {r_ball:g} mm ball at {d:g} mm offers; cut "
+                                        "deeper or narrow the range")
+            dh = (h2 - h1) / (2 * da)
+            centre = p_pt + r_ball * h
+            raised = lift
+            if shape == "scoop":
+                steps = [setup.light(mid + f * setup.half_range)
+                         for f in (-1.0, -0.5, 0.0, 0.5, 1.0)]
+                t, rp, ok, turn = _choose_scoop(h, dh, reach, r_ball,
+                                                [unit_half(p_pt, eye, la) for la in steps],
+                                                [unit_half(p_pt, other, la) for la in steps],
+                                                WALL_MARGIN * d, turn)
+                lift = rp * (np.hypot(t[:, 2], h[:, 2]) - h[:, 2])
+            else:  # in the plate's plane, perpendicular to h's in-plane part
+                t = np.stack([-h[:, 1], h[:, 0], np.zeros(n)], axis=1)
+                t /= np.linalg.norm(t, axis=1, keepdims=True)
+                rp = np.full(n, RADIUS_RANGE[0] * 9.0)  # only sets the flat cut's length
+                ok = np.ones(n, dtype=bool)
+        clear &= ok
+        # the tip's height -(d - raised) + u t_z + u^2 h_z / 2Rp reaches the plate at both
+        # ends (a flat cut: where its ball's tip would, were it a scoop)
         tz, hz = t[:, 2], h[:, 2]
-        root = np.sqrt(tz**2 + 2.0 * d * hz / rp)
+        root = np.sqrt(np.maximum(tz**2 + 2.0 * (d - raised) * hz / rp, 0.0))
         u_lo, u_hi = 1.02 * rp * (-tz - root) / hz, 1.02 * rp * (-tz + root) / hz
         if shape == "flat":
             u_lo, u_hi = -0.5 * (u_hi - u_lo), 0.5 * (u_hi - u_lo)
@@ -205,6 +226,11 @@ def design_steady(points: np.ndarray, setup: SteadySetup, tool: Tool,
             ang = u / rp[:, None]
             path = (centre[:, None, :] + (rp[:, None] * np.sin(ang))[..., None] * t[:, None, :]
                     + (rp[:, None] * (1.0 - np.cos(ang)))[..., None] * h[:, None, :])
+            # P was raised by the first pass's dip: the cut is raised by what its
+            # lowest vertex still sinks below -d (a hair), so the tool tip, R below
+            # the centre, never goes deeper than the depth asked.
+            sink = -d - (path[:, :, 2].min(axis=1) - r_ball)
+            path[:, :, 2] += np.maximum(sink, 0.0)[:, None]
             radii.append(rp)
         else:
             path = centre[:, None, :] + u[..., None] * t[:, None, :]
@@ -212,8 +238,6 @@ def design_steady(points: np.ndarray, setup: SteadySetup, tool: Tool,
         cuts_c.append(path)
         stip.append(np.arange(n))
         which.append(np.full(n, e))
-    if shape == "flat":
-        clear[:] = True
     keep = np.concatenate([clear, clear])
     kept = np.flatnonzero(clear)
     renum = np.full(n, -1)
@@ -229,40 +253,61 @@ def design_steady(points: np.ndarray, setup: SteadySetup, tool: Tool,
 TURNS = np.linspace(-0.3, 0.3, 61)
 
 
-def _choose_scoop(h: np.ndarray, dh: np.ndarray, depth: np.ndarray, r_ball: float,
-                  over: list[np.ndarray], over_o: list[np.ndarray]
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Tangent t (n, 3), radius Rp (n,) and feasibility (n,) of each scoop.
+def _choose_scoop(h: np.ndarray, dh: np.ndarray, reach: np.ndarray, r_ball: float,
+                  over: list[np.ndarray], over_o: list[np.ndarray], margin: float = 0.0,
+                  turn: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Tangent t (n, 3), radius Rp (n,), feasibility (n,) and turn (n,) (an index
+    into :data:`TURNS`) of each scoop.
 
     t = h x dh/da keeps the glint still to first order, but the slope it gives
     the path can put the other eye's glint point (u_o = -Rp b) inside the cut.
-    So t is turned about h by the angle, among :data:`TURNS`, that keeps that
-    point above the plate for every light in the range (the other eye's half
-    vectors ``over_o``) with the least predicted drift: this eye's glint moves to
-    u = -Rp t . (h(a) - h), largest over its half vectors ``over``.
+    So t is turned about h by the angle, among :data:`TURNS` (or the given
+    ``turn``), that keeps that point above the plate for every light in the range
+    (the other eye's half vectors ``over_o``) with the least predicted drift:
+    this eye's glint moves to u = -Rp t . (h(a) - h), largest over its half
+    vectors ``over``; its wall point must stay ``margin`` below the plate there.
+
+    The scoop dips Rp (|(t_z, h_z)| - h_z) below its point at u = 0 and is raised
+    by that much (its deepest tip at the depth), so P lies that much above
+    ``reach``, its depth below the plate unraised; a scoop whose P would leave
+    the plate is not feasible.
     """
     t0 = np.cross(h, dh)
     t0 /= np.linalg.norm(t0, axis=1, keepdims=True)
     w = np.cross(h, t0)
-    c, s = np.cos(TURNS)[None, :, None], np.sin(TURNS)[None, :, None]
+    turns = TURNS if turn is None else TURNS[turn][:, None]
+    c, s = np.cos(turns)[..., None], np.sin(turns)[..., None]
     t = c * t0[:, None, :] + s * w[:, None, :]  # (n, G, 3)
+    tz, hz = t[..., 2], h[:, None, 2]
+    dip = np.hypot(tz, hz) - hz
+    clear2 = CLEARANCE**2
     want = np.zeros(t.shape[:2])
     for h_o in over_o:
         b = np.einsum("ngj,nj->ng", t, h_o) / np.einsum("nj,nj->n", h, h_o)[:, None]
-        gain = 0.5 * b**2 * h[:, None, 2] - b * t[..., 2]
-        # the other eye's wall point starts this far below the plate
-        sink = depth - r_ball * (h[:, 2] - h_o[:, 2])
-        need = np.where(gain > 0, CLEARANCE**2 * np.maximum(sink, 0.0)[:, None]
-                        / np.maximum(gain, 1e-12), math.inf)
+        gain = 0.5 * b**2 * hz - b * tz
+        # the other eye's wall point starts sink - Rp dip below the plate (the scoop
+        # raised): Rp gain >= CLEARANCE^2 (sink - Rp dip) lifts it out
+        sink = np.maximum(reach - r_ball * (h[:, 2] - h_o[:, 2]), 0.0)[:, None]
+        need = np.where(gain > 0, clear2 * sink / np.maximum(gain + clear2 * dip, 1e-12),
+                        math.inf)
         want = np.maximum(want, need)
     rp = np.clip(want, *RADIUS_RANGE)
+    depth = reach[:, None] - rp * dip  # P's depth, raised
+    inside = depth > margin
     drift = np.zeros_like(rp)
     for ha in over:
-        drift = np.maximum(drift, rp * np.abs(np.einsum("ngj,nj->ng", t, ha - h)))
-    drift = np.where(want <= RADIUS_RANGE[1], drift, math.inf)
+        u = -rp * np.einsum("ngj,nj->ng", t, ha - h)
+        drift = np.maximum(drift, np.abs(u))
+        ang = u / rp
+        wall = (-depth + r_ball * (hz - ha[:, None, 2]) + rp * np.sin(ang) * tz
+                + rp * (1.0 - np.cos(ang)) * hz)
+        inside &= wall < -margin
+    drift = np.where((want <= RADIUS_RANGE[1]) & inside, drift, math.inf)
     best = np.argmin(drift, axis=1)
     rows = np.arange(len(h))
-    return t[rows, best], rp[rows, best], np.isfinite(drift[rows, best])
+    chosen = best if turn is None else turn
+    return t[rows, best], rp[rows, best], np.isfinite(drift[rows, best]), chosen
 
 
 def _at_depth(eye: np.ndarray, points: np.ndarray, z: np.ndarray | float) -> np.ndarray:
