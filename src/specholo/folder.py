@@ -10,10 +10,14 @@ from typing import Any
 
 
 def design_kind(folder: str | os.PathLike[str]) -> str | None:
-    """The ``design`` named in a folder's ``hologram.json``, or None if unreadable."""
+    """The ``design`` named in a folder's ``hologram.json``, or None if unreadable
+    (the design's own loader then says why)."""
+    from specholo.errors import SpecholoError
+    from specholo.readback import read_json
+
     try:
-        meta = json.loads((Path(folder) / "hologram.json").read_text())
-    except (OSError, ValueError):
+        meta = read_json(Path(folder) / "hologram.json")
+    except SpecholoError:
         return None
     kind = meta.get("design") if isinstance(meta, dict) else None
     return kind if isinstance(kind, str) else None

@@ -1342,6 +1342,13 @@ def load_ridged_design(folder: str | os.PathLike[str]) -> LoadedRidged:
     if config.method != "ridged":
         raise SpecholoError(f"{folder} holds a {config.method} design, not a ridged one")
     heights = load_ridged(folder)
+    # The raster's cells are found from positions by dividing by the spacing:
+    # a spacing of 1e-300 mm, or heights of 1e300, would overflow the indices.
+    if not RASTER_RANGE[0] <= heights.resolution <= RASTER_RANGE[1] or not (
+            within(heights.origin, -MAX_COORDINATE, MAX_COORDINATE)
+            and within(heights.z, -MAX_COORDINATE, MAX_COORDINATE)):
+        raise SpecholoError(f"{folder / 'plate.npz'}: raster {heights.resolution:g} mm, origin "
+                            "or heights beyond any plate")
     points, normals = load_stipples(folder / "stipples.npz")
     mesh = read_mesh(folder / "model.ply") if (folder / "model.ply").exists() else None
     if heights.labels is None:

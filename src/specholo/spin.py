@@ -339,45 +339,86 @@ def is_spin_folder(folder: str | os.PathLike[str]) -> bool:
 
 
 def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:
-    """Read a folder written by :func:`write_spin` back into a job."""
-    import trimesh
+    """Read a folder written by :func:`write_spin` back into a job.
 
-    from specholo.toolpaths.grooves import Grooves
+    Raises:
+        SpecholoError: a file is unreadable, unlike what :func:`write_spin` writes,
+            or the files disagree.
+    """
+    from specholo.readback import (
+        ArraySpec,
+        load_arrays,
+        number,
+        read_json,
+        read_mesh,
+        settings_from,
+        table,
+        whole,
+    )
+    from specholo.toolpaths.grooves import MAX_COORDINATE, Grooves
 
     folder = Path(folder)
-    try:
-        meta = json.loads((folder / "hologram.json").read_text())
-        c = dict(meta["config"])
-        st = dict(c.pop("setup"))
-        st["elevation"] = math.radians(st.pop("elevation_deg"))
-        cfg = SpinConfig(setup=SpinSetup(**st), tool=Tool(**c.pop("tool")),
-                         machining=Machining(**c.pop("machining")), **c)
-        grooves = Grooves.load(str(folder / "grooves.npz"))
-        tracks = window = None
-        with np.load(folder / "stipples.npz") as data:
-            points, coef = data["points"], data["coef"]
-            side, path_side = data["side"], data["path_side"]
-            normals = data["normals"] if len(data["normals"]) else None
-            if "track_position" in data:
-                from specholo.toolpaths.sliding import Tracks
+    path = folder / "hologram.json"
+    meta = table(read_json(path), str(path))
+    with settings_from(path):
+        c = dict(table(meta["config"], "config"))
+        st = dict(table(c.pop("setup"), "config.setup"))
+        st["elevation"] = math.radians(number(st.pop("elevation_deg"), "elevation_deg"))
+        # Counts must be whole: the turns and samples size arrays.
+        for values, keys in ((c, ("stipples", "seed", "turns")),
+                             (st, ("harmonics", "angles", "samples"))):
+            for key in keys:
+                if key in values:
+                    whole(values[key], key)
+        cfg = SpinConfig(setup=SpinSetup(**st), tool=Tool(**table(c.pop("tool"), "tool")),
+                         machining=Machining(**table(c.pop("machining"), "machining")), **c)
+        tilts = meta["tilts_deg"]
+        if not (isinstance(tilts, list) and len(tilts) == 2):
+            raise SpecholoError("tilts_deg must be 2 numbers")
+        lo, hi = (math.radians(number(t, "tilts_deg")) for t in tilts)
+        relief = math.radians(number(meta["relief_tilt_deg"], "relief_tilt_deg"))
+    sliding = {"track_phi": ArraySpec((None,), finite=True),
+               "track_position": ArraySpec((None, None, 3)),  # NaN where not alive
+               "track_alive": ArraySpec((None, None), np.bool_),
+               "track_scene": ArraySpec((None,), np.int64),
+               "track_shown": ArraySpec((None, None), np.bool_),
+               "window": ArraySpec((None, 2), finite=True)}
+    a = load_arrays(folder / "stipples.npz", {
+        "points": ArraySpec((None, 3), finite=True), "coef": ArraySpec((None, None), finite=True),
+        "side": ArraySpec((None,), np.int64), "path_side": ArraySpec((None,), np.int64),
+        "normals": ArraySpec((None, 3), finite=True),
+        **{k: ArraySpec(s.shape, s.dtype, s.finite, optional=True) for k, s in sliding.items()}})
+    points, coef, side, path_side = a["points"], a["coef"], a["side"], a["path_side"]
+    n = len(points)
+    grooves = Grooves.load(folder / "grooves.npz", n)
+    normals = a["normals"] if len(a["normals"]) else None
+    disagree = SpecholoError(f"cannot read turning-plate design in {folder}: files disagree")
+    if grooves.n_paths != len(path_side) or len(coef) != n or len(side) != n \
+            or (normals is not None and len(normals) != n) \
+            or not np.all(np.abs(side) == 1) or not np.all(np.abs(path_side) == 1) \
+            or not np.all(np.abs(points) <= MAX_COORDINATE):
+        raise disagree
+    tracks = window = None
+    present = [k for k in sliding if k in a]
+    if present:
+        from specholo.toolpaths.sliding import Tracks
 
-                tracks = Tracks(cfg.turns, data["track_phi"], data["track_position"],
-                                data["track_alive"].astype(bool), data["track_scene"],
-                                data["track_shown"].astype(bool))
-                window = data["window"]
-        mesh = None
-        if (folder / "model.ply").is_file():
-            mesh = trimesh.load(folder / "model.ply", force="mesh", process=False)
-        tilts = tuple(math.radians(t) for t in meta["tilts_deg"])
-        design = SpinDesign(cfg.setup, points, coef, side, grooves, path_side,
-                            (tilts[0], tilts[1]), math.radians(meta["relief_tilt_deg"]),
-                            tracks=tracks, window=window)
-    except SpecholoError:
-        raise
-    except (OSError, KeyError, ValueError, TypeError, IndexError) as exc:
-        raise SpecholoError(f"cannot read turning-plate design in {folder}: {exc}") from exc
-    if grooves.n_paths != len(path_side) or len(points) != len(coef) or (
-            tracks is not None and (cfg.turns < 2 or tracks.position.shape[:2] != tracks.alive.shape
-                                    or len(tracks) != len(points))):
-        raise SpecholoError(f"cannot read turning-plate design in {folder}: files disagree")
+        if len(present) < len(sliding) or cfg.turns < 2:
+            raise disagree
+        phi, position = a["track_phi"], a["track_position"]
+        grid = (n, len(phi))
+        # Positions are looked up on the grid of plate angles by index.
+        if len(phi) == 0 or position.shape[:2] != grid or a["track_alive"].shape != grid \
+                or a["track_shown"].shape != grid or a["track_scene"].shape != (n,) \
+                or a["window"].shape != (n, 2) or np.any(a["track_scene"] < 0) \
+                or np.any(np.isinf(position)):
+            raise disagree
+        tracks = Tracks(cfg.turns, phi, position, a["track_alive"], a["track_scene"],
+                        a["track_shown"])
+        window = a["window"]
+    elif cfg.turns != 1:
+        raise disagree
+    design = SpinDesign(cfg.setup, points, coef, side, grooves, path_side, (lo, hi), relief,
+                        tracks=tracks, window=window)
+    mesh = read_mesh(folder / "model.ply") if (folder / "model.ply").exists() else None
     return SpinJob(cfg, design, mesh, normals)

@@ -184,26 +184,58 @@ def is_steady_folder(folder: str | os.PathLike[str]) -> bool:
 
 
 def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, SteadyConfig]:
-    """Read a folder written by :func:`write_steady` back."""
+    """Read a folder written by :func:`write_steady` back.
+
+    Raises:
+        SpecholoError: a file is unreadable, unlike what :func:`write_steady`
+            writes, or the files disagree.
+    """
+    from specholo.readback import (
+        ArraySpec,
+        check_offsets,
+        load_arrays,
+        number,
+        read_json,
+        settings_from,
+        table,
+        whole,
+        within,
+    )
+    from specholo.toolpaths.grooves import MAX_COORDINATE
+
     folder = Path(folder)
-    try:
-        meta = json.loads((folder / "hologram.json").read_text())
-        c = dict(meta["config"])
-        st = dict(c.pop("setup"))
-        st["elevation"] = math.radians(st.pop("elevation_deg"))
-        st["half_range"] = math.radians(st.pop("half_range_deg"))
-        config = SteadyConfig(setup=SteadySetup(**st), tool=Tool(**c.pop("tool")),
-                              machining=Machining(**c.pop("machining")), **c)
-        with np.load(folder / "stipples.npz") as data:
-            design = SteadyDesign(config.setup, data["points"], data["centres"],
-                                  data["offsets"], data["stipple"], data["eye"],
-                                  data["radius"], config.shape, int(data["dropped"]))
-    except SpecholoError:
-        raise
-    except (OSError, KeyError, ValueError, TypeError, IndexError) as exc:
-        raise SpecholoError(f"cannot read steady-image design in {folder}: {exc}") from exc
-    if design.offsets[-1] != len(design.centres) or len(design.stipple) != design.n_cuts:
+    path = folder / "hologram.json"
+    meta = table(read_json(path), str(path))
+    with settings_from(path):
+        c = dict(table(meta["config"], "config"))
+        st = dict(table(c.pop("setup"), "config.setup"))
+        st["elevation"] = math.radians(number(st.pop("elevation_deg"), "elevation_deg"))
+        st["half_range"] = math.radians(number(st.pop("half_range_deg"), "half_range_deg"))
+        for values, key in ((c, "stipples"), (c, "seed"), (st, "samples")):
+            if key in values:
+                whole(values[key], key)
+        if c.get("shape", "scoop") not in ("scoop", "flat"):
+            raise SpecholoError(f"shape must be scoop or flat, got {str(c['shape'])[:40]!r}")
+        config = SteadyConfig(setup=SteadySetup(**st), tool=Tool(**table(c.pop("tool"), "tool")),
+                              machining=Machining(**table(c.pop("machining"), "machining")), **c)
+    stipples = folder / "stipples.npz"
+    a = load_arrays(stipples, {
+        "points": ArraySpec((None, 3), finite=True), "centres": ArraySpec((None, 3), finite=True),
+        "offsets": ArraySpec((None,), np.int64), "stipple": ArraySpec((None,), np.int64),
+        "eye": ArraySpec((None,), np.int64), "radius": ArraySpec((None,)),
+        "dropped": ArraySpec((), np.int64)})
+    check_offsets(a["offsets"], len(a["centres"]), str(stipples))
+    cuts = len(a["offsets"]) - 1
+    n = len(a["points"])
+    # The cuts index the stipples and the two eyes; a flat cut's radius is infinite.
+    if any(len(a[k]) != cuts for k in ("stipple", "eye", "radius")) \
+            or (cuts and not (within(a["stipple"], 0, n - 1) and within(a["eye"], 0, 1))) \
+            or np.any(np.isnan(a["radius"])) or np.any(a["radius"] <= 0) \
+            or int(a["dropped"]) < 0 or not within(a["points"], -MAX_COORDINATE, MAX_COORDINATE) \
+            or not within(a["centres"], -MAX_COORDINATE, MAX_COORDINATE):
         raise SpecholoError(f"cannot read steady-image design in {folder}: files disagree")
+    design = SteadyDesign(config.setup, a["points"], a["centres"], a["offsets"], a["stipple"],
+                          a["eye"], a["radius"], config.shape, int(a["dropped"]))
     return design, config
 
 

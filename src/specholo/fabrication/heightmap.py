@@ -249,14 +249,24 @@ def save_npz(path: str | os.PathLike[str], hm: HeightMap) -> None:
 
 
 def load_npz(path: str | os.PathLike[str]) -> HeightMap:
-    """Read a height map saved by :func:`save_npz`."""
+    """Read a height map saved by :func:`save_npz`, its arrays checked (finite
+    heights, a finite origin and resolution, labels of the heights' shape or none).
+
+    Raises:
+        SpecholoError: an unreadable file or arrays unlike those :func:`save_npz` writes.
+    """
+    from specholo.readback import ArraySpec, load_arrays
+
+    a = load_arrays(path, {"z": ArraySpec((None, None), np.float32, finite=True),
+                           "origin": ArraySpec((2,), finite=True),
+                           "resolution": ArraySpec((), finite=True),
+                           "labels": ArraySpec((None, None), np.int32)})
+    labels = a["labels"]
     try:
-        with np.load(path) as data:
-            labels = data["labels"]
-            return HeightMap(data["z"], data["origin"], float(data["resolution"]),
-                             labels if labels.size else None)
-    except (OSError, KeyError, ValueError) as exc:
-        raise SpecholoError(f"cannot read height map {path}: {exc}") from exc
+        return HeightMap(a["z"], a["origin"], float(a["resolution"]),
+                         labels if labels.size else None)
+    except SpecholoError as exc:
+        raise SpecholoError(f"{os.fspath(path)}: {exc}") from exc
 
 
 # ---------------------------------------------------------------------------

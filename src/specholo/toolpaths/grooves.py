@@ -11,6 +11,7 @@ dot: a plunge that leaves a spherical dimple.
 from __future__ import annotations
 
 import math
+import os
 import zipfile
 from dataclasses import dataclass, field
 
@@ -18,6 +19,14 @@ import numba as nb
 import numpy as np
 
 from specholo._pages import small_pages
+from specholo.errors import SpecholoError
+
+#: Largest coordinate of a groove vertex, mm, as :func:`read_gcode` accepts:
+#: a plate is at most metres across, and every sum and square stays finite.
+MAX_COORDINATE = 1e9
+#: Largest bulge magnitude: tan(sweep / 4) of an arc of one full turn, the
+#: largest sweep, is 1.6e16 in doubles.
+MAX_BULGE = 1e17
 
 
 @nb.njit(cache=True, parallel=True)
@@ -361,10 +370,69 @@ class Grooves:
                     np.lib.format.write_array(out, np.asanyarray(arr), allow_pickle=False)
 
     @classmethod
-    def load(cls, path: str) -> Grooves:
-        """Read grooves written by :meth:`save`."""
-        with np.load(path) as data:
-            return cls(data["vertices"], data["bulges"], data["offsets"], data["stipple"])
+    def load(cls, path: str | os.PathLike[str], stipples: int | None = None) -> Grooves:
+        """Read grooves written by :meth:`save` (or ``np.savez``), checked as
+        :meth:`validate` checks them.
+
+        Args:
+            path: the ``.npz`` file.
+            stipples: the number of stipples the ids must lie below, if known.
+
+        Raises:
+            SpecholoError: an unreadable file, or arrays the grooves cannot be.
+        """
+        from specholo.readback import ArraySpec, load_arrays
+
+        a = load_arrays(path, {"vertices": ArraySpec((None, 2)), "bulges": ArraySpec((None,)),
+                               "offsets": ArraySpec((None,), np.int64),
+                               "stipple": ArraySpec((None,), np.int64)})
+        grooves = cls(a["vertices"], a["bulges"], a["offsets"], a["stipple"])
+        grooves.validate(stipples, os.fspath(path))
+        return grooves
+
+    def validate(self, stipples: int | None = None, where: str = "grooves") -> None:
+        """Refuse arrays that are not grooves, before any compiled kernel indexes them.
+
+        The kernels trust the offsets to bound every path within the vertices
+        and the ids to index the stipples; NaN or huge coordinates and bulges
+        would reach integer conversions (pixels, grid cells) whose result is
+        undefined. One pass over each array, a chunk at a time.
+
+        Args:
+            stipples: the number of stipples the ids must lie below, if known.
+            where: what to name in a refusal (the file).
+
+        Raises:
+            SpecholoError: naming ``where`` and the first thing wrong.
+        """
+        from specholo.readback import bounded, check_offsets, within
+
+        v, b, o, s = self.vertices, self.bulges, self.offsets, self.stipple
+        if not all(isinstance(x, np.ndarray) for x in (v, b, o, s)):
+            raise SpecholoError(f"{where}: grooves must be numpy arrays")
+        if v.ndim != 2 or v.shape[1] != 2 or v.dtype.kind != "f":
+            raise SpecholoError(f"{where}: vertices must be (m, 2) floats, got {v.dtype} "
+                                f"{v.shape}")
+        m = len(v)
+        if b.shape != (m,) or b.dtype.kind != "f":
+            raise SpecholoError(f"{where}: bulges must be one float per vertex ({m}), got "
+                                f"{b.dtype} {b.shape}")
+        if o.ndim != 1 or len(o) == 0 or o.dtype.kind not in "iu":
+            raise SpecholoError(f"{where}: offsets must be integers, one more than the paths")
+        if s.shape != (len(o) - 1,) or s.dtype.kind not in "iu":
+            raise SpecholoError(f"{where}: stipple ids must be one integer per path "
+                                f"({len(o) - 1}), got {s.dtype} {s.shape}")
+        if not bounded(v, MAX_COORDINATE):
+            raise SpecholoError(f"{where}: vertices must be finite and within "
+                                f"{MAX_COORDINATE:g} mm of the plate centre")
+        if not bounded(b, MAX_BULGE):
+            raise SpecholoError(f"{where}: bulges must be finite numbers within {MAX_BULGE:g}")
+        check_offsets(o, m, where)
+        top = np.iinfo(np.int64).max if stipples is None else stipples - 1
+        if len(s) and not within(s, 0, top):
+            below = "" if stipples is None else f" and below the {stipples} stipples"
+            raise SpecholoError(f"{where}: stipple ids must be 0 or more{below}, got "
+                                f"{int(s.min())} to {int(s.max())}")
 
 
 class GroovesBuilder:

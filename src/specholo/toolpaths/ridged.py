@@ -969,6 +969,6 @@ def load_ridged(folder: Any) -> HeightMap:
     from specholo.fabrication.heightmap import load_npz
 
     path = Path(folder) / PLATE_FILE
-    if not path.is_file():
+    if not path.exists():  # anything else in its place is refused by its reader
         raise SpecholoError(f"{folder} holds no {PLATE_FILE}: not a ridged design folder")
     return load_npz(path)
