@@ -70,26 +70,18 @@ MAX_CONFIG_BYTES = 1 << 20
 
 
 def _read_config(path: Path | None) -> dict[str, Any]:
+    from specholo.readback import read_bytes
+
     if path is None:
         return {}
+    # A regular file only: a FIFO would wait for a writer, /dev/zero never end.
+    raw = read_bytes(path, MAX_CONFIG_BYTES, "config file")
     try:
-        with open(path, "rb") as fh:
-            raw = fh.read(MAX_CONFIG_BYTES + 1)
-        if len(raw) > MAX_CONFIG_BYTES:
-            raise SpecholoError(f"config file {path} is larger than {MAX_CONFIG_BYTES} bytes")
         data = tomllib.loads(raw.decode("utf-8"))
-    except FileNotFoundError as exc:
-        raise SpecholoError(f"config file {path} not found") from exc
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SpecholoError(f"config file {path} is not valid TOML: {exc}") from exc
     except RecursionError as exc:
         raise SpecholoError(f"config file {path} is not valid TOML: nested too deeply") from exc
-    except OSError as exc:
-        raise SpecholoError(f"cannot read config file {path}: {exc.strerror or exc}") from exc
-    except ValueError as exc:  # a NUL byte in the path
-        if isinstance(exc, SpecholoError):
-            raise
-        raise SpecholoError(f"cannot read config file {path!r}: {exc}") from exc
     return data
 
 
@@ -696,15 +688,13 @@ def report(folder: Path) -> None:
     """
     from specholo.pipeline import load_design
     from specholo.preview.report import write_report
+    from specholo.readback import read_json
 
     if Path(folder).is_dir():
         _check_folder(folder)  # a turning-plate folder gets its own message
     load_design(folder)  # a clear error if this is not a design folder
     verify_file = Path(folder) / "verify.json"
-    try:
-        verify = json.loads(verify_file.read_text()) if verify_file.is_file() else None
-    except (OSError, ValueError) as exc:
-        raise SpecholoError(f"cannot read {verify_file}: {exc}") from exc
+    verify = read_json(verify_file) if verify_file.exists() else None
     click.echo(f"report -> {write_report(folder, verify)}")
 
 

@@ -23,8 +23,9 @@ import numpy as np
 #: The modal state's slots: position (mm, NaN while unknown), feed (mm/min,
 #: NaN until given), mm per programmed unit, motion mode (-1 for none).
 X, Y, Z, FEED, FACTOR, MOTION = range(6)
-#: Columns of a move row, as the reader writes them.
-ROW = 12
+#: Columns of a move row, as the reader writes them (the last, set to 0 here,
+#: marks a move that turns a rotary axis: plain lines have no A word).
+ROW = 13
 _TENS = np.array([10.0**k for k in range(23)])
 #: Each byte's place among the words X Y Z I J F, -1 for any other byte.
 _WORD_OF = np.full(256, -1, dtype=np.int64)
@@ -149,7 +150,7 @@ def plain_lines(buf: np.ndarray, starts: np.ndarray, stops: np.ndarray, first: i
         first: the first line to read; ``number`` its 1-based number in the file.
         tool_on: 1.0 while the spindle (laser) is on, else 0.0.
         state: (6,) the modal state (see :data:`X` ..), updated in place.
-        out: (m, 12) the move table; rows from ``row`` on are written.
+        out: (m, ROW) the move table; rows from ``row`` on are written.
 
     Returns:
         The first line not taken (``starts.size`` if all were) and the next free row.
@@ -183,7 +184,7 @@ def plain_lines(buf: np.ndarray, starts: np.ndarray, stops: np.ndarray, first: i
             cy = sy + (0.0 if math.isnan(words[4]) else words[4]) * factor
         r = out[row]
         r[0], r[1], r[2], r[3], r[4], r[5], r[6] = number + (i - first), motion, sx, sy, sz, ex, ey
-        r[7], r[8], r[9], r[10], r[11] = ez, cx, cy, state[FEED], tool_on
+        r[7], r[8], r[9], r[10], r[11], r[12] = ez, cx, cy, state[FEED], tool_on, 0.0
         row += 1
         state[X], state[Y], state[Z] = ex, ey, ez
         i += 1

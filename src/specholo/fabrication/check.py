@@ -5,22 +5,33 @@ or reader in :mod:`specholo.fabrication.gcode`, so a mistake there is not
 repeated here. It reads ``G0 G1 G2 G3`` (arcs by ``I J`` or ``R``), ``G4 G17
 G20 G21 G90 G91 G94``, the harmless ``G40 G49 G54 G61 G64 G80 G91.1``,
 ``M2 M3 M4 M5 M30`` (and coolant ``M7 M8 M9``, pauses ``M0 M1``), ``F S P N``
-words and comments in parentheses or after ``;``. Anything else is reported,
-since its effect is not modelled.
+words and comments in parentheses or after ``;``, and, for a rotary axis, ``A``
+(degrees). Anything else is reported, since its effect is not modelled.
 
-It reports, line by line:
+The limits (:class:`Limits`) come from the job's settings, never from the
+program. Three kinds of tool are told apart: a mill (ball, V-bit) cuts only
+while it spins, a drag tip or scriber cuts with the spindle off, a laser cuts
+wherever it is on and never goes below the surface. It reports, line by line:
 
-- a cut (a feed move that reaches below the surface Z = 0 on a mill, or any
-  move with the laser on) leaving the stock rectangle, arcs over their whole
-  extent, not only their end points (tool centre positions: shrink the stock
-  by the tool radius to keep the groove walls inside);
-- a cut deeper than ``max_depth`` (or the stock thickness);
-- a rapid (``G0``) moving in X or Y below the safe height, or plunging below
-  it (on a laser: a rapid with the laser on);
+- a cut (a feed move that reaches below the surface, or any move with the
+  laser on) leaving the stock rectangle, arcs over their whole extent, not
+  only their end points (tool centre positions: shrink the stock by the tool
+  radius to keep the groove walls inside);
+- a cut deeper than ``max_depth`` (or the stock thickness) below the surface,
+  whatever the tool; on a laser, any move below the surface;
+- a rapid (``G0``) moving in X or Y (or turning the rotary axis) below the
+  safe height, or plunging below it (on a laser: a rapid with the laser on);
 - a feed outside ``feed_range``, a feed move at zero feed, a spindle (laser
-  power) switched on outside ``spindle_range``, a cut with the spindle off;
+  power) switched on outside ``spindle_range``, a mill cutting with the
+  spindle off;
 - moves from an unknown position, arcs whose end is off their circle, words
   it does not know, and moves after the program end.
+
+The surface is the plate Z = 0, or a host's (``Limits.surface``: its height
+under X, Y, for a curved host cut by a vertical tool or a cylinder on a rotary
+axis, whose top stays at Z = 0 however it turns); on such a surface a move's
+depth is taken at its ends and its middle, and a cut where the host is not is
+reported.
 
 Positions, units (G20 converts to mm, feeds too) and modes are followed line by
 line; the moves are recorded in a table and checked together with numpy, a
@@ -52,7 +63,7 @@ _INCH = 25.4
 # work offset 1, path modes, canned cycles off, incremental arc centres, feed per minute
 _HARMLESS_G = frozenset({170, 400, 490, 540, 610, 640, 800, 911, 940})
 _HARMLESS_M = frozenset({0, 1, 7, 8, 9})
-_KNOWN_LETTERS = frozenset("GMXYZIJRFSPN")
+_KNOWN_LETTERS = frozenset("GMXYZIJRFSPNA")
 _UNSIGNED = r"(?:\d+\.?\d*|\.\d+)"
 _NUM = rf"[-+]?{_UNSIGNED}"
 # the common shape of a motion line, read without the general tokenizer: one
@@ -97,6 +108,77 @@ class Stock:
         return cls(-0.5 * width, -0.5 * height, 0.5 * width, 0.5 * height, thickness)
 
 
+#: Kinds of tool the check tells apart: a mill spins to cut, a drag tip or
+#: scriber cuts with the spindle off, a laser cuts with its beam and stays on
+#: the surface.
+TOOL_KINDS = ("mill", "drag", "laser")
+#: The kind of each cutter of a design (``--tool``).
+CUTTER_KINDS = {"ball": "mill", "vbit": "mill", "drag": "drag", "scriber": "drag",
+                "laser": "laser"}
+
+
+def tool_kind(cutter: str, spindle: float) -> str:
+    """The check's kind of tool for a cutter run at a spindle speed (rpm).
+
+    A laser is a laser; any other cutter is a mill when the job spins it and a
+    drag tip when it does not (a round engraving tip, say), so the check asks
+    of the program what the job's settings say.
+    """
+    if cutter == "laser":
+        return "laser"
+    return "mill" if spindle > 0 else "drag"
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What a job allows its program to do, from the job's settings (mm, mm/min).
+
+    Attributes:
+        stock: where the tool may cut (tool centre positions) and the blank's
+            thickness.
+        max_depth: deepest cut below the surface, mm.
+        safe_z: lowest machine Z of X/Y rapids and of rapids down, mm.
+        feed_range: (lowest, highest) feed of feed moves, mm/min.
+        spindle_range: (lowest, highest) spindle speed (laser power) when on.
+        tool: a kind of :data:`TOOL_KINDS`.
+        surface: height (mm) of the surface under points x, y (arrays, mm), NaN
+            where there is none; None for the plate Z = 0.
+        rotary: the program may turn a rotary axis (``A`` words).
+        tolerance: rounding allowance on positions, mm.
+    """
+
+    stock: Stock
+    max_depth: float
+    safe_z: float
+    feed_range: tuple[float, float]
+    spindle_range: tuple[float, float]
+    tool: str = "mill"
+    surface: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+    rotary: bool = False
+    tolerance: float = 1e-4
+
+    def __post_init__(self) -> None:
+        pairs = {"feed range": self.feed_range, "spindle range": self.spindle_range}
+        for name, pair in pairs.items():
+            lo, hi = (float(v) for v in pair)
+            if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= hi):
+                raise SpecholoError(f"{name} must be two finite numbers 0 <= low <= high, "
+                                    f"got {tuple(pair)}")
+            object.__setattr__(self, name.replace(" ", "_"), (lo, hi))
+        for name in ("max_depth", "safe_z", "tolerance"):
+            value = float(getattr(self, name))
+            if not math.isfinite(value) or value < 0:
+                raise SpecholoError(f"{name.replace('_', ' ')} must be a finite number >= 0, "
+                                    f"got {value:g}")
+        if self.tool not in TOOL_KINDS:
+            raise SpecholoError(f"tool kind must be one of {', '.join(TOOL_KINDS)}, "
+                                f"got {self.tool!r}")
+
+    @property
+    def laser(self) -> bool:
+        return self.tool == "laser"
+
+
 @dataclass(frozen=True)
 class Violation:
     """One thing wrong with a program line.
@@ -123,6 +205,7 @@ class CheckReport:
         total_violations: all violations, listed or not.
         moves: moves checked by kind: ``G0``, ``G1``, ``G2``, ``G3``, ``dwell``,
             and ``cutting`` (those that cut).
+        deepest: deepest cut below the surface, mm (0 on a laser).
     """
 
     path: str
@@ -131,6 +214,7 @@ class CheckReport:
     total_violations: int = 0
     moves: dict[str, int] = field(default_factory=lambda: dict.fromkeys(
         ("G0", "G1", "G2", "G3", "dwell", "cutting"), 0))
+    deepest: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -177,21 +261,24 @@ def _strip_comments(raw: str) -> tuple[str, str | None]:
     return "".join(out), None
 
 
-# Columns of the move table filled by the reader and checked at the end.
-_LINE, _KIND, _X0, _Y0, _Z0, _X1, _Y1, _Z1, _CX, _CY, _FEED, _ON = range(12)
+# Columns of the move table filled by the reader and checked at the end; _TURN
+# marks a move that turns the rotary axis.
+_LINE, _KIND, _X0, _Y0, _Z0, _X1, _Y1, _Z1, _CX, _CY, _FEED, _ON, _TURN = range(13)
+_COLS = _check_kernel.ROW
 
 
 class _Reader:
     """Modal state, one line at a time: records every move for the vectorised
     checks and flags what only the line itself can tell."""
 
-    def __init__(self, flag: Callable[[int, str], None], laser: bool,
-                 spindle_range: tuple[float, float], stock: Stock, tolerance: float) -> None:
+    def __init__(self, flag: Callable[[int, str], None], limits: Limits) -> None:
         self.flag_at = flag
-        self.laser = laser
-        self.spindle_range = spindle_range
-        self.stock = stock
-        self.tol = tolerance
+        self.laser = limits.laser
+        self.spindle_range = limits.spindle_range
+        self.stock = limits.stock
+        self.tol = limits.tolerance
+        self.rotary = limits.rotary
+        self.angle = math.nan  # of the rotary axis, degrees, NaN while unknown
         self.factor = 1.0  # mm per programmed unit
         self.absolute = True
         self.motion: int | None = None
@@ -201,7 +288,7 @@ class _Reader:
         self.pos = [math.nan, math.nan, math.nan]  # mm, NaN while unknown
         self.ended = False
         self.number = 0
-        self.moves = array("d")  # rows of 12 columns, see _LINE.._ON
+        self.moves = array("d")  # rows of _COLS columns, see _LINE.._TURN
         self.dwells = 0
         self.burns = 0
 
@@ -243,7 +330,7 @@ class _Reader:
                 g_codes.append(round(value * 10))
             elif letter == "M":
                 m_codes.append(round(value))
-            elif letter not in _KNOWN_LETTERS:
+            elif letter not in _KNOWN_LETTERS or (letter == "A" and not self.rotary):
                 self.flag(f"unsupported word {letter}")
                 return
             elif letter in values:
@@ -325,7 +412,7 @@ class _Reader:
                 self.flag(_outside(s, x, y, x, y))
 
     def move(self, motion: int | None, values: dict[str, float]) -> None:
-        has_axes = "X" in values or "Y" in values or "Z" in values
+        has_axes = "X" in values or "Y" in values or "Z" in values or "A" in values
         has_arc = "I" in values or "J" in values or "R" in values
         if motion is not None:
             self.motion = motion
@@ -349,6 +436,14 @@ class _Reader:
                     self.flag(f"incremental {axis} from an unknown position")
                     return
                 end[k] = v if self.absolute else start[k] + v
+        angle = self.angle
+        if "A" in values:  # degrees, whatever the units
+            if not self.absolute and math.isnan(angle):
+                self.flag("incremental A from an unknown position")
+                return
+            angle = values["A"] if self.absolute else angle + values["A"]
+        # from an unknown angle, any A may turn the work
+        turned = 1.0 if "A" in values and not angle == self.angle else 0.0
         cx = cy = math.nan
         if kind >= 2:
             centre = self.arc_centre(start, end, values, kind == 3)
@@ -356,8 +451,9 @@ class _Reader:
                 return
             cx, cy = centre
         self.moves.extend((self.number, kind, *start, *end, cx, cy, self.feed,
-                           1.0 if self.tool_on else 0.0))
+                           1.0 if self.tool_on else 0.0, turned))
         self.pos = end
+        self.angle = angle
 
     def arc_centre(self, start: list[float], end: list[float], words: dict[str, float],
                    ccw: bool) -> tuple[float, float] | None:
@@ -435,15 +531,55 @@ def _arc_bounds_rows(m: np.ndarray, out: np.ndarray) -> None:
         out[4, i], out[5, i] = r0, abs(r0 - r1)
 
 
-def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], stock: Stock,
-                 floor: float, safe_z: float, feed_range: tuple[float, float],
-                 laser: bool, tol: float, spindle: bool = True) -> int:
-    """Flag the moves (rows of the move table) that break a limit; returns the cuts."""
+def _arc_middles(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The XY point (k,), (k,) halfway along each arc of move rows m (k, _COLS)."""
+    sx, sy, ex, ey, cx, cy = (m[:, c] for c in (_X0, _Y0, _X1, _Y1, _CX, _CY))
+    a0 = np.arctan2(sy - cy, sx - cx)
+    turn = np.arctan2(ey - cy, ex - cx) - a0
+    ccw = m[:, _KIND] == 3
+    sweep = np.where(ccw, np.mod(turn, 2.0 * math.pi), -np.mod(-turn, 2.0 * math.pi))
+    sweep = np.where((sx == ex) & (sy == ey), np.where(ccw, 2.0, -2.0) * math.pi, sweep)
+    r = np.hypot(sx - cx, sy - cy)
+    half = a0 + 0.5 * sweep
+    return cx + r * np.cos(half), cy + r * np.sin(half)
+
+
+def _above_surface(m: np.ndarray, surface: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                   rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far the tool stays above a curved surface over each move, mm (n,):
+    the least of its ends' and its middle's heights over the surface under them
+    (NaN where unknown), and where the surface is missing under them (n,)."""
+    above = np.full(len(m), np.nan)
+    off = np.zeros(len(m), dtype=bool)
+    r = np.flatnonzero(rows)
+    if not len(r):
+        return above, off
+    x0, y0, z0, x1, y1, z1 = (m[r, c] for c in (_X0, _Y0, _Z0, _X1, _Y1, _Z1))
+    mx, my = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    arcs = m[r, _KIND] >= 2
+    if arcs.any():
+        mx[arcs], my[arcs] = _arc_middles(m[r[arcs]])
+    # Z goes linearly along a line and a helix: its middle is halfway
+    heights = [np.asarray(surface(x, y), dtype=float) for x, y in ((x0, y0), (x1, y1), (mx, my))]
+    least = np.minimum(np.minimum(z0 - heights[0], z1 - heights[1]), 0.5 * (z0 + z1) - heights[2])
+    above[r] = least
+    off[r] = np.isnan(heights[0]) | np.isnan(heights[1]) | np.isnan(heights[2])
+    return above, off
+
+
+def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
+                 floor: float) -> tuple[int, float]:
+    """Flag the moves (rows of the move table) that break a limit.
+
+    Returns:
+        The number of cuts, and the deepest cut below the surface (mm, 0 if none).
+    """
     kind = m[:, _KIND]
     line = m[:, _LINE].astype(np.int64)
     x0, y0, z0, x1, y1, z1 = (m[:, c] for c in (_X0, _Y0, _Z0, _X1, _Y1, _Z1))
     on = m[:, _ON] > 0
     feed = m[:, _FEED]
+    laser, tol, safe_z, stock = lim.laser, lim.tolerance, lim.safe_z, lim.stock
 
     def each(mask: np.ndarray, message: Callable[[int], str]) -> None:
         for i in np.flatnonzero(mask):
@@ -452,7 +588,8 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], stock: Stock,
     def same(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return (a == b) | (np.isnan(a) & np.isnan(b))  # an axis never given stays put
 
-    moves_xy = ~(same(x0, x1) & same(y0, y1))
+    # turning the rotary axis moves the work under the tool as X/Y travel does
+    moves_xy = ~(same(x0, x1) & same(y0, y1)) | (m[:, _TURN] > 0)
     z_known = ~(np.isnan(z0) | np.isnan(z1))
     # + 0: the sign of a zero from fmin(0, -0) varies with its place in the array
     low = np.where(z_known, np.fmin(z0, z1) + 0.0, np.nan)
@@ -461,6 +598,10 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], stock: Stock,
         rapid = kind == 0
         if laser:
             each(rapid & moves_xy & on, lambda i: "rapid with the laser on")
+            # a laser works on the surface: a Z below it drives the head into the work
+            lowest = np.fmin(z0, z1)
+            each(lowest < -tol,
+                 lambda i: f"move to Z {lowest[i]:.5f}, below the surface, on a laser")
         else:
             xy = rapid & moves_xy
             each(xy & ~z_known, lambda i: "rapid in X/Y at an unknown height")
@@ -470,27 +611,36 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], stock: Stock,
             each(down, lambda i: f"rapid down to Z {z1[i]:.5f}, below the safe height {safe_z:g}")
 
         fed = kind > 0
-        lo, hi = feed_range
+        lo, hi = lim.feed_range
         each(fed & np.isnan(feed), lambda i: "feed move without F")
         each(fed & (feed == 0), lambda i: "feed move with zero feed")
         rate_ok = (feed >= lo * (1.0 - _RATE)) & (feed <= hi * (1.0 + _RATE))
         each(fed & (feed > 0) & ~rate_ok,
              lambda i: f"feed {feed[i]:g} mm/min outside [{lo:g}, {hi:g}]")
 
-        # a mill cuts below the surface (a feed from an unknown height may);
+        # a cutter cuts below the surface (a feed from an unknown height may);
         # a laser wherever it is on
-        cut = fed & on if laser else fed & ~(low >= 0.0)
+        above, off = low, None
+        if not laser and lim.surface is not None:
+            above, off = _above_surface(m, lim.surface, fed & xy_known & z_known)
+        cut = fed & on if laser else fed & ~(above >= 0.0)
         known = xy_known if laser else xy_known & z_known
         each(cut & ~known, lambda i: "feed move from an unknown position")
         cut &= known
-        if not laser and spindle:
-            each(cut & ~on, lambda i: "cut with the spindle off")
-            each(cut & (low < floor - tol),
-                 lambda i: f"cut to Z {low[i]:.5f}, deeper than {-floor:g}")
-
-        # XY extent of each cut: a mill's lines only where below the surface
-        sx, sy, ex, ey = x0.copy(), y0.copy(), x1.copy(), y1.copy()
         if not laser:
+            if lim.tool == "mill":
+                each(cut & ~on, lambda i: "cut with the spindle off")
+            if off is None:
+                each(cut & (low < floor - tol),
+                     lambda i: f"cut to Z {low[i]:.5f}, deeper than {-floor:g}")
+            else:
+                each(cut & off, lambda i: "cut where the host has no surface")
+                each(cut & (above < floor - tol),
+                     lambda i: f"cut {-above[i]:.5f} below the surface, deeper than {-floor:g}")
+
+        # XY extent of each cut: a line on the plate only where below its surface
+        sx, sy, ex, ey = x0.copy(), y0.copy(), x1.copy(), y1.copy()
+        if not laser and off is None:
             enters = cut & (kind == 1) & (z0 >= 0.0)
             leaves = cut & (kind == 1) & (z1 >= 0.0) & ~enters
             t = np.where(enters | leaves, z0 / np.where(enters | leaves, z0 - z1, 1.0), 0.0)
@@ -513,7 +663,10 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], stock: Stock,
         out = cut & ((bx0 < s.x0 - tol) | (by0 < s.y0 - tol) | (bx1 > s.x1 + tol)
                      | (by1 > s.y1 + tol))
         each(out, lambda i: _outside(s, bx0[i], by0[i], bx1[i], by1[i]))
-    return int(cut.sum())
+        deepest = 0.0
+        if not laser and cut.any():
+            deepest = max(deepest, -float(np.nanmin(np.where(cut, above, np.inf))))
+    return int(cut.sum()), deepest
 
 
 #: Program bytes read at a time, and most lines whose moves are checked together:
@@ -537,10 +690,10 @@ def _read_text(path: str | os.PathLike[str], reader: _Reader,
     with open(path, encoding="ascii", errors="replace") as fh:
         for number, raw in enumerate(fh, 1):
             reader.line(number, raw)
-            if len(reader.moves) >= _BLOCK_LINES * 12:
-                checked(np.array(reader.moves, dtype=float).reshape(-1, 12))
+            if len(reader.moves) >= _BLOCK_LINES * _COLS:
+                checked(np.array(reader.moves, dtype=float).reshape(-1, _COLS))
                 del reader.moves[:]
-    checked(np.array(reader.moves, dtype=float).reshape(-1, 12))
+    checked(np.array(reader.moves, dtype=float).reshape(-1, _COLS))
     return number, reader
 
 
@@ -591,7 +744,7 @@ def _read_block(block: bytes, number: int, ended: bool, reader: _Reader,
     state = np.empty(6)
     for lo in range(0, len(stops), _BLOCK_LINES):
         hi = min(lo + _BLOCK_LINES, len(stops))
-        moves = np.empty((hi - lo, 12))  # a line moves once at most
+        moves = np.empty((hi - lo, _COLS))  # a line moves once at most
         row, i = 0, lo
         while i < hi:
             if reader.absolute and not reader.ended:
@@ -632,11 +785,12 @@ class _Checks:
     the same line, as when checked in the reading thread.
     """
 
-    def __init__(self, check: Callable[[np.ndarray], tuple[int, np.ndarray]]) -> None:
+    def __init__(self, check: Callable[[np.ndarray], tuple[int, np.ndarray, float]]) -> None:
         self.check = check
         self.cuts = 0
         self.kinds = np.zeros(4, dtype=np.int64)
-        self.pending: list[Future[tuple[int, np.ndarray]]] = []
+        self.deepest = 0.0
+        self.pending: list[Future[tuple[int, np.ndarray, float]]] = []
         self.pool = ThreadPoolExecutor(2) if concurrent_kernels_safe() else None
 
     def __enter__(self) -> _Checks:
@@ -652,9 +806,10 @@ class _Checks:
         self.pending = [self.pool.submit(self.check, part) for part in (moves[:half],
                                                                        moves[half:])]
 
-    def _count(self, result: tuple[int, np.ndarray]) -> None:
+    def _count(self, result: tuple[int, np.ndarray, float]) -> None:
         self.cuts += result[0]
         self.kinds += result[1]
+        self.deepest = max(self.deepest, result[2])
 
     def _collect(self) -> None:
         pending, self.pending = self.pending, []
@@ -674,11 +829,8 @@ def check_gcode(path: str | os.PathLike[str], stock: Stock, max_depth: float, sa
                 feed_range: tuple[float, float], spindle_range: tuple[float, float], *,
                 laser: bool = False, tolerance: float = 1e-4,
                 max_listed: int = 1000, spindle: bool = True) -> CheckReport:
-    """Check that a G-code program stays inside the stock and runs safely.
-
-    Lines are read in order for the modal state (plain motion lines and
-    comments by a compiled reader, see :mod:`._check_kernel`); the moves are
-    checked together (vectorised), a block of lines at a time.
+    """Check that a G-code program stays inside the stock and runs safely
+    (:func:`check_limits` with these limits).
 
     Args:
         path: the program.
@@ -689,61 +841,69 @@ def check_gcode(path: str | os.PathLike[str], stock: Stock, max_depth: float, sa
         spindle_range: (lowest, highest) spindle speed (laser power) allowed
             when switched on.
         laser: the program drives a laser (no Z): a cut is a move with the laser
-            on, and rapids must have it off.
+            on, rapids must have it off, and no move goes below the surface.
         spindle: the tool must spin to cut (False for a drag tip or scriber,
-            which cut with the spindle off).
+            which cut with the spindle off; their depth is checked all the same).
         tolerance: rounding allowance on positions, mm.
+        max_listed: most violations kept in the report (all are counted).
+
+    Raises:
+        SpecholoError: if the file cannot be read or the limits are not numbers
+            in order.
+    """
+    tool = "laser" if laser else ("mill" if spindle else "drag")
+    limits = Limits(stock, max_depth, safe_z, feed_range, spindle_range, tool,
+                    tolerance=tolerance)
+    return check_limits(path, limits, max_listed)
+
+
+def check_limits(path: str | os.PathLike[str], limits: Limits,
+                 max_listed: int = 1000) -> CheckReport:
+    """Check that a G-code program stays inside the limits and runs safely.
+
+    Lines are read in order for the modal state (plain motion lines and
+    comments by a compiled reader, see :mod:`._check_kernel`); the moves are
+    checked together (vectorised), a block of lines at a time.
+
+    Args:
+        path: the program.
+        limits: what the job allows.
         max_listed: most violations kept in the report (all are counted).
 
     Returns:
         The violations found, in line order, and the moves checked.
 
     Raises:
-        SpecholoError: if the file cannot be read or the limits are not numbers
-            in order.
+        SpecholoError: if the file cannot be read.
     """
-    pairs = {"feed range": feed_range, "spindle range": spindle_range}
-    for name, pair in pairs.items():
-        lo, hi = (float(v) for v in pair)
-        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= hi):
-            raise SpecholoError(f"{name} must be two finite numbers 0 <= low <= high, "
-                                f"got {tuple(pair)}")
-    for name, value in (("max depth", max_depth), ("safe z", safe_z), ("tolerance", tolerance)):
-        if not math.isfinite(value) or value < 0:
-            raise SpecholoError(f"{name} must be a finite number >= 0, got {value:g}")
     found: list[tuple[int, int, str]] = []
 
     def flag(number: int, what: str) -> None:
         found.append((number, len(found), what))
 
-    feeds = (float(feed_range[0]), float(feed_range[1]))
-    floor = -min(max_depth, stock.thickness)
+    floor = -min(limits.max_depth, limits.stock.thickness)
     report = CheckReport(os.fspath(path))
 
-    def check_part(moves: np.ndarray) -> tuple[int, np.ndarray]:
-        """Cuts and move kinds (4,) of some rows of the move table (rows are
-        independent of each other)."""
-        return (_check_moves(moves, flag, stock, floor, safe_z, feeds, laser, tolerance,
-                             spindle),
-                np.bincount(moves[:, _KIND].astype(np.int64), minlength=4))
-
-    def reader() -> _Reader:
-        return _Reader(flag, laser, (float(spindle_range[0]), float(spindle_range[1])),
-                       stock, tolerance)
+    def check_part(moves: np.ndarray) -> tuple[int, np.ndarray, float]:
+        """Cuts, move kinds (4,) and the deepest cut of some rows of the move
+        table (rows are independent of each other)."""
+        cuts, deepest = _check_moves(moves, flag, limits, floor)
+        return cuts, np.bincount(moves[:, _KIND].astype(np.int64), minlength=4), deepest
 
     try:
         try:
             with _Checks(check_part) as checks:
-                report.lines, used = _read_bytes(path, reader(), checks.add)
+                report.lines, used = _read_bytes(path, _Reader(flag, limits), checks.add)
         except _LoneReturn:  # old Mac line ends: read as text, as Python splits them
             found.clear()
             with _Checks(check_part) as checks:
-                report.lines, used = _read_text(path, reader(), checks.add)
+                report.lines, used = _read_text(path, _Reader(flag, limits), checks.add)
     except OSError as exc:
         raise SpecholoError(f"cannot read G-code file {os.fspath(path)!r}: {exc.strerror}") from exc
     cuts, kinds = checks.cuts, checks.kinds
     report.moves = {"G0": int(kinds[0]), "G1": int(kinds[1]), "G2": int(kinds[2]),
                     "G3": int(kinds[3]), "dwell": used.dwells, "cutting": cuts + used.burns}
+    report.deepest = checks.deepest
     found.sort()
     report.total_violations = len(found)
     listed = found[:max_listed]
@@ -756,4 +916,22 @@ def check_gcode(path: str | os.PathLike[str], stock: Stock, max_depth: float, sa
                     texts[number] = raw.strip()
     report.violations = [Violation(number, texts.get(number, ""), what)
                          for number, _, what in listed]
+    return report
+
+
+def check_program(path: str | os.PathLike[str], limits: Limits) -> CheckReport:
+    """The safety check every program a job keeps passes: the report, or one
+    line naming the first violation.
+
+    Raises:
+        SpecholoError: the program breaks a limit (its caller then keeps
+            nothing), or cannot be read.
+    """
+    report = check_limits(path, limits, max_listed=1)
+    if not report.ok:
+        v = report.violations[0]
+        more = report.total_violations - 1
+        raise SpecholoError(f"the G-code failed its safety check, nothing written: line "
+                            f"{v.line}: {v.what} [{v.text}]"
+                            + (f" (and {more} more)" if more else ""))
     return report
