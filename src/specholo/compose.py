@@ -225,25 +225,18 @@ def _host(t: dict[str, Any], base: Path) -> Host:
 
 
 def _height_field(path: Path) -> HeightField:
-    """A height-field host from an .npz of arrays x, y and z."""
-    import zipfile
+    """A height-field host from an .npz of arrays x (nx,), y (ny,) and z (ny, nx)."""
+    from specholo.readback import ArraySpec, load_arrays
 
-    refusal = f"composition: cannot read height field {path}: need an .npz with arrays x, y, z"
     try:
-        z = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise SpecholoError(refusal) from exc
-    # A .npy holds one bare array (no x and y to place it), not an archive.
-    if not isinstance(z, np.lib.npyio.NpzFile):
-        raise SpecholoError(refusal + f" (got a single {getattr(z, 'shape', '?')} array)")
-    try:
-        with z:
-            x, y, heights = z["x"], z["y"], z["z"]
-        return HeightField(x, y, heights)
-    except SpecholoError:
-        raise
-    except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
-        raise SpecholoError(refusal) from exc
+        a = load_arrays(path, {"x": ArraySpec((None,), finite=True),
+                               "y": ArraySpec((None,), finite=True),
+                               "z": ArraySpec((None, None), finite=True)})
+    except SpecholoError as exc:
+        # A .npy (one bare array, no x and y to place it) is not an archive.
+        raise SpecholoError(f"composition: cannot read height field: {exc}; need an .npz "
+                            "with arrays x, y, z") from exc
+    return HeightField(a["x"], a["y"], a["z"])
 
 
 def read_composition(path: str | os.PathLike[str]) -> Composition:
@@ -253,15 +246,11 @@ def read_composition(path: str | os.PathLike[str]) -> Composition:
         SpecholoError: unreadable file, unknown keys, wrong types, values out of range.
     """
 
+    from specholo.readback import MAX_TOML_BYTES, read_text
+
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError as exc:
-        raise SpecholoError(f"composition {p} not found") from exc
-    except UnicodeDecodeError as exc:
-        raise SpecholoError(f"composition {p} is not valid TOML: {exc}") from exc
-    except OSError as exc:
-        raise SpecholoError(f"cannot read composition {p}: {exc.strerror or exc}") from exc
+    # A regular file only: a FIFO would wait for a writer, /dev/zero never end.
+    text = read_text(p, MAX_TOML_BYTES, "composition")
     return parse_composition(text, p.resolve().parent)
 
 
@@ -583,19 +572,28 @@ def is_composed_folder(folder: str | os.PathLike[str]) -> bool:
 
 
 def load_composition_folder(folder: str | os.PathLike[str]) -> ComposedDesign:
-    """The design in a folder, with its composition (scenes re-stippled identically)."""
+    """The design in a folder, with its composition (scenes re-stippled identically).
+
+    Raises:
+        SpecholoError: a file is unreadable or unlike what :func:`write_composition`
+            writes, or the composition no longer makes the stipples it made.
+    """
+    from specholo.readback import ArraySpec, load_arrays, read_json, settings_from, table
     from specholo.toolpaths.conforming import ConformingGrooves
 
     folder = Path(folder)
-    try:
-        meta = json.loads((folder / "hologram.json").read_text())
-        composition = parse_composition(meta["composition"]["text"],
-                                        Path(meta["composition"]["base"]))
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise SpecholoError(f"{folder}: not a composed design folder") from exc
+    path = folder / "hologram.json"
+    meta = table(read_json(path), str(path))
+    with settings_from(path):
+        comp = table(meta["composition"], "composition")
+        text, base = comp["text"], comp["base"]
+        if not (isinstance(text, str) and isinstance(base, str)):
+            raise SpecholoError("composition text and base must be strings")
+        composition = parse_composition(text, Path(base))
     scenes = prepare_scenes(composition)
-    grooves = ConformingGrooves.load(folder / "grooves.npz")
-    with np.load(folder / "stipples.npz") as z:
-        if not np.array_equal(z["points"], all_points(scenes)):
-            raise SpecholoError(f"{folder}: the composition no longer matches this design")
+    points = all_points(scenes)
+    stipples = load_arrays(folder / "stipples.npz", {"points": ArraySpec((None, 3))})
+    if not np.array_equal(stipples["points"], points):
+        raise SpecholoError(f"{folder}: the composition no longer matches this design")
+    grooves = ConformingGrooves.load(folder / "grooves.npz", len(points))
     return ComposedDesign(composition, scenes, grooves, {})

@@ -33,7 +33,17 @@ from specholo.fabrication.tools import (
     make_cutter,
     needed_tilts,
 )
-from specholo.setup import ACRYLIC_INDEX, MAX_INDEX, BackLight, Light, Machining, Setup, Viewer
+from specholo.setup import (
+    ACRYLIC_INDEX,
+    MAX_FEED,
+    MAX_INDEX,
+    MIN_SAFE_Z,
+    BackLight,
+    Light,
+    Machining,
+    Setup,
+    Viewer,
+)
 from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import MAX_COORDINATE, Grooves
 from specholo.toolpaths.overlap import Overlaps, groove_overlaps
@@ -92,9 +102,9 @@ SETTING_BOUNDS: dict[str, tuple[float, float, str]] = {
     "plate_width": (1.0, 100_000.0, "mm"),
     "plate_height": (1.0, 100_000.0, "mm"),
     "stock_thickness": (0.001, 1000.0, "mm"),
-    "feed": (0.01, 1e6, "mm/min"),
-    "plunge": (0.01, 1e6, "mm/min"),
-    "safe_z": (0.001, 1000.0, "mm"),
+    "feed": (0.01, MAX_FEED, "mm/min"),
+    "plunge": (0.01, MAX_FEED, "mm/min"),
+    "safe_z": (MIN_SAFE_Z, 1000.0, "mm"),
     "spindle": (0.0, 1e6, "rpm"),
 }
 
@@ -180,7 +190,7 @@ class DesignConfig:
     spot: float | None = None
     depth: float | None = None
     strict: bool = False
-    dialect: str = "grbl"
+    dialect: str | None = None
     units: str = "mm"
     order: bool = True
     plate_width: float | None = None
@@ -205,8 +215,19 @@ class DesignConfig:
         _, spindle = TOOL_DEFAULTS.get(self.tool, (0.08, 0.0))
         if self.spindle is None:
             object.__setattr__(self, "spindle", spindle)
+        # Marlin's programs drive a laser (no Z, the beam switched around each
+        # groove); GRBL's and LinuxCNC's plunge a cutter: a laser defaults to
+        # Marlin, and a cutter's program is never written as a laser's.
+        if self.dialect is None:
+            object.__setattr__(self, "dialect", "marlin" if self.tool == "laser" else "grbl")
         if self.dialect not in ("grbl", "linuxcnc", "marlin"):
             raise SpecholoError(f"dialect must be grbl, linuxcnc or marlin, got {self.dialect!r}")
+        if self.method != "ridged" and (self.dialect == "marlin") != (self.tool == "laser"):
+            raise SpecholoError(
+                f"--dialect marlin drives a laser: --tool {self.tool} needs --dialect grbl or "
+                "linuxcnc"
+                if self.dialect == "marlin" else
+                f"a laser is driven by --dialect marlin ({self.dialect} programs plunge a cutter)")
         if self.units not in ("mm", "inch"):
             raise SpecholoError(f"units must be mm or inch, got {self.units!r}")
         if self.method not in METHODS:
@@ -739,28 +760,36 @@ RIDGED_STALE = ("plate.npz", "heightmap.png", "heightmap.tif", "heightmap.json",
                 "hologram.stl")
 
 
-def check_written_gcode(path: str | os.PathLike[str], d: Design) -> Any:
-    """The independent safety check of a design's G-code: inside the plate (less half
-    a groove, as the tool centre is checked), no deeper than the groove, rapids only
-    at the safe height, feeds and spindle as set."""
-    from specholo.fabrication.check import Stock, check_gcode
+def design_limits(d: Design) -> Any:
+    """What a design's G-code may do (``fabrication.check.Limits``), from its
+    settings: cut inside the plate (less half a groove, as the tool centre is
+    checked), no deeper than the groove, rapids only at the safe height, feeds,
+    spindle and laser power as set. In mm whatever the program's units: the
+    check reads a G20 program in mm."""
+    from specholo.fabrication.check import Limits, Stock, tool_kind
+    from specholo.fabrication.gcode import GcodeOptions
 
-    setup = d.config.setup()
-    m = setup.machining
-    plate = d.plate if d.plate is not None else plate_rect(
-        d.grooves, d.config.cutter().section(d.config.depth_mm).width, d.config)
-    half = 0.5 * d.config.cutter().section(d.config.depth_mm).width
-    scale = 25.4 if d.config.units == "inch" else 1.0
-    laser = d.config.dialect == "marlin"
+    m = d.config.setup().machining
+    width = d.config.cutter().section(d.config.depth_mm).width
+    plate = d.plate if d.plate is not None else plate_rect(d.grooves, width, d.config)
+    half = 0.5 * width
     stock = Stock(plate[0, 0] + half, plate[0, 1] + half, plate[1, 0] - half,
                   plate[1, 1] - half, d.config.stock_thickness)
-    if scale != 1.0:
-        stock = Stock(*(v / scale for v in (stock.x0, stock.y0, stock.x1, stock.y1,
-                                            stock.thickness)))
-    feeds = (min(m.feed, m.plunge) / scale, max(m.feed, m.plunge) / scale)
-    power = (0.0, 1e9) if laser else (m.spindle, m.spindle)
-    return check_gcode(path, stock, d.config.depth_mm / scale, m.safe_z / scale, feeds, power,
-                       laser=laser, spindle=m.spindle > 0)
+    kind = tool_kind(d.config.tool, m.spindle)
+    power = GcodeOptions(dialect="marlin").laser_power if kind == "laser" else m.spindle
+    return Limits(stock, d.config.depth_mm, m.safe_z, (min(m.feed, m.plunge),
+                  max(m.feed, m.plunge)), (power, power), kind)
+
+
+def check_written_gcode(path: str | os.PathLike[str], d: Design) -> Any:
+    """The independent safety check of a design's G-code (:func:`design_limits`).
+
+    Raises:
+        SpecholoError: on any violation, in one line.
+    """
+    from specholo.fabrication.check import check_program
+
+    return check_program(path, design_limits(d))
 
 
 def check_formats(formats: tuple[str, ...], method: str) -> None:
@@ -889,9 +918,6 @@ def write_design(d: Design, out: str | os.PathLike[str],
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = check_written_gcode(path, d)
-            if not safety.ok:
-                raise SpecholoError("the G-code failed its safety check, nothing written: "
-                                    + safety.summary().splitlines()[1].strip())
             info["machining"]["safety_check"] = {"moves": safety.moves, "violations": 0}
             timings["gcode check"] = time.perf_counter() - t0
         if "svg" in formats:
@@ -1218,19 +1244,29 @@ def refraction_json(config: DesignConfig) -> dict[str, Any]:
             "elevation_deg": float(config.light_elevation)}
 
 
-def check_ridged_gcode(path: str | os.PathLike[str], d: RidgedDesign) -> Any:
-    """The independent safety check of a ridged plate's G-code: the ball's centre
-    inside the plate less its radius, no deeper than the shell, rapids only at the
-    safe height, feeds and spindle as set."""
-    from specholo.fabrication.check import Stock, check_gcode
+def ridged_limits(d: RidgedDesign) -> Any:
+    """What a ridged plate's G-code may do (``fabrication.check.Limits``): the
+    ball's centre inside the plate less its radius, no deeper than the shell,
+    rapids only at the safe height, feeds and spindle as set (a spinning mill)."""
+    from specholo.fabrication.check import Limits, Stock
 
     m = d.config.setup().machining
     r = d.config.ball_radius
     (x0, y0), (x1, y1) = plate_edges(d.plate.heights)
     stock = Stock(x0 + r, y0 + r, x1 - r, y1 - r, d.config.stock_thickness)
-    feeds = (min(m.feed, m.plunge), max(m.feed, m.plunge))
-    return check_gcode(path, stock, 2.0 * d.plate.delta, m.safe_z, feeds,
-                       (m.spindle, m.spindle), spindle=True)
+    return Limits(stock, 2.0 * d.plate.delta, m.safe_z, (min(m.feed, m.plunge),
+                  max(m.feed, m.plunge)), (m.spindle, m.spindle), "mill")
+
+
+def check_ridged_gcode(path: str | os.PathLike[str], d: RidgedDesign) -> Any:
+    """The independent safety check of a ridged plate's G-code (:func:`ridged_limits`).
+
+    Raises:
+        SpecholoError: on any violation, in one line.
+    """
+    from specholo.fabrication.check import check_program
+
+    return check_program(path, ridged_limits(d))
 
 
 def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
@@ -1271,9 +1307,6 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = check_ridged_gcode(path, d)
-            if not safety.ok:
-                raise SpecholoError("the G-code failed its safety check, nothing written: "
-                                    + safety.summary().splitlines()[1].strip())
             timings["gcode check"] = time.perf_counter() - t0
             machining = {"dialect": d.config.dialect, "units": "mm",
                          "ball_radius_mm": d.config.ball_radius,

@@ -264,9 +264,24 @@ class Tool:
         return 2.0 * math.sqrt(r * r - (r - d) ** 2)
 
 
+#: Lowest safe height, mm. Rapids travel at the safe height above the surface:
+#: a blank is flat and level to tens of micrometres at best (stock bows, a
+#: table is trammed to ~0.05 mm over a plate), so a rapid any closer drags the
+#: tip across the plate at full speed wherever it stands proud.
+MIN_SAFE_Z = 0.1
+#: Highest cutting and plunge feed, mm/min: beyond the fastest machines (a
+#: linear-motor router runs at ~60 m/min), and short enough that every firmware
+#: reads the F word whole (GRBL reads 8 significant digits).
+MAX_FEED = 100_000.0
+#: Highest spindle speed, rpm (air-bearing spindles reach a few hundred thousand).
+MAX_SPINDLE = 1e6
+
+
 @dataclass(frozen=True)
 class Machining:
-    """Feeds and heights for the G-code (mm and mm/min)."""
+    """Feeds and heights for the G-code (mm and mm/min), shared by every job: a
+    setting no machine should run is refused here, before any program is written.
+    """
 
     feed: float = 300.0
     plunge: float = 100.0
@@ -278,9 +293,17 @@ class Machining:
             v = _finite(name.replace("_", " "), getattr(self, name))
             if v <= 0:
                 raise SpecholoError(f"{name.replace('_', ' ')} must be positive, got {v:g}")
+        for name in ("feed", "plunge"):
+            v = float(getattr(self, name))
+            if v > MAX_FEED:
+                raise SpecholoError(f"{name} {v:g} mm/min is out of range: at most "
+                                    f"{MAX_FEED:g} mm/min")
+        if self.safe_z < MIN_SAFE_Z:
+            raise SpecholoError(f"safe z {self.safe_z:g} mm is out of range: rapids need at least "
+                                f"{MIN_SAFE_Z:g} mm of clearance above the surface")
         s = _finite("spindle speed", self.spindle)
-        if s < 0:
-            raise SpecholoError(f"spindle speed must be >= 0, got {s:g}")
+        if not 0 <= s <= MAX_SPINDLE:
+            raise SpecholoError(f"spindle speed must be in [0, {MAX_SPINDLE:g}] rpm, got {s:g}")
 
 
 @dataclass(frozen=True)

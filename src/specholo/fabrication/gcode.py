@@ -48,6 +48,7 @@ loop, so no Python code runs per line.
 
 from __future__ import annotations
 
+import io
 import math
 import os
 import re
@@ -1114,13 +1115,17 @@ def read_gcode(path: str | os.PathLike[str]) -> Grooves:
     Raises:
         SpecholoError: on a line it cannot parse or a construct it does not support.
     """
+    from specholo.readback import open_file
+
     moves = _Moves()
     fast = _FAST_MOVE.fullmatch
     keep_number = moves.fast_number.append
     keep_words = moves.fast_words.append
     try:
-        # comments may hold any text; the words themselves must be ASCII
-        with open(path, encoding="utf-8", errors="replace") as fh:
+        # comments may hold any text; the words themselves must be ASCII. A
+        # regular file only: /dev/zero would be one endless line, a FIFO wait.
+        with open_file(path, "G-code file") as raw_fh, \
+                io.TextIOWrapper(raw_fh, encoding="utf-8", errors="replace") as fh:
             for number, raw in enumerate(fh, 1):
                 found = fast(raw)
                 if found is not None:

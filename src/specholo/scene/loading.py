@@ -26,6 +26,7 @@ import numpy as np
 import trimesh
 
 from specholo.errors import SpecholoError
+from specholo.readback import open_file, read_bytes
 
 MESH_FORMATS = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")
 CLOUD_FORMATS = (".ply", ".xyz", ".csv")
@@ -228,12 +229,9 @@ def load_model(path: str | os.PathLike[str]) -> Model:
         kind = "binary"
     factor = _LOAD_BYTES_PER_FILE_BYTE[kind]
     _refuse_unless_fits(p, f"loading this {format_bytes(size)} file", int(size * factor))
-    try:
-        data = p.read_bytes()
-    except MemoryError as exc:
-        raise SpecholoError(f"{p}: out of memory reading {format_bytes(size)}") from exc
-    except OSError as exc:
-        raise SpecholoError(f"{p}: cannot read: {_one_line(exc)}") from exc
+    # The file as it was stat'ed: one swapped for a FIFO or device since is
+    # refused rather than waited on, one grown since refused rather than cut.
+    data = read_bytes(p, size)
     if not data:
         raise SpecholoError(f"{p}: file is empty")
 
@@ -248,9 +246,9 @@ def load_model(path: str | os.PathLike[str]) -> Model:
 def _looks_like_text(p: Path) -> bool:
     """True for an ASCII STL or PLY (judged by the first bytes)."""
     try:
-        with open(p, "rb") as fh:
+        with open_file(p) as fh:
             head = fh.read(512)
-    except OSError:
+    except (OSError, SpecholoError):
         return False
     return head.lstrip()[:5].lower() == b"solid" or b"format ascii" in head
 

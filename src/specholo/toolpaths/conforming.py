@@ -136,10 +136,33 @@ class ConformingGrooves:
                             family=self.family)
 
     @classmethod
-    def load(cls, path: Any) -> ConformingGrooves:
-        with np.load(path) as z:
-            return cls(**{k: z[k] for k in ("point", "tangent", "normal", "stripe", "stipple",
-                                              "state", "family")})
+    def load(cls, path: Any, stipples: int | None = None) -> ConformingGrooves:
+        """Read grooves written by :meth:`save`, checked: samples (k, 3) finite and
+        within reach, ids (k,) whole numbers, stipple ids below ``stipples`` if given
+        (they index the stipples in the verification).
+
+        Raises:
+            SpecholoError: an unreadable file or arrays unlike these.
+        """
+        from specholo.readback import ArraySpec, bounded, load_arrays, within
+        from specholo.toolpaths.grooves import MAX_COORDINATE
+
+        vec, ids = ArraySpec((None, 3), finite=True), ArraySpec((None,), np.int64)
+        a = load_arrays(path, {"point": vec, "tangent": vec, "normal": vec, "stripe": ids,
+                               "stipple": ids, "state": ids, "family": ids})
+        name, k = str(path), len(a["point"])
+        if any(len(v) != k for v in a.values()):
+            raise SpecholoError(f"{name}: its arrays are of different lengths")
+        most = np.iinfo(np.int64).max
+        top = most if stipples is None else stipples - 1
+        # Families: the walking eyes (0), or the left and right eye under a moving light.
+        if k and not (within(a["stipple"], 0, top) and within(a["state"], 0, most)
+                      and within(a["family"], 0, 1)):
+            raise SpecholoError(f"{name}: stipple, state or family ids out of range")
+        if not all(bounded(a[v], MAX_COORDINATE) for v in ("point", "tangent", "normal")):
+            raise SpecholoError(f"{name}: samples beyond {MAX_COORDINATE:g} mm")
+        return cls(a["point"], a["tangent"], a["normal"], a["stripe"], a["stipple"], a["state"],
+                   a["family"])
 
 
 def _target(host: Host, eye: np.ndarray, light: np.ndarray, point_light: bool,
