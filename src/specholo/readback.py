@@ -75,7 +75,7 @@ def _kind(mode: int) -> str:
     return "not a regular file"
 
 
-def _one_line(exc: BaseException) -> str:
+def one_line(exc: BaseException) -> str:
     """An exception's message as one short line."""
     text = " ".join(str(getattr(exc, "strerror", None) or exc).split())
     text = text or type(exc).__name__
@@ -112,7 +112,7 @@ def open_regular(path: str | os.PathLike[str], what: str = "",
     except (FileNotFoundError, NotADirectoryError) as exc:
         raise SpecholoError(f"{name} not found") from exc
     except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
-        raise SpecholoError(f"cannot read {name}: {_one_line(exc)}") from exc
+        raise SpecholoError(f"cannot read {name}: {one_line(exc)}") from exc
     if not stat.S_ISREG(info.st_mode):
         # Reading a FIFO waits for a writer, and a device (/dev/zero) never ends.
         raise SpecholoError(f"{name} is {_kind(info.st_mode)}, not a regular file")
@@ -122,7 +122,7 @@ def open_regular(path: str | os.PathLike[str], what: str = "",
         # regular file it changes nothing.
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except (OSError, ValueError) as exc:
-        raise SpecholoError(f"cannot read {name}: {_one_line(exc)}") from exc
+        raise SpecholoError(f"cannot read {name}: {one_line(exc)}") from exc
     try:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
@@ -156,7 +156,7 @@ def read_bytes(path: str | os.PathLike[str], max_bytes: int, what: str = "") -> 
         except MemoryError as exc:
             raise SpecholoError(f"{_name(what, path)}: out of memory reading it") from exc
         except OSError as exc:
-            raise SpecholoError(f"cannot read {_name(what, path)}: {_one_line(exc)}") from exc
+            raise SpecholoError(f"cannot read {_name(what, path)}: {one_line(exc)}") from exc
     if len(data) > max_bytes:
         raise SpecholoError(f"{_name(what, path)} grew past {max_bytes} bytes while read")
     return data
@@ -168,7 +168,7 @@ def read_text(path: str | os.PathLike[str], max_bytes: int, what: str = "") -> s
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise SpecholoError(f"{_name(what, path)} is not UTF-8 text: {_one_line(exc)}") from exc
+        raise SpecholoError(f"{_name(what, path)} is not UTF-8 text: {one_line(exc)}") from exc
 
 
 def read_json(path: str | os.PathLike[str], max_bytes: int = MAX_JSON_BYTES,
@@ -182,7 +182,7 @@ def read_json(path: str | os.PathLike[str], max_bytes: int = MAX_JSON_BYTES,
     except RecursionError as exc:
         raise SpecholoError(f"{_name(what, path)} is not valid JSON: nested too deeply") from exc
     except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError, huge integers
-        raise SpecholoError(f"{_name(what, path)} is not valid JSON: {_one_line(exc)}") from exc
+        raise SpecholoError(f"{_name(what, path)} is not valid JSON: {one_line(exc)}") from exc
 
 
 def is_regular(path: str | os.PathLike[str]) -> bool:
@@ -231,7 +231,7 @@ def settings_from(path: str | os.PathLike[str]) -> Iterator[None]:
     except KeyError as exc:
         raise SpecholoError(f"{name} lacks {exc.args[0]!r}") from exc
     except (TypeError, ValueError, ArithmeticError, IndexError) as exc:
-        raise SpecholoError(f"{name}: bad setting: {_one_line(exc)}") from exc
+        raise SpecholoError(f"{name}: bad setting: {one_line(exc)}") from exc
 
 
 # ---------------------------------------------------------------- arrays
@@ -378,7 +378,7 @@ def load_arrays(path: str | os.PathLike[str], spec: dict[str, ArraySpec],
             # BadZipFile: not a zip, truncated, a CRC that does not match;
             # NotImplementedError: a compression method zipfile lacks;
             # RuntimeError: an encrypted member.
-            raise SpecholoError(f"{name} is not a readable .npz file: {_one_line(exc)}") from exc
+            raise SpecholoError(f"{name} is not a readable .npz file: {one_line(exc)}") from exc
 
 
 def _check_member(zf: zipfile.ZipFile, member: zipfile.ZipInfo, key: str, want: ArraySpec,
@@ -445,7 +445,7 @@ def read_mesh(path: str | os.PathLike[str], what: str = "model") -> Any:
             raise SpecholoError(f"{_name(what, path)}: out of memory reading it") from exc
         except Exception as exc:  # trimesh raises anything from KeyError to struct.error
             raise SpecholoError(f"{_name(what, path)} is not a readable PLY mesh: "
-                                f"{_one_line(exc)}") from exc
+                                f"{one_line(exc)}") from exc
     if not isinstance(mesh, trimesh.Trimesh):
         raise SpecholoError(f"{_name(what, path)} holds no triangle mesh")
     v = np.asarray(mesh.vertices)

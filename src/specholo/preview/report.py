@@ -8,6 +8,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 
 #: Pictures shown when present in the design folder, with their captions.
@@ -20,7 +21,9 @@ PICTURES = (
 
 
 def _img(path: Path) -> str:
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    from specholo.readback import MAX_PICTURE_BYTES, read_bytes
+
+    data = base64.b64encode(read_bytes(path, MAX_PICTURE_BYTES)).decode("ascii")
     return f'<img alt="{html.escape(path.name)}" src="data:image/png;base64,{data}">'
 
 
@@ -70,11 +73,33 @@ def write_report(folder: str | os.PathLike[str], verify: dict[str, Any] | None) 
 
     Returns:
         The report's path.
+
+    Raises:
+        SpecholoError: hologram.json or verify.json is unreadable, or lacks a
+            figure the report shows (or holds one of the wrong type).
     """
-    import json
+    from specholo.readback import one_line, read_json
 
     folder = Path(folder)
-    info = json.loads((folder / "hologram.json").read_text())
+    info = read_json(folder / "hologram.json")
+    # The files may have been edited since they were written: whatever the page
+    # cannot show is refused in one line, naming the key or the value.
+    try:
+        page = _page(folder, info, verify)
+    except KeyError as exc:
+        raise SpecholoError(f"{folder}: hologram.json or verify.json lacks {exc.args[0]!r}, "
+                            "which the report shows") from exc
+    except (TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
+        raise SpecholoError(f"{folder}: hologram.json or verify.json holds a value the report "
+                            f"cannot show: {one_line(exc)}") from exc
+    out = folder / "report.html"
+    with atomic_open(out) as fh:
+        fh.write(page)
+    return out
+
+
+def _page(folder: Path, info: Any, verify: Any) -> str:
+    """The report's HTML from hologram.json and verify.json (None: not verified)."""
     settings = info["settings"]
     tool = info["tool"]
     setup_rows = [
@@ -131,7 +156,4 @@ figcaption {{ color: #666; font-size: .9em; }}
 <h2>Pictures</h2>{pictures}
 </body></html>
 """
-    out = folder / "report.html"
-    with atomic_open(out) as fh:
-        fh.write(page)
-    return out
+    return page
