@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -521,25 +522,50 @@ def verify_composition(d: ComposedDesign, step: float) -> list[Any]:
     return reports
 
 
-def write_composition(d: ComposedDesign, out: str | os.PathLike[str]) -> dict[str, Any]:
+def composition_files(comp: Composition) -> list[Path]:
+    """The files a composition reads: each scene's model, and a height-field or
+    mesh host's file."""
+    import tomllib
+
+    files = [s.model for s in comp.scenes]
+    try:
+        host = tomllib.loads(comp.settings["text"]).get("host")
+        if isinstance(host, dict) and isinstance(host.get("file"), str):
+            files.append(Path(comp.settings["base"]) / host["file"])
+    except (KeyError, TypeError, ValueError):
+        pass  # a composition built in code names no host file
+    return files
+
+
+def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
+                      inputs: Iterable[str | os.PathLike[str] | None] = (),
+                      then: Callable[[Path, dict[str, Any]], None] | None = None
+                      ) -> dict[str, Any]:
     """Write the design folder atomically: hologram.json, grooves.npz, stipples.npz,
     each scene's placed mesh, and hologram.gcode (checked before it is kept).
+
+    Args:
+        d: the design.
+        out: the output folder.
+        inputs: the composition file; with the files it names, none may be a
+            file a design writes in ``out``.
+        then: called with the new folder, before it is published, and the
+            G-code check's figures, to add files published with the design's
+            (its verification, its previews).
 
     Returns:
         The G-code check's figures.
     """
     from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.surface_gcode import check_surface_gcode, write_surface_gcode
-    from specholo.pipeline import FORMATS, RIDGED_STALE, staged_output
+    from specholo.folders import check_out, publish
 
     comp = d.comp
+    inputs = [*inputs, *composition_files(comp)]
+    check_out(out, inputs)  # before the G-code is made and checked
     program = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, comp.axes)
     check = check_surface_gcode(program.text, comp.host, comp.tool, comp.machining, comp.axes)
-    # A folder that held another design keeps none of its files.
-    stale = ("verify.json", "verify.png", "verify_cut.json", "model.ply", "preview.png",
-             "preview.gif", "run.json", "grooves.npz", *FORMATS.values(), *RIDGED_STALE,
-             *(f"scene_{k}.ply" for k in range(len(d.scenes), len(d.scenes) + 64)))
-    with staged_output(out, stale=stale) as tmp:
+    with publish(out, inputs) as tmp:
         tmp = Path(tmp)
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
             d.grooves.save(fh)
@@ -562,6 +588,8 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str]) -> dict[st
                           "cut_length_mm": program.cut_length, "check": check}}
         with atomic_open(tmp / "hologram.json") as fh:
             json.dump(meta, fh, indent=1, sort_keys=True)
+        if then is not None:
+            then(tmp, check)
     return check
 
 

@@ -12,10 +12,8 @@ import json
 import math
 import numbers
 import os
-import shutil
-import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -24,7 +22,7 @@ import numpy as np
 
 from specholo import __version__
 from specholo.errors import SpecholoError
-from specholo.fabrication.atomic import atomic_open, public_mode, scratch
+from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.tools import (
     Cutter,
     ViewCheck,
@@ -648,54 +646,19 @@ def hologram_json(d: Design) -> dict[str, Any]:
 @contextlib.contextmanager
 def staged_output(out: str | os.PathLike[str],  # type: ignore[no-untyped-def]
                   stale: tuple[str, ...] = ()):
-    """A scratch folder whose files move into ``out`` only if the block succeeds.
+    """A scratch folder that replaces ``out`` whole only if the block succeeds
+    (:func:`specholo.folders.publish`, which also drops every specholo file
+    the block did not write).
 
     Args:
         out: the output folder (created if missing).
-        stale: names in ``out`` that describe an older run and go once the new
-            files are in place (a new design's folder must not keep an old
-            verification).
+        stale: ignored: which names are specholo's is one registry
+            (:data:`specholo.folders.OUTPUT_NAMES`).
     """
-    with scratch(), _staged(out, stale) as tmp:
-        yield tmp
+    from specholo.folders import publish
 
-
-@contextlib.contextmanager
-def _staged(out: str | os.PathLike[str],  # type: ignore[no-untyped-def]
-            stale: tuple[str, ...]):
-    out = Path(out)
-    try:
-        if out.exists() and not out.is_dir():
-            raise SpecholoError(f"{out} exists and is not a folder")
-        parent = out.resolve().parent
-        made = [d for d in (parent, *parent.parents) if not d.exists()]
-        parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
-    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
-        raise SpecholoError(f"cannot create output folder {out}: "
-                            f"{getattr(exc, 'strerror', None) or exc}") from exc
-    public_mode(tmp, directory=True)
-    done = False
-    try:
+    with publish(out) as tmp:
         yield tmp
-        if not out.exists():
-            os.rename(tmp, out)
-        else:
-            fresh = {f.name for f in tmp.iterdir()}
-            for name in fresh:
-                os.replace(tmp / name, out / name)
-            for name in set(stale) - fresh:
-                with contextlib.suppress(FileNotFoundError):
-                    (out / name).unlink()
-        done = True
-    except OSError as exc:  # a full disk, a folder turned read-only
-        raise SpecholoError(f"cannot write {out}: {exc.strerror or exc}") from exc
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-        if not done:  # leave no folder behind that this run created
-            for d in made:
-                with contextlib.suppress(OSError):
-                    d.rmdir()
 
 
 def software_versions() -> dict[str, str]:
@@ -754,10 +717,6 @@ def drop_reasons(points: np.ndarray, dropped: np.ndarray, setup: Setup) -> dict[
 FORMATS = {"gcode": "hologram.gcode", "svg": "hologram.svg", "dxf": "hologram.dxf",
            "pdf": "pattern.pdf"}
 DEFAULT_FORMATS = ("gcode", "svg")
-#: The files of a ridged design (see :func:`write_ridged_design`), besides
-#: ``hologram.json``, ``stipples.npz`` and ``model.ply``.
-RIDGED_STALE = ("plate.npz", "heightmap.png", "heightmap.tif", "heightmap.json",
-                "hologram.stl")
 
 
 def design_limits(d: Design) -> Any:
@@ -850,7 +809,8 @@ def dump_design_json(info: dict[str, Any], fh: Any) -> None:
 
 def write_design(d: Design, out: str | os.PathLike[str],
                  formats: tuple[str, ...] = DEFAULT_FORMATS,
-                 command: list[str] | None = None) -> Written:
+                 command: list[str] | None = None,
+                 inputs: Iterable[str | os.PathLike[str] | None] = ()) -> Written:
     """Write every output of a design into ``out`` (all or nothing).
 
     Every file but ``run.json`` is the same byte for byte for the same model,
@@ -863,6 +823,8 @@ def write_design(d: Design, out: str | os.PathLike[str],
         out: output folder.
         formats: fabrication files to write, from :data:`FORMATS`.
         command: the command line, for ``run.json`` (default ``sys.argv``).
+        inputs: the model and config files, which ``out`` must not hold as
+            files a design writes (:func:`specholo.folders.publish`).
 
     Returns:
         Seconds spent per output, and the machining estimate.
@@ -871,10 +833,13 @@ def write_design(d: Design, out: str | os.PathLike[str],
     from specholo.fabrication.order import order_paths
     from specholo.fabrication.svg import write_svg
     from specholo.fabrication.timing import estimate_time
+    from specholo.folders import check_out, publish
     from specholo.preview.preview import render_preview
     from specholo.scene.stippling import check_disk
 
     check_formats(formats, d.config.method)
+    inputs = list(inputs)
+    check_out(out, inputs)  # before the ordering and the estimate
     check_disk(len(d.points), out)
     check_grooves(d.grooves)  # e.g. grooves beyond any machine, before ordering them
     setup = d.config.setup()
@@ -903,9 +868,7 @@ def write_design(d: Design, out: str | os.PathLike[str],
     if d.config.order:
         info["machining"]["travel_unordered_mm"] = order_stats.travel_before_mm
         info["machining"]["travel_mm"] = order_stats.travel_after_mm
-    stale = ("verify.json", "verify.png", "verify_cut.json", "model.ply", *FORMATS.values(),
-             *RIDGED_STALE)
-    with staged_output(out, stale=stale) as tmp:
+    with publish(out, inputs) as tmp:
         if "gcode" in formats:
             t0 = time.perf_counter()
             path = tmp / "hologram.gcode"
@@ -1270,20 +1233,24 @@ def check_ridged_gcode(path: str | os.PathLike[str], d: RidgedDesign) -> Any:
 
 
 def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
-                        formats: tuple[str, ...] = DEFAULT_RIDGED_FORMATS) -> dict[str, Any]:
+                        formats: tuple[str, ...] = DEFAULT_RIDGED_FORMATS,
+                        inputs: Iterable[str | os.PathLike[str] | None] = ()
+                        ) -> dict[str, Any]:
     """Write every output of a ridged design into ``out`` (all or nothing).
 
     Always ``hologram.json``, ``plate.npz`` (the exact heights and the stipple of
     each cell), ``stipples.npz`` and, for a mesh, ``model.ply``; then the
     formats asked for: ``png`` and ``tiff`` (16-bit height maps, with the sidecar
     ``heightmap.json``), ``stl`` and ``gcode`` (ball-end raster finishing, read
-    back by the safety check before anything is kept).
+    back by the safety check before anything is kept). ``inputs`` are the model
+    and config files, which ``out`` must not hold as files a design writes.
 
     Returns:
         Seconds spent per output (``timings``) and the G-code's figures
         (``machining``, empty without G-code).
     """
     from specholo.fabrication.heightmap import write_raster_gcode
+    from specholo.folders import publish
     from specholo.toolpaths.ridged import RIDGED_FILES, write_ridged_files
 
     check_formats(formats, "ridged")
@@ -1291,9 +1258,7 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
     info = ridged_json(d)
     timings: dict[str, float] = {}
     machining: dict[str, Any] = {}
-    stale = ("verify.json", "verify.png", "verify_cut.json", "model.ply", "grooves.npz",
-             "preview.png", *FORMATS.values(), *RIDGED_STALE)
-    with staged_output(out, stale=stale) as tmp:
+    with publish(out, inputs) as tmp:
         images = tuple(f for f in formats if f != "gcode")
         timings.update(write_ridged_files(d.plate, tmp, setup.machining, d.config.ball_radius,
                                           d.config.stock_thickness, images))

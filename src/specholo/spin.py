@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -240,10 +241,12 @@ def preview_frames(job: SpinJob, frames: int, size: tuple[int, int] = (360, 360)
 
 
 def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
-               frames: int = 48) -> dict[str, Any]:
+               frames: int = 48, inputs: Iterable[str | os.PathLike[str] | None] = ()
+               ) -> dict[str, Any]:
     """Write the folder atomically: hologram.json, grooves.npz, stipples.npz,
     hologram.gcode (and relief.gcode for one-sided walls), hologram.svg,
-    verify.json and preview.gif.
+    verify.json and preview.gif. ``inputs`` are the model files, which ``out``
+    must not hold as files a design writes.
 
     Returns:
         The summary of the verification.
@@ -251,17 +254,17 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
     from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.gcode import write_gcode
     from specholo.fabrication.svg import write_svg
-    from specholo.pipeline import staged_output
+    from specholo.folders import check_out, publish
     from specholo.preview.motion import write_animation
 
     d, cfg = job.design, job.config
     if d.grooves.n_paths == 0:
         raise SpecholoError("no stipple is visible at any plate angle: nothing to cut")
+    inputs = list(inputs)
+    check_out(out, inputs)  # before the verification
     reports = verify_spin(job, step_deg)
     summary = summarise(reports)
-    stale = ("relief.gcode", "preview.gif", "verify.json", "model.ply", "verify.png",
-             "verify_cut.json", "preview.png", "run.json", "hologram.dxf", "report.html")
-    with staged_output(out, stale=stale) as tmp:
+    with publish(out, inputs) as tmp:
         tmp = Path(tmp)
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
             g = d.grooves

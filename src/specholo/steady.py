@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -136,17 +137,21 @@ def write_path_gcode(path: Path, design: SteadyDesign, tool: Tool, machining: Ma
 
 
 def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathLike[str],
-                 step_deg: float = 1.0) -> dict[str, Any]:
+                 step_deg: float = 1.0, inputs: Iterable[str | os.PathLike[str] | None] = ()
+                 ) -> dict[str, Any]:
     """Write the folder atomically: hologram.gcode, stipples.npz, verify.json and
-    hologram.json. Returns the verification summary."""
+    hologram.json. Returns the verification summary. ``inputs`` are the model
+    file, which ``out`` must not hold as a file a design writes."""
     from specholo.fabrication.atomic import atomic_open
-    from specholo.pipeline import staged_output
+    from specholo.folders import check_out, publish
 
+    inputs = list(inputs)
+    check_out(out, inputs)  # before the verification
     reports = verify_steady(design, config.tool, light_steps(config.setup, step_deg))
     summary = summarise(reports)
     if design.n_cuts == 0:
         raise SpecholoError("no stipple can be given a scoop: nothing to cut")
-    with staged_output(out, stale=("verify.json", "preview.gif", "preview.png")) as tmp:
+    with publish(out, inputs) as tmp:
         tmp = Path(tmp)
         lines = write_path_gcode(tmp / "hologram.gcode", design, config.tool, config.machining,
                                  {"design": f"{design.shape}s, one per stipple and eye",
@@ -242,6 +247,10 @@ def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, St
 def verify_steady_folder(design: SteadyDesign, config: SteadyConfig,
                          folder: str | os.PathLike[str], step_deg: float
                          ) -> tuple[list[SteadyReport], dict[str, Any]]:
-    """Verify over the light's range every ``step_deg`` and rewrite verify.json."""
+    """Verify over the light's range every ``step_deg`` and rewrite verify.json
+    (published with the folder's other files, :func:`specholo.folders.publish`)."""
+    from specholo.folders import publish
+
     reports = verify_steady(design, config.tool, light_steps(config.setup, step_deg))
-    return reports, _write_verification(reports, Path(folder), step_deg)
+    with publish(folder, replaces={"verify.json"}) as stage:
+        return reports, _write_verification(reports, stage, step_deg)

@@ -7,8 +7,8 @@ import signal
 import sys
 from typing import Any
 
-#: What Ctrl-C prints. Every file is written whole or not at all, and a design's
-#: folder only once all of it is done (``pipeline.staged_output``).
+#: What Ctrl-C prints. Every file is written whole or not at all, and an output
+#: folder is replaced whole once all of it is done (``specholo.folders.publish``).
 INTERRUPTED = "error: interrupted; no file was left half-written"
 
 

@@ -9,6 +9,7 @@ import os
 import signal
 import sys
 import tomllib
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -92,11 +93,24 @@ def _command_line() -> list[str]:
     return [str(a) for a in (argv if argv is not None else sys.argv)]
 
 
-def _check_out(out: Path) -> None:
-    """Refuse an output folder that cannot be made, before the (long) design runs."""
+class _Folder(click.Path):
+    """An output folder's path: an empty one is refused, where pathlib would
+    read it as the current folder."""
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> Any:
+        if isinstance(value, str | bytes) and not value:
+            raise SpecholoError("--out is empty: name a folder (. for the current one)")
+        return super().convert(value, param, ctx)
+
+
+def _check_out(out: Path, inputs: Sequence[Path | None] = ()) -> None:
+    """Refuse an output folder that cannot be made or is not specholo's to
+    replace, or that holds an input where the job writes, before the (long)
+    design runs."""
+    from specholo.folders import check_out
+
+    check_out(out, inputs)
     try:
-        if out.exists() and not out.is_dir():
-            raise SpecholoError(f"{out} exists and is not a folder")
         above = out.resolve().parent
         while not above.exists() and above != above.parent:
             above = above.parent
@@ -124,7 +138,7 @@ def _design_options(fn: Any) -> Any:
 
 @cli.command()
 @click.argument("model", type=click.Path(path_type=Path))
-@click.option("--out", "-o", type=click.Path(path_type=Path), required=True,
+@click.option("--out", "-o", type=_Folder(path_type=Path), required=True,
               help="Output folder.")
 @click.option("--method", type=click.Choice(["striped", "hyperbola", "arc", "ridged"]),
               default=None,
@@ -156,7 +170,7 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     )
     from specholo.pipeline import design as run_design
 
-    _check_out(out)
+    _check_out(out, [model, config_path])
     values = _read_config(config_path)
     if method is not None:
         options["method"] = method
@@ -174,13 +188,14 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
         wanted = tuple(f.strip().lower() for f in formats.split(",") if f.strip())
     check_formats(wanted, config.method)
     if ridged:
-        _design_ridged(model, out, config, wanted)
+        _design_ridged(model, out, config, wanted, [model, config_path])
         return
     console = Console(stderr=True)
     with console.status("designing..."):
         d = run_design(model, config)
     with console.status("writing..."):
-        written = write_design(d, out, wanted, command=_command_line())
+        written = write_design(d, out, wanted, command=_command_line(),
+                               inputs=[model, config_path])
     stats = (f"{len(d.points)} stipples, {d.grooves.n_paths} paths, "
              f"{d.grooves.total_length() / 1000:.2f} m of groove")
     click.echo(f"{config.method}: {stats} -> {out}")
@@ -220,7 +235,8 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
                    + ", ".join(f"{n}: {r}" for r, n in sorted(why.items())) + ")", err=True)
 
 
-def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...]) -> None:
+def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...],
+                   inputs: Sequence[Path | None]) -> None:
     """The design command for a ridged (full-parallax) plate."""
     from rich.console import Console
 
@@ -230,7 +246,7 @@ def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...]
     with console.status("designing the ridged plate..."):
         d = design_ridged_model(model, config)
     with console.status("writing..."):
-        written = write_ridged_design(d, out, formats)
+        written = write_ridged_design(d, out, formats, inputs)
     s = d.plate.summary()
     hm = d.plate.heights
     (x0, y0), (x1, y1) = plate_edges(hm)
@@ -275,6 +291,7 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
     from rich.table import Table
 
     from specholo.fabrication.atomic import atomic_open
+    from specholo.folders import publish
     from specholo.pipeline import (
         is_ridged_folder,
         load_design,
@@ -340,25 +357,30 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
                f"min visibility {summary['min_visibility']:.3f}, "
                f"max false glints {summary['max_false_glints']:.3f}")
     source = "hologram.gcode" if from_gcode or cut else "grooves.npz"
-    with atomic_open(Path(folder) / "verify.json") as fh:
-        json.dump({"method": loaded.config.method, "source": source,
-                   "summary": summary, "azimuths": rows}, fh, indent=1)
     if cut:
         cut_summary = summarise(cut_reports)
         click.echo(f"cut plate: worst p95 error {cut_summary['worst_p95_error']:.3f} mm, "
                    f"min visibility {cut_summary['min_visibility']:.3f} "
                    f"(other grooves cut away the rest)")
-        with atomic_open(Path(folder) / "verify_cut.json") as fh:
+    # The verification's files appear together or not at all.
+    names = {"verify.json", "verify.png", *(["verify_cut.json"] if cut else [])}
+    with publish(folder, replaces=names) as stage:
+        with atomic_open(stage / "verify.json") as fh:
             json.dump({"method": loaded.config.method, "source": source,
-                       "resolution_mm": resolution, "summary": cut_summary,
-                       "azimuths": cut_rows}, fh, indent=1)
-    plot_verification(rows, Path(folder) / "verify.png",
-                      f"{loaded.config.method}: stereo verification")
+                       "summary": summary, "azimuths": rows}, fh, indent=1)
+        if cut:
+            with atomic_open(stage / "verify_cut.json") as fh:
+                json.dump({"method": loaded.config.method, "source": source,
+                           "resolution_mm": resolution, "summary": cut_summary,
+                           "azimuths": cut_rows}, fh, indent=1)
+        plot_verification(rows, stage / "verify.png",
+                          f"{loaded.config.method}: stereo verification")
 
 
 def _verify_ridged(folder: Path, step: float) -> None:
     """The verify command for a ridged plate: heads over azimuth and elevation."""
     from specholo.fabrication.atomic import atomic_open
+    from specholo.folders import publish
     from specholo.pipeline import load_ridged_design, verify_ridged_design
     from specholo.preview.preview import plot_field_verification
     from specholo.simulation.heightfield import report_table
@@ -397,13 +419,14 @@ def _verify_ridged(folder: Path, step: float) -> None:
                f"mean visibility {summary['mean_visibility']:.3f} "
                f"({summary['mean_glinting_per_head']:.1f} stipples per head), "
                f"max false glints {summary['max_false_glints']:.3f}")
-    with atomic_open(Path(folder) / "verify.json") as fh:
-        json.dump({"method": "ridged", "optic": loaded.config.optic,
-                   **({"refraction": loaded.config.refraction} if refract else {}),
-                   "source": "plate.npz", "summary": summary,
-                   "views": rows}, fh, indent=1)
-    plot_field_verification(rows, Path(folder) / "verify.png",
-                            f"ridged{' refraction' if refract else ''}: stereo verification")
+    with publish(folder, replaces={"verify.json", "verify.png"}) as stage:
+        with atomic_open(stage / "verify.json") as fh:
+            json.dump({"method": "ridged", "optic": loaded.config.optic,
+                       **({"refraction": loaded.config.refraction} if refract else {}),
+                       "source": "plate.npz", "summary": summary,
+                       "views": rows}, fh, indent=1)
+        plot_field_verification(rows, stage / "verify.png",
+                                f"ridged{' refraction' if refract else ''}: stereo verification")
 
 
 @cli.command()
@@ -771,7 +794,7 @@ def _interrupted(exc: BaseException) -> bool:
 
 @cli.command()
 @click.argument("composition", type=click.Path(path_type=Path))
-@click.option("--out", type=click.Path(path_type=Path), required=True,
+@click.option("--out", type=_Folder(path_type=Path), required=True,
               help="Output folder (written atomically).")
 @click.option("--step", type=float, default=5.0, show_default=True,
               help="Largest step between verified viewer positions, degrees.")
@@ -783,34 +806,46 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
     scenes keyed to the motion; then verify it."""
     from rich.console import Console
 
-    from specholo.compose import design_composition, read_composition, write_composition
+    from specholo.compose import (
+        composition_files,
+        design_composition,
+        read_composition,
+        write_composition,
+    )
 
     if not (math.isfinite(step) and 0.1 <= step <= 30.0):
         raise SpecholoError(f"step must be in [0.1, 30] degrees, got {step}")
     if not 0 <= frames <= 1000:
         raise SpecholoError(f"frames must be in [0, 1000], got {frames}")
-    _check_out(out)
+    _check_out(out, [composition])
     comp = read_composition(composition)
-    with Console(stderr=True).status("designing grooves along the motion..."):
+    _check_out(out, [composition, *composition_files(comp)])
+    with Console(stderr=True).status("designing grooves along the motion...") as status:
+
+        def finish(stage: Path, check: dict[str, Any]) -> None:
+            """The verification and previews, published with the design's files."""
+            status.stop()
+            click.echo(f"{d.stats['stripes']} stripes, "
+                       f"{d.stats['groove_length_mm'] / 1000:.2f} m of groove; G-code "
+                       f"checked: {check['cutting_moves']} cutting moves, deepest "
+                       f"{check['deepest_cut_mm']:.4f} mm")
+            fams = d.stats["families"]
+            missed = sum(f["states_missing_the_host"] for f in fams)
+            tilt = sum(f["states_lost_to_tilt"] for f in fams)
+            if missed or tilt:
+                click.echo(f"warning: of {sum(f['states_served'] for f in fams) + missed + tilt}"
+                           f" stipple-views, {missed} miss the host and {tilt} need a wall "
+                           "steeper than the tool's", err=True)
+            _verify_composed(stage, step, staged=True)
+            _preview_composed(d, stage, frames)
+
         d = design_composition(comp)
-        check = write_composition(d, out)
-    click.echo(f"{d.stats['stripes']} stripes, {d.stats['groove_length_mm'] / 1000:.2f} m of "
-               f"groove; G-code checked: {check['cutting_moves']} cutting moves, deepest "
-               f"{check['deepest_cut_mm']:.4f} mm")
-    fams = d.stats["families"]
-    missed = sum(f["states_missing_the_host"] for f in fams)
-    tilt = sum(f["states_lost_to_tilt"] for f in fams)
-    if missed or tilt:
-        click.echo(f"warning: of {sum(f['states_served'] for f in fams) + missed + tilt} "
-                   f"stipple-views, {missed} miss the host and {tilt} need a wall steeper "
-                   "than the tool's", err=True)
-    _verify_composed(out, step)
-    _preview_composed(d, out, frames)
+        write_composition(d, out, [composition], then=finish)
 
 
 @cli.command()
 @click.argument("model", type=click.Path(path_type=Path), nargs=-1, required=True)
-@click.option("--out", type=click.Path(path_type=Path), required=True,
+@click.option("--out", type=_Folder(path_type=Path), required=True,
               help="Output folder (written atomically).")
 @click.option("--size", type=float, default=40.0, show_default=True,
               help="Largest side of the model's bounding box, mm.")
@@ -863,7 +898,7 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
         raise SpecholoError(f"step must be in [0.5, 90] degrees, got {step}")
     if not 0 <= frames <= 1000:
         raise SpecholoError(f"frames must be in [0, 1000], got {frames}")
-    _check_out(out)
+    _check_out(out, model)
     setup = SpinSetup(distance=view_distance, elevation=math.radians(view_elevation), ipd=ipd,
                       light_height=light_height, walls=walls)
     turns = len(model) if turns is None else turns
@@ -873,7 +908,7 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
     what = "closed grooves" if turns == 1 else "stipples sliding over the turning scene"
     with Console(stderr=True).status(f"designing {what} and verifying the turn..."):
         job = design_spin(list(model), config)
-        summary = write_spin(job, out, step, frames)
+        summary = write_spin(job, out, step, frames, inputs=list(model))
     g = job.design.grooves
     tracks = job.design.tracks
     shown = "" if tracks is None else \
@@ -887,7 +922,7 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
 
 @cli.command()
 @click.argument("model", type=click.Path(path_type=Path))
-@click.option("--out", type=click.Path(path_type=Path), required=True,
+@click.option("--out", type=_Folder(path_type=Path), required=True,
               help="Output folder (written atomically).")
 @click.option("--size", type=float, default=40.0, show_default=True,
               help="Largest side of the model's bounding box, mm.")
@@ -923,14 +958,14 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
 
     if not (math.isfinite(step) and 0.05 <= step <= 10.0):
         raise SpecholoError(f"step must be in [0.05, 10] degrees, got {step}")
-    _check_out(out)
+    _check_out(out, [model])
     setup = SteadySetup(distance=view_distance, ipd=ipd,
                         elevation=math.radians(light_elevation),
                         half_range=math.radians(light_range))
     config = SteadyConfig(size=size, center_z=center_z, stipples=stipples, seed=seed,
                           shape=shape, setup=setup, tool=Tool(tool_radius, depth))
     design = design_steady_job(model, config)
-    s = write_steady(design, config, out, step)
+    s = write_steady(design, config, out, step, inputs=[model])
     click.echo(f"{len(design.points)} stipples, {design.n_cuts} {shape}s -> {out}")
     click.echo(f"light {light_elevation - light_range:g} to {light_elevation + light_range:g} "
                f"deg: worst p95 {s['worst_p95_mm']:.3f} mm, image drift p95 "
@@ -956,12 +991,14 @@ def _verify_spin(folder: Path, step: float) -> None:
     """Verify a turning-plate folder over one turn, every ``step`` degrees."""
     from rich.console import Console
 
+    from specholo.folders import publish
     from specholo.spin import load_spin_folder, verify_spin, write_spin_verification
 
     job = load_spin_folder(folder)
     with Console(stderr=True).status("turning the plate..."):
         reports = verify_spin(job, step)
-    s = write_spin_verification(reports, folder, step)
+    with publish(folder, replaces={"verify.json"}) as stage:
+        s = write_spin_verification(reports, stage, step)
     for r in reports[::max(1, len(reports) // 8)]:
         click.echo(f"plate {r.angle_deg:6.1f} deg: p95 {r.p95_mm:.3f} mm (depth "
                    f"{r.depth_p95_mm:.3f}), visibility {r.visibility:.3f}, stray {r.stray}")
@@ -990,12 +1027,15 @@ def _preview_composed(d: Any, out: Path, frames: int) -> None:
         write_animation(shots, out / "preview.gif", fps=12)
 
 
-def _verify_composed(folder: Path, step: float) -> None:
+def _verify_composed(folder: Path, step: float, staged: bool = False) -> None:
+    """Verify a composed design; ``staged``: ``folder`` is a new design's folder
+    not yet published, which verify.json joins."""
     from rich.console import Console
     from rich.table import Table
 
     from specholo.compose import load_composition_folder, verify_composition
     from specholo.fabrication.atomic import atomic_open
+    from specholo.folders import publish
     from specholo.simulation.conforming import reports_to_dicts, summarise
 
     d = load_composition_folder(folder)
@@ -1012,9 +1052,17 @@ def _verify_composed(folder: Path, step: float) -> None:
                       f"{r.stray:.3f}")
     Console().print(table)
     summary = summarise(reports)
-    with atomic_open(folder / "verify.json") as fh:
-        json.dump({"positions": reports_to_dicts(reports), "summary": summary}, fh, indent=1,
-                  sort_keys=True)
+
+    def write(into: Path) -> None:
+        with atomic_open(into / "verify.json") as fh:
+            json.dump({"positions": reports_to_dicts(reports), "summary": summary}, fh,
+                      indent=1, sort_keys=True)
+
+    if staged:
+        write(folder)
+    else:
+        with publish(folder, replaces={"verify.json"}) as stage:
+            write(stage)
     click.echo(f"worst p95 error {summary['worst_p95_error']:.3f} mm, lowest visibility "
                f"{summary['min_visibility']:.3f}, most stray glints {summary['max_stray']:.3f}")
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -11,6 +12,32 @@ from typing import IO
 
 #: Scratch files and folders open now (see :func:`scratch`).
 _SCRATCH = [0]
+#: The name of a temporary file of :func:`atomic_open` (or of an animation being
+#: written): its writer's pid is in it, so that a later run can tell a killed
+#: run's leftover from a file being written now.
+PART_FILE = re.compile(r"\..+\.(?P<pid>\d+)-[a-z0-9_]+\.part(\.[A-Za-z0-9]+)?")
+
+
+def part_prefix(path: str | os.PathLike[str]) -> str:
+    """The start of a temporary file's name beside ``path`` (see :data:`PART_FILE`)."""
+    return f".{Path(path).name}.{os.getpid()}-"
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether a process ``pid`` runs (so its scratch files may be in use)."""
+    if pid == os.getpid():
+        return True
+    if os.name != "posix":
+        return True  # os.kill(pid, 0) would end it there: assume it runs
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OverflowError:
+        return False  # beyond any pid
+    except OSError:
+        return True  # e.g. another user's process
+    return True
 
 
 @contextlib.contextmanager
@@ -56,7 +83,7 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w",
     """
     path = Path(path)
     with scratch():
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=part_prefix(path), suffix=".part", dir=path.parent)
         try:
             os.fchmod(fd, 0o666 & ~_umask())  # mkstemp's 0600 is for the scratch file only
             if "b" in mode:

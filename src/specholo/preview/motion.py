@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.atomic import public_mode, scratch
+from specholo.fabrication.atomic import part_prefix, public_mode, scratch
 from specholo.preview.render import REFERENCE_ROUGHNESS, Camera, design_camera, render_still
 from specholo.setup import Light
 from specholo.simulation.glints import Engraved
@@ -231,7 +231,7 @@ def write_animation(frames: Sequence[np.ndarray], path: str | os.PathLike[str],
     if not path.parent.is_dir():
         raise SpecholoError(f"folder {path.parent} does not exist")
     with scratch():
-        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".part{suffix}",
+        fd, name = tempfile.mkstemp(prefix=part_prefix(path), suffix=f".part{suffix}",
                                     dir=path.parent)
         os.close(fd)
         tmp = Path(name)
