@@ -409,6 +409,74 @@ class Design:
     views: ViewCheck | None = None  # the tool's walls against the tilts needed
     overlaps: Overlaps | None = None  # where grooves cut into each other
     plate: np.ndarray | None = None  # (2, 2) plate corners, mm
+    coverage: Coverage | None = None  # which stipples got a groove
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """How many stipples got a groove, and why the others did not.
+
+    Attributes:
+        stipples: stipples of the design.
+        hidden: stipples no eye in the viewing range sees (the model hides them
+            or they face away from every eye): they get no groove.
+        dropped: stipples seen but whose groove the method could not design.
+        grooved: stipples with at least one path.
+    """
+
+    stipples: int
+    hidden: int
+    dropped: int
+    grooved: int
+
+    @property
+    def ungrooved(self) -> int:
+        """Stipples without a groove."""
+        return self.stipples - self.grooved
+
+    @property
+    def mostly_ungrooved(self) -> bool:
+        """Whether most stipples have no groove: the plate shows little of the model."""
+        return 2 * self.ungrooved > self.stipples
+
+    def reasons(self, dropped_why: str = "") -> str:
+        """Why the stipples without a groove have none, e.g. "120 are hidden from
+        every view (...), 30 could not be designed" (``dropped_why`` follows the latter)."""
+        parts = []
+        if self.hidden:
+            parts.append(f"{self.hidden} {'is' if self.hidden == 1 else 'are'} hidden from "
+                         f"every view ({_HIDDEN_WHY})")
+        if self.dropped:
+            parts.append(f"{self.dropped} could not be designed{dropped_why}")
+        rest = self.ungrooved - self.hidden - self.dropped
+        if rest > 0:
+            parts.append(f"{rest} got no path")
+        return ", ".join(parts)
+
+    def describe(self) -> str:
+        """One line: how many stipples have no groove, and why."""
+        if self.ungrooved == self.hidden:
+            return (f"{self.hidden} of {self.stipples} stipples are hidden from every view "
+                    f"and have no groove ({_HIDDEN_WHY})")
+        return f"{self.ungrooved} of {self.stipples} stipples have no groove: {self.reasons()}"
+
+
+#: Why a stipple is hidden from every view.
+_HIDDEN_WHY = "the model hides them or they face away from every eye"
+
+
+def coverage(n: int, runs: Runs, grooves: Grooves, dropped: np.ndarray) -> Coverage:
+    """Count the stipples with a groove, those hidden from every view and those dropped.
+
+    One pass over the runs and the paths (no sort): cheap beside the design.
+    """
+    seen = np.zeros(n, dtype=bool)
+    seen[runs.stipple] = True
+    has = np.zeros(n, dtype=bool)
+    ids = np.asarray(grooves.stipple)
+    has[ids[(ids >= 0) & (ids < n)]] = True
+    return Coverage(n, n - int(np.count_nonzero(seen)), int(len(dropped)),
+                    int(np.count_nonzero(has)))
 
 
 #: Blank border around the grooves when the plate size is not given, mm.
@@ -571,6 +639,15 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     t0 = time.perf_counter()
     grooves, dropped = design_runs(runs, config)
     timings["toolpaths"] = time.perf_counter() - t0
+    cover = coverage(len(points), runs, grooves, dropped)
+    if cover.grooved == 0:
+        # A plate with nothing to cut: refused before any file is written.
+        from collections import Counter
+
+        why = Counter(r.split(":")[0] for r in drop_reasons(points, dropped, setup).values())
+        reasons = "" if not why else " (" + ", ".join(
+            f"{n}: {r}" for r, n in sorted(why.items())) + ")"
+        raise SpecholoError(f"no stipple gets a groove: {cover.reasons(reasons)}")
     section = cutter.section(config.depth_mm)
     # One pass over the arcs (or none, when the walk found them), for the plate and
     # the overlaps (which need the length).
@@ -584,7 +661,7 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
                                total_length=total) if check_overlaps else None
     timings["overlaps"] = time.perf_counter() - t0
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
-                  views, overlaps, plate)
+                  views, overlaps, plate, cover)
 
 
 class StippleRows:
@@ -620,6 +697,7 @@ def hologram_json(d: Design) -> dict[str, Any]:
     """The design's settings, figures and stipples, for ``hologram.json``."""
     setup = d.config.setup()
     lo, hi = d.grooves.bounds()
+    cover = d.coverage or coverage(len(d.points), d.runs, d.grooves, d.dropped)
     return {
         "specholo_version": __version__,
         "settings": asdict(d.config),
@@ -638,7 +716,9 @@ def hologram_json(d: Design) -> dict[str, Any]:
                   "dots": int(d.grooves.is_dot.sum()),
                   "groove_length_mm": d.grooves.total_length(),
                   "dropped_stipples": d.dropped.tolist(),
-                  "dropped_reasons": drop_reasons(d.points, d.dropped, setup)},
+                  "dropped_reasons": drop_reasons(d.points, d.dropped, setup),
+                  "hidden_stipples": cover.hidden,
+                  "stipples_with_grooves": cover.grooved},
         "stipples": StippleRows(d.points, d.runs),
     }
 

@@ -11,7 +11,7 @@ import sys
 import tomllib
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import click
 
@@ -233,6 +233,8 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
                       drop_reasons(d.points, d.dropped, d.config.setup()).values())
         click.echo(f"warning: {len(d.dropped)} stipples could not be designed ("
                    + ", ".join(f"{n}: {r}" for r, n in sorted(why.items())) + ")", err=True)
+    if d.coverage is not None and d.coverage.mostly_ungrooved:
+        click.echo(f"warning: {d.coverage.describe()}", err=True)
 
 
 def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...],
@@ -307,6 +309,11 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
         raise SpecholoError("--stl needs --cut")
     if stl is not None and stl.suffix.lower() != ".stl":
         raise SpecholoError(f"--stl must name an .stl file, got {stl.name!r}")
+    # Checked before the cut is simulated (minutes), not when the file is written.
+    if stl is not None and not stl.parent.is_dir():
+        raise SpecholoError(f"--stl {stl}: folder {stl.parent} does not exist")
+    if stl is not None and stl.is_dir():
+        raise SpecholoError(f"--stl {stl} is a folder: name an .stl file")
     if not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
         raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
     from specholo.compose import is_composed_folder
@@ -518,6 +525,8 @@ def _png_out(out: Path | None, folder: Path, default: str) -> Path:
         raise SpecholoError(f"output must be a .png file, got {out.name!r}")
     if not out.parent.is_dir():
         raise SpecholoError(f"folder {out.parent} does not exist")
+    if out.is_dir():  # found now, not once the picture is made
+        raise SpecholoError(f"{out} is a folder: name a .png file")
     return out
 
 
@@ -1068,19 +1077,84 @@ def _verify_composed(folder: Path, step: float, staged: bool = False) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; every failure is one line on stderr and a non-zero exit."""
+    """Run the CLI; every failure is one line on stderr and a non-zero exit.
+
+    Run as the ``specholo`` command (no ``argv``), the process ends as soon as
+    the command is done (:func:`_end`).
+    """
     args = [str(a) for a in (sys.argv[1:] if argv is None else argv)]
+    command = argv is None  # the command itself, not a caller in Python
     _SIGINTS.clear()
-    _END_AT_ONCE[0] = argv is None  # the command itself, not a caller in Python
+    _END_AT_ONCE[0] = command
     previous = None
     with contextlib.suppress(ValueError):  # ValueError: not the main thread
         if signal.getsignal(signal.SIGINT) in (signal.default_int_handler, early_sigint):
             previous = signal.signal(signal.SIGINT, _on_sigint)
     try:
-        return _main(args)
+        code = _main(args)
+    except SystemExit as exc:  # a command that ends with sys.exit (check)
+        if not command:
+            raise
+        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
     finally:
-        if previous is not None:
+        if previous is not None and not command:
             signal.signal(signal.SIGINT, previous)
+    if command:
+        _end(code, previous is not None)
+    return code
+
+
+#: The exit status of the command that has just ended (see :func:`_end`).
+_RESULT = [0]
+
+
+def _end(code: int, handle_sigint: bool) -> NoReturn:
+    """End the ``specholo`` command now that its work is done, with status ``code``.
+
+    Python's own exit spends a few tenths of a second more tearing down the
+    modules, with Ctrl-C already handed back to the system: a Ctrl-C then
+    ended the process without a word. Here every file is closed, written
+    whole or removed, and nothing registered to run at exit is needed.
+    """
+    _RESULT[0] = code
+    if handle_sigint:
+        with contextlib.suppress(ValueError):
+            signal.signal(signal.SIGINT, _sigint_after_run)
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe
+            stream.flush()
+    os._exit(code)
+
+
+def _sigint_after_run(signum: int, frame: Any) -> None:
+    """Ctrl-C while the command exits: its outputs are complete (a run that
+    failed has said so in its own one line, and keeps its status)."""
+    code = _RESULT[0]
+    err = sys.__stderr__
+    if code == 0 and err is not None:
+        with contextlib.suppress(OSError, ValueError):
+            err.write(FINISHED_INTERRUPTED + "\n")
+            err.flush()
+    os._exit(130 if code == 0 else code)
+
+
+#: What a Ctrl-C prints once the command has done its work.
+FINISHED_INTERRUPTED = ("error: interrupted as it exited; the run had finished and its "
+                        "outputs are complete")
+
+
+def _os_error(exc: OSError) -> str:
+    """An operating-system error as one line naming the file, if it names one."""
+    what = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
+    # os.replace(scratch, destination) names the destination second.
+    name = exc.filename2 if exc.filename2 is not None else exc.filename
+    if name is None:
+        return what[:1].lower() + what[1:]
+    path = Path(os.fsdecode(name))
+    if path.name.startswith(".") and ".part" in path.name:
+        # a scratch file beside the real one: the folder is what the user knows
+        return f"cannot write in {path.parent}: {what}"
+    return f"{path}: {what}"
 
 
 def _main(args: list[str]) -> int:
@@ -1110,6 +1184,14 @@ def _main(args: list[str]) -> int:
             click.echo(INTERRUPTED, err=True)
             return 130
         click.echo("error: out of memory; try fewer stipples", err=True)
+        return 1
+    except OSError as exc:
+        # The system refused a read or a write (a full disk, a folder gone or
+        # read-only, a link loop): the user's to fix, not a fault of the program.
+        if _interrupted(exc):
+            click.echo(INTERRUPTED, err=True)
+            return 130
+        click.echo(f"error: {_os_error(exc)}", err=True)
         return 1
     except Exception as exc:  # noqa: BLE001 - the promise is one line, never a traceback
         if _interrupted(exc):

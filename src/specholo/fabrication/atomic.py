@@ -95,7 +95,9 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w",
                 fh.flush()
                 os.fsync(fh.fileno())
             os.replace(tmp, path)
-        except BaseException:
+        except BaseException as exc:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(tmp)
+            if isinstance(exc, OSError) and exc.filename is None:
+                exc.filename = str(path)  # a full disk's error names no file: name it
             raise
