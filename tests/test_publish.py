@@ -95,6 +95,20 @@ def expected_new() -> dict[str, bytes | None]:
             "sub/deeper": None, "sub/deeper/b.txt": b"deep"}
 
 
+def test_where_links_are_refused_the_user_s_files_are_copied(
+        old: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    (old / "notes link").symlink_to("notes.txt")
+
+    def refuse(*args: Any, **kwargs: Any) -> None:
+        raise OSError(errno.EPERM, os.strerror(errno.EPERM))
+
+    monkeypatch.setattr(folders.os, "link", refuse)
+    job(old)
+    monkeypatch.undo()
+    assert snapshot(old) == {**expected_new(), "notes link": b"mine"}
+    assert os.readlink(old / "notes link") == "notes.txt"
+
+
 def test_a_new_folder_replaces_the_specholo_files_and_keeps_the_others(old: Path) -> None:
     inode = (old / "sub" / "a.txt").stat().st_ino
     job(old)

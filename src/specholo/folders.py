@@ -281,7 +281,12 @@ def _carry(src: Path, dst: Path) -> None:
         os.chmod(dst, stat.S_IMODE(st.st_mode))  # last: it may forbid writing
         return
     try:
-        os.link(src, dst, follow_symlinks=False)
+        if os.link in os.supports_follow_symlinks:
+            os.link(src, dst, follow_symlinks=False)  # a symlink itself, not its target
+        elif stat.S_ISLNK(st.st_mode):
+            raise OSError(errno.ENOTSUP, "cannot link a symlink itself here")
+        else:
+            os.link(src, dst)
     except OSError:
         if stat.S_ISLNK(st.st_mode):
             os.symlink(os.readlink(src), dst)
