@@ -114,13 +114,13 @@ def test_under_a_point_light_the_light_is_in_the_eyes_plane() -> None:
 def test_a_sun_straight_at_the_plate_drops_every_stipple_in_the_cli(tmp_path: Path,
                                                                     capsys) -> None:
     out = tmp_path / "holo"
+    # No stipple is left with a groove: nothing to cut, so the design is refused.
     assert main(["design", str(BUNNY), "--out", str(out), "--stipples", "10",
-                 "--light-elevation", "90"]) == 0
-    _, err = capsys.readouterr()
-    assert "could not be designed" in err and "light in the eyes' plane" in err
-    stats = json.loads((out / "hologram.json").read_text())["stats"]
-    assert stats["dropped_stipples"] and set(stats["dropped_reasons"]) == {
-        str(i) for i in stats["dropped_stipples"]}
+                 "--light-elevation", "90"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: no stipple gets a groove"), err
+    assert "could not be designed (5: light in the eyes' plane)" in err[0]
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("elevation", [0.5, 1e-4])
