@@ -6,6 +6,7 @@ import errno
 import json
 import os
 import shutil
+import stat
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -176,9 +177,31 @@ def test_without_an_exchanging_rename_the_folders_swap_in_two_renames(
 
 def test_an_error_in_the_job_leaves_the_old_folder(old: Path) -> None:
     before = snapshot(old)
-    with pytest.raises(SpecholoError, match="No space left"), publish(old) as stage:
+    with pytest.raises(SpecholoError, match="holo/hologram.json: No space left"), \
+            publish(old) as stage:
         (stage / "hologram.json").write_text("new")
-        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(stage / "hologram.json"))
+    assert snapshot(old) == before and hidden(old.parent) == []
+
+
+def test_a_mount_point_inside_the_folder_is_refused(old: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Removing the old folder would empty the file system mounted there."""
+    before = snapshot(old)
+    real = os.lstat
+
+    def lstat(path: Any, *args: Any, **kwargs: Any) -> os.stat_result:
+        st = real(path, *args, **kwargs)
+        if Path(path) == old / "sub":
+            fields = list(st)
+            fields[stat.ST_DEV] += 1
+            return os.stat_result(fields)
+        return st
+
+    monkeypatch.setattr(folders.os, "lstat", lstat)
+    with pytest.raises(SpecholoError, match="holo/sub is a mount point"):
+        job(old)
+    monkeypatch.undo()
     assert snapshot(old) == before and hidden(old.parent) == []
 
 

@@ -155,7 +155,8 @@ def publish(out: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str]
                 old = _swap(stage, target)
                 swapped = True
             except OSError as exc:  # a full disk, a folder turned read-only
-                raise SpecholoError(f"cannot write {out}: {exc.strerror or exc}") from exc
+                raise SpecholoError(f"cannot write {out}: {_where(exc, stage, target, out)}"
+                                    f"{exc.strerror or exc}") from exc
         finally:
             if swapped:
                 try:
@@ -267,17 +268,22 @@ def _carry_over(out: str | os.PathLike[str], target: Path, stage: Path,
                                 "writes one: move it away or choose another output folder")
         if name in written or owned(name) or PART_FILE.fullmatch(name):
             continue
-        _carry(Path(entry.path), stage / name)
+        _carry(Path(entry.path), stage / name, out, target)
 
 
-def _carry(src: Path, dst: Path) -> None:
+def _carry(src: Path, dst: Path, out: str | os.PathLike[str], target: Path) -> None:
     """Hard-link ``src`` at ``dst`` (a copy where the file system refuses links);
     a folder is made anew and filled the same way."""
     st = os.lstat(src)
     if stat.S_ISDIR(st.st_mode):
+        if st.st_dev != os.lstat(target).st_dev:
+            # Its files cannot be linked, and removing the old folder would
+            # empty the file system mounted there.
+            raise SpecholoError(f"{Path(out) / src.relative_to(target)} is a mount point: "
+                                "unmount it or choose another output folder")
         os.mkdir(dst)
         for entry in sorted(os.scandir(src), key=lambda e: e.name):
-            _carry(Path(entry.path), dst / entry.name)
+            _carry(Path(entry.path), dst / entry.name, out, target)
         os.chmod(dst, stat.S_IMODE(st.st_mode))  # last: it may forbid writing
         return
     try:
@@ -294,6 +300,18 @@ def _carry(src: Path, dst: Path) -> None:
             shutil.copy2(src, dst, follow_symlinks=False)
         else:
             raise
+
+
+def _where(exc: OSError, stage: Path, target: Path, out: str | os.PathLike[str]) -> str:
+    """The file an error names, as the user knows it (in ``out``, not in the
+    stage), followed by ": "; empty if it names none."""
+    if not isinstance(exc.filename, str | bytes | os.PathLike) or not exc.filename:
+        return ""
+    path = Path(os.fsdecode(exc.filename))
+    for root in (stage, target):
+        if path == root or root in path.parents:
+            return f"{Path(out) / path.relative_to(root)}: "
+    return f"{path}: "
 
 
 def _cwd_within(target: Path) -> Path | None:
