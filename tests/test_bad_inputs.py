@@ -210,13 +210,15 @@ def test_an_output_folder_that_is_a_symlink_loop_is_refused(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]
 
 
-def test_render_into_an_existing_folder_is_refused_before_rendering(
-        folder: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    target = folder / "pictures.png"
+@pytest.mark.parametrize("command, name", [("render", "pictures.png"),
+                                           ("animate", "walk.gif")])
+def test_a_picture_into_an_existing_folder_is_refused_before_rendering(
+        folder: Path, capsys: pytest.CaptureFixture[str], command: str, name: str) -> None:
+    target = folder / name
     target.mkdir()
     before = _snapshot(folder)
     t0 = time.perf_counter()
-    _refused(["render", folder, "--out", target], capsys, "is a folder")
+    _refused([command, folder, "--out", target], capsys, "is a folder")
     assert time.perf_counter() - t0 < 5
     assert _snapshot(folder) == before and not any(target.iterdir())
 

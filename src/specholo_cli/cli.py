@@ -639,6 +639,8 @@ def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: 
         raise SpecholoError(f"animation file must end in .gif or .mp4, got {out.name!r}")
     if not out.parent.is_dir():
         raise SpecholoError(f"folder {out.parent} does not exist")
+    if out.is_dir():  # found now, not once every frame is rendered
+        raise SpecholoError(f"{out} is a folder: name a .gif or .mp4 file")
     if not 0 < frames <= MAX_FRAMES:
         raise SpecholoError(f"--frames must be in [1, {MAX_FRAMES}], got {frames}")
     if not (math.isfinite(fps) and 0.01 <= fps <= 240):
