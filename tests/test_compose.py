@@ -15,7 +15,8 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from specholo.compose import design_composition, parse_composition, verify_composition
-from specholo.fabrication.surface_gcode import check_surface_gcode, write_surface_gcode
+from specholo.errors import SpecholoError
+from specholo.fabrication.surface_gcode import check_surface_program, write_surface_gcode
 from specholo.hosts.surfaces import Cylinder, HeightField, MeshHost, Panel, Panels, Plane, Sphere
 from specholo.simulation.conforming import find_conforming_glints, summarise
 from specholo_cli.cli import main
@@ -147,12 +148,14 @@ def test_viewpoint_keyed_scenes_hand_over_without_ghosts() -> None:
     assert by[0].shown == 0
 
 
-def test_gcode_on_curved_hosts_passes_its_check_and_a_deeper_cut_does_not() -> None:
+def test_gcode_on_curved_hosts_passes_its_check_and_a_deeper_cut_does_not(tmp_path) -> None:
     comp = _comp('kind = "cylinder"\nradius = 35\nheight = 60', stipples=20)
     d = design_composition(comp)
+    path = tmp_path / "p.ngc"
     for axes in (3, 4):
         prog = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, axes)
-        fig = check_surface_gcode(prog.text, comp.host, comp.tool, comp.machining, axes)
+        path.write_text(prog.text)
+        fig = check_surface_program(path, d.grooves, comp.host, comp.tool, comp.machining, axes)
         assert fig["cutting_moves"] > 100
         assert fig["deepest_cut_mm"] <= comp.tool.depth + 2e-3
         lines = prog.text.splitlines()
@@ -164,8 +167,9 @@ def test_gcode_on_curved_hosts_passes_its_check_and_a_deeper_cut_does_not() -> N
             z = float(next(w for w in words if w.startswith("Z"))[1:])
             lines[k] = " ".join([*(w for w in words if not w.startswith("Z")),
                                  f"Z{z - 0.05:.4f}"])
-        with pytest.raises(Exception, match="deeper"):
-            check_surface_gcode("\n".join(lines), comp.host, comp.tool, comp.machining, axes)
+        path.write_text("\n".join(lines) + "\n")
+        with pytest.raises(SpecholoError, match="deeper"):
+            check_surface_program(path, d.grooves, comp.host, comp.tool, comp.machining, axes)
 
 
 @pytest.mark.skipif(shutil.which("rs274") is None, reason="LinuxCNC's rs274 not installed")

@@ -557,14 +557,13 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
         The G-code check's figures.
     """
     from specholo.fabrication.atomic import atomic_open
-    from specholo.fabrication.surface_gcode import check_surface_gcode, write_surface_gcode
+    from specholo.fabrication.surface_gcode import check_surface_program, write_surface_gcode
     from specholo.folders import check_out, publish
 
     comp = d.comp
     inputs = [*inputs, *composition_files(comp)]
     check_out(out, inputs)  # before the G-code is made and checked
     program = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, comp.axes)
-    check = check_surface_gcode(program.text, comp.host, comp.tool, comp.machining, comp.axes)
     with publish(out, inputs) as tmp:
         tmp = Path(tmp)
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
@@ -578,6 +577,9 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
                     fh.write(s.mesh.export(file_type="ply"))
         with atomic_open(tmp / "hologram.gcode") as fh:
             fh.write(program.text)
+        # read back by the safety check every program passes, before it is kept
+        check = check_surface_program(tmp / "hologram.gcode", d.grooves, comp.host, comp.tool,
+                                      comp.machining, comp.axes)
         meta = {"design": "conforming", "composition": comp.settings,
                 "host": comp.host.describe(), "mode": comp.motion.mode,
                 "tool": {"radius": comp.tool.radius, "depth": comp.tool.depth,

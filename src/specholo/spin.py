@@ -240,6 +240,23 @@ def preview_frames(job: SpinJob, frames: int, size: tuple[int, int] = (360, 360)
     return out
 
 
+def spin_limits(grooves: Any, depth: float, machining: Machining) -> Any:
+    """What a turning plate's program of ``grooves`` cut ``depth`` mm deep may do
+    (``fabrication.check.Limits``), from the design's settings: the tool centre
+    inside the grooves' extent plus a blank border (the plate has no size
+    setting, as a flat design's without one), no deeper than the cut, rapids at
+    the safe height, feeds and spindle as set."""
+    from specholo.fabrication.check import Limits, Stock, tool_kind
+    from specholo.pipeline import PLATE_MARGIN, groove_extent
+
+    m = machining
+    (x0, y0), (x1, y1) = groove_extent(grooves) + np.array([[-PLATE_MARGIN], [PLATE_MARGIN]])
+    # no thickness setting: the cut's own depth is the floor
+    return Limits(Stock(float(x0), float(y0), float(x1), float(y1), depth), depth, m.safe_z,
+                  (min(m.feed, m.plunge), max(m.feed, m.plunge)), (m.spindle, m.spindle),
+                  tool_kind("ball", m.spindle))
+
+
 def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                frames: int = 48, inputs: Iterable[str | os.PathLike[str] | None] = ()
                ) -> dict[str, Any]:
@@ -252,6 +269,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
         The summary of the verification.
     """
     from specholo.fabrication.atomic import atomic_open
+    from specholo.fabrication.check import check_program
     from specholo.fabrication.gcode import write_gcode
     from specholo.fabrication.svg import write_svg
     from specholo.folders import check_out, publish
@@ -289,12 +307,15 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                   "times per turn", "walls": cfg.setup.walls}
         gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
                              header=header)
+        safety = check_program(tmp / "hologram.gcode",
+                               spin_limits(d.grooves, cfg.tool.depth, cfg.machining))
         meta: dict[str, Any] = {
             "design": "spinning", "config": cfg.as_dict(),
             "tilts_deg": [math.degrees(t) for t in d.tilts],
             "relief_tilt_deg": math.degrees(d.relief_tilt),
             "paths": d.grooves.n_paths, "groove_length_mm": d.grooves.total_length(),
-            "gcode": {"lines": gstats.lines, "paths": gstats.paths},
+            "gcode": {"lines": gstats.lines, "paths": gstats.paths,
+                      "safety_check": {"moves": safety.moves, "violations": 0}},
             "verify": summary,
         }
         if d.tracks is not None:
@@ -312,6 +333,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                          "tool": "V-bit, 30 deg included angle, tip on the groove's edge"}
                 write_gcode(tmp / "relief.gcode", relief, cfg.tool, cfg.machining,
                             header=rhead, depth=depth)
+                check_program(tmp / "relief.gcode", spin_limits(relief, depth, cfg.machining))
             meta["relief"] = {"depth_mm": depth, "v_bit_included_deg": 30.0,
                               "other_wall_keeps_tilts_below_deg":
                                   math.degrees(d.relief_tilt)}

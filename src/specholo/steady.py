@@ -136,13 +136,32 @@ def write_path_gcode(path: Path, design: SteadyDesign, tool: Tool, machining: Ma
     return len(lines)
 
 
+def steady_limits(design: SteadyDesign, config: SteadyConfig) -> Any:
+    """What a steady design's G-code may do (``fabrication.check.Limits``), from its
+    settings: the tip inside the cuts' extent plus a blank border (the plate has no
+    size setting, as a flat design's without one), no deeper than the depth, rapids
+    at the safe height, feeds and spindle as set."""
+    from specholo.fabrication.check import Limits, Stock, tool_kind
+    from specholo.pipeline import PLATE_MARGIN
+
+    m, tool = config.machining, config.tool
+    tips = tool_tips(design, tool)[:, :2] if len(design.centres) else np.zeros((1, 2))
+    (x0, y0), (x1, y1) = tips.min(axis=0) - PLATE_MARGIN, tips.max(axis=0) + PLATE_MARGIN
+    # no thickness setting: the ball's radius bounds how deep it may reach
+    return Limits(Stock(float(x0), float(y0), float(x1), float(y1), tool.radius), tool.depth,
+                  m.safe_z, (min(m.feed, m.plunge), max(m.feed, m.plunge)),
+                  (m.spindle, m.spindle), tool_kind("ball", m.spindle))
+
+
 def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathLike[str],
                  step_deg: float = 1.0, inputs: Iterable[str | os.PathLike[str] | None] = ()
                  ) -> dict[str, Any]:
     """Write the folder atomically: hologram.gcode, stipples.npz, verify.json and
     hologram.json. Returns the verification summary. ``inputs`` are the model
-    file, which ``out`` must not hold as a file a design writes."""
+    file, which ``out`` must not hold as a file a design writes. The G-code is
+    read back by the safety check (:func:`steady_limits`) before anything is kept."""
     from specholo.fabrication.atomic import atomic_open
+    from specholo.fabrication.check import check_program
     from specholo.folders import check_out, publish
 
     inputs = list(inputs)
@@ -156,6 +175,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
         lines = write_path_gcode(tmp / "hologram.gcode", design, config.tool, config.machining,
                                  {"design": f"{design.shape}s, one per stipple and eye",
                                   "tool": f"ball end, radius {config.tool.radius:g} mm"})
+        safety = check_program(tmp / "hologram.gcode", steady_limits(design, config))
         with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
             np.savez_compressed(fh, points=design.points, centres=design.centres,
                                 offsets=design.offsets, stipple=design.stipple,
@@ -165,6 +185,8 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
         meta = {"design": "steady", "config": config.as_dict(), "cuts": design.n_cuts,
                 "stipples": len(design.points), "stipples_dropped": design.dropped,
                 "gcode_lines": lines, "verify": summary,
+                "safety_check": {"moves": safety.moves, "violations": 0,
+                                 "deepest_cut_mm": safety.deepest},
                 "scoop_radius_mm": {"median": float(np.median(design.radius))}
                 if design.shape == "scoop" else None}
         with atomic_open(tmp / "hologram.json") as fh:

@@ -442,33 +442,53 @@ def _verify_ridged(folder: Path, step: float) -> None:
 @click.option("--plate-height", type=float, required=True, help="Plate height, mm.")
 @click.option("--stock-thickness", type=float, default=3.0, show_default=True,
               help="Plate thickness, mm.")
-@click.option("--max-depth", type=float, required=True, help="Deepest cut allowed, mm.")
+@click.option("--max-depth", type=float, required=True,
+              help="Deepest cut allowed below the surface, mm (any tool).")
 @click.option("--safe-z", type=float, default=1.0, show_default=True,
               help="Lowest height for X/Y rapids, mm.")
 @click.option("--feed", type=(float, float), default=(1.0, 5000.0), show_default=True,
               help="Lowest and highest feed allowed, mm/min.")
 @click.option("--spindle", type=(float, float), default=(0.0, 30000.0), show_default=True,
               help="Lowest and highest spindle speed (or laser power) allowed.")
-@click.option("--laser", is_flag=True, help="The program drives a laser (no Z moves).")
-@click.option("--no-spindle", is_flag=True,
-              help="The tool cuts without spinning (drag tip or scriber).")
+@click.option("--tool", type=click.Choice(["ball", "vbit", "drag", "scriber", "laser"]),
+              default=None,
+              help="The tool: a ball or V-bit spins to cut, a drag tip or scriber cuts with "
+                   "the spindle off, a laser cuts where it is on and never goes below the "
+                   "surface [ball].")
+@click.option("--laser", is_flag=True, help="As --tool laser.")
+@click.option("--no-spindle", is_flag=True, help="As --tool drag.")
 def check(gcode: Path, plate_width: float, plate_height: float, stock_thickness: float,
           max_depth: float, safe_z: float, feed: tuple[float, float],
-          spindle: tuple[float, float], laser: bool, no_spindle: bool) -> None:
-    """Check any G-code file: cuts inside the plate (origin at its centre, Z = 0 on
-    its surface) and above the maximum depth, rapids only at the safe height, feeds
-    and spindle in range. Exits with status 1 if anything is wrong."""
-    from specholo.fabrication.check import Stock, check_gcode
+          spindle: tuple[float, float], tool: str | None, laser: bool,
+          no_spindle: bool) -> None:
+    """Check any G-code file (G20 programs are read in mm) against limits in mm.
 
+    Every cut stays inside the plate (origin at its centre, Z = 0 on its surface),
+    arcs over their whole sweep, and no deeper than --max-depth (or the stock)
+    below the surface, whatever the tool; a laser never goes below the surface.
+    Rapids move in X/Y only at --safe-z or above and never plunge below it (a
+    laser's only with the beam off). Feed moves run within --feed, the spindle
+    (laser power) within --spindle when on, and a ball or V-bit only cuts while
+    it spins. Unknown words, moves from unknown positions, arcs off their circle
+    and moves after the program's end are reported. Exits with status 1 if
+    anything is wrong."""
+    from specholo.fabrication.check import CUTTER_KINDS, Limits, Stock, check_limits
+
+    aliases = {name for name, given in (("laser", laser), ("drag", no_spindle)) if given}
+    if len(aliases) > 1 or (tool is not None and aliases
+                            and {CUTTER_KINDS[tool]} != {CUTTER_KINDS[a] for a in aliases}):
+        raise SpecholoError("give one tool: --tool, --laser (as --tool laser) or --no-spindle "
+                            "(as --tool drag)")
+    kind = CUTTER_KINDS[tool or (aliases.pop() if aliases else "ball")]
     for name, v in (("plate width", plate_width), ("plate height", plate_height),
                     ("stock thickness", stock_thickness)):
         if not (math.isfinite(v) and v > 0):
             raise SpecholoError(f"{name} must be a positive number of mm, got {v}")
     if not gcode.is_file():
         raise SpecholoError(f"G-code file {gcode} not found")
-    report = check_gcode(gcode, Stock.centred(plate_width, plate_height, stock_thickness),
-                         max_depth, safe_z, feed, spindle, laser=laser,
-                         spindle=not no_spindle)
+    limits = Limits(Stock.centred(plate_width, plate_height, stock_thickness), max_depth,
+                    safe_z, feed, spindle, kind)
+    report = check_limits(gcode, limits)
     click.echo(report.summary())
     if not report.ok:
         sys.exit(1)

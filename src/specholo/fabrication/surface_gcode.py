@@ -1,11 +1,13 @@
 """G-code for grooves on curved hosts: 3-axis with a vertical tool, and 4-axis
-with a rotary A axis for a cylinder; and an independent check of both.
+with a rotary A axis for a cylinder; and the limits the safety check
+(:mod:`specholo.fabrication.check`, the one every program passes) holds them to.
 
 3-axis: a ball is round, so a vertical ball-end tool whose centre sits at
 C = c + (R - d) N cuts the same groove as one held along the local normal N,
 as long as its shank clears the surface; that holds while the surface tilts
 less than asin(1 - d / R) from vertical. Samples beyond that reach are left out
-(and counted). The program moves the tool tip, R below the centre.
+(and counted). The program moves the tool tip, R below the centre; rapids go
+at the safe height above the host's highest point, wherever the grooves are.
 
 4-axis (cylinder only): the cylinder's axis lies along the machine's X, the A
 axis turns it (degrees), and the tool stays over the axis, so it always cuts
@@ -18,16 +20,25 @@ All numbers are written with '.' as the decimal point whatever the locale.
 from __future__ import annotations
 
 import math
-import re
+import os
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.hosts.surfaces import Cylinder, Host
+from specholo.fabrication.check import Limits, Stock, check_program, tool_kind
+from specholo.hosts.surfaces import Cylinder, HeightField, Host, MeshHost, Panels, Plane, Sphere
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.conforming import ConformingGrooves
+
+#: Blank border around the grooves of an unbounded plane host, mm (as a flat
+#: design's plate when no size is given).
+PLANE_MARGIN = 5.0
+#: Allowance on a cut's depth below a curved host, mm: the tip follows the
+#: surface in straight moves between samples whose ends are rounded to 0.1 um,
+#: and a vertical ball on a concave slope reaches a little below the depth.
+SURFACE_TOLERANCE = 2e-3
 
 
 def reach_tilt(tool: Tool) -> float:
@@ -92,8 +103,7 @@ def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
     dropped = 0
     length = 0.0
     if axes == 3:
-        top = float(np.nanmax(grooves.point[:, 2])) if len(grooves.point) else 0.0
-        safe = top + machining.safe_z
+        safe = host_top(host) + machining.safe_z
         lines.append(f"G0 Z{_f(safe)}")
         limit = math.cos(reach_tilt(tool))
         for path in np.split(np.arange(len(grooves.point)),
@@ -140,81 +150,170 @@ def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
     return SurfaceProgram("\n".join(lines) + "\n", paths, dropped, length)
 
 
-_WORD = re.compile(r"([A-Z])([-+]?\d*\.?\d+)")
+def host_top(host: Host) -> float:
+    """The host's highest point, mm: the 3-axis safe height is measured from it (a
+    rapid clears every part of the host, not only the grooves)."""
+    if isinstance(host, Plane | Cylinder | Sphere):
+        return 0.0  # their front passes through the origin, at their top
+    if isinstance(host, HeightField):
+        # the bicubic spline may rise between its samples: it is read on a grid
+        # four times finer too
+        x = np.linspace(host.x[0], host.x[-1], 4 * len(host.x))
+        y = np.linspace(host.y[0], host.y[-1], 4 * len(host.y))
+        xx, yy = np.meshgrid(x, y)
+        between = np.nanmax(_vertical_hits(host, xx.ravel(), yy.ravel(), float(host.z.max())))
+        return float(max(host.z.max(), between))
+    if isinstance(host, MeshHost):
+        return float(host.mesh.bounds[1][2])
+    if isinstance(host, Panels):
+        return float(_panel_corners(host)[:, 2].max())
+    raise SpecholoError(f"no highest point known for a {host.kind} host")
 
 
-def check_surface_gcode(text: str, host: Host, tool: Tool, machining: Machining,
-                        axes: int = 3, tolerance: float = 2e-3) -> dict[str, Any]:
-    """Read a program back and check it cuts no deeper than the groove and
-    moves fast only at the safe height.
+def _panel_corners(host: Panels) -> np.ndarray:
+    """(4 k, 3) corners of a panels host's panels, mm."""
+    corners = []
+    for p in host.panels:
+        c, right, up, _ = p.frame()
+        for sx, sy in ((-1, -1), (-1, 1), (1, -1), (1, 1)):
+            corners.append(c + 0.5 * sx * p.width * right + 0.5 * sy * p.height * up)
+    return np.array(corners)
 
-    This reader shares no code with the writer: a modal interpreter of G0/G1
-    with X, Y, Z, A and F words. For 3 axes, every cutting position's ball
-    centre (R above the tip) must stay at least R - d from the host surface
-    (measured along the host normal of the nearest surface point) and on the
-    host's outer side; for 4 axes the tip's Z must stay at or above -d. Rapids
-    must be at or above the safe height (Z only moves at a rapid otherwise).
+
+def host_extent(host: Host, grooves: ConformingGrooves) -> tuple[float, float, float, float]:
+    """x0, y0, x1, y1 (mm): where a vertical tool may cut a host, seen from above.
+
+    The host's own extent; an unbounded plane's is its grooves' plus
+    :data:`PLANE_MARGIN` (as a flat design's plate)."""
+    if isinstance(host, Plane):
+        w, h = host.width, host.height
+        if math.isfinite(w) and math.isfinite(h):
+            return -0.5 * w, -0.5 * h, 0.5 * w, 0.5 * h
+        p = grooves.point[:, :2] if len(grooves.point) else np.zeros((1, 2))
+        lo, hi = p.min(axis=0) - PLANE_MARGIN, p.max(axis=0) + PLANE_MARGIN
+        x0 = -0.5 * w if math.isfinite(w) else float(lo[0])
+        x1 = 0.5 * w if math.isfinite(w) else float(hi[0])
+        y0 = -0.5 * h if math.isfinite(h) else float(lo[1])
+        y1 = 0.5 * h if math.isfinite(h) else float(hi[1])
+        return x0, y0, x1, y1
+    if isinstance(host, Cylinder):
+        return -host.radius, -0.5 * host.height, host.radius, 0.5 * host.height
+    if isinstance(host, Sphere):
+        return -host.radius, -host.radius, host.radius, host.radius
+    if isinstance(host, HeightField):
+        return float(host.x[0]), float(host.y[0]), float(host.x[-1]), float(host.y[-1])
+    if isinstance(host, MeshHost):
+        (x0, y0, _), (x1, y1, _) = np.asarray(host.mesh.bounds, dtype=float)
+        return float(x0), float(y0), float(x1), float(y1)
+    if isinstance(host, Panels):
+        c = _panel_corners(host)
+        return float(c[:, 0].min()), float(c[:, 1].min()), float(c[:, 0].max()), \
+            float(c[:, 1].max())
+    raise SpecholoError(f"no extent known for a {host.kind} host")
+
+
+def _surface_under(host: Host, x: np.ndarray, y: np.ndarray, top: float,
+                   reach: float) -> np.ndarray:
+    """Height (n,) of the host's surface under vertical-tool tips at x, y (n,), mm.
+
+    Straight down, the host's first surface. A groove at the host's edge puts the
+    tip beyond the edge (up to R - d across from where the ball meets the
+    surface): there the surface is extended to the tip by its tangent planes at
+    the points straight down from a ring of radius ``reach`` about it (the
+    highest of them, so the depth is not understated); NaN where the ring finds
+    no surface either.
+    """
+    h = _vertical_hits(host, x, y, top)
+    miss = np.flatnonzero(np.isnan(h))
+    if len(miss) and reach > 0:
+        px, py = np.asarray(x, dtype=float).ravel()[miss], np.asarray(y, dtype=float).ravel()[miss]
+        turn = np.linspace(0.0, 2.0 * math.pi, _RING, endpoint=False)
+        rx = (px[:, None] + reach * np.cos(turn)).ravel()
+        ry = (py[:, None] + reach * np.sin(turn)).ravel()
+        rz = _vertical_hits(host, rx, ry, top)
+        ext = np.full(len(rz), np.nan)
+        hit = np.flatnonzero(~np.isnan(rz))
+        if len(hit):
+            n = host.normal(np.stack([rx[hit], ry[hit], rz[hit]], axis=1))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ext[hit] = rz[hit] - (n[:, 0] * (np.repeat(px, _RING)[hit] - rx[hit])
+                                      + n[:, 1] * (np.repeat(py, _RING)[hit] - ry[hit])) / n[:, 2]
+        ring = ext.reshape(len(miss), _RING)
+        found = ~np.isnan(ring).all(axis=1)
+        h[miss[found]] = np.nanmax(ring[found], axis=1)
+    return h
+
+
+#: Points on the ring about a tip beyond a host's edge (:func:`_surface_under`).
+_RING = 12
+
+
+def _vertical_hits(host: Host, x: np.ndarray, y: np.ndarray, top: float) -> np.ndarray:
+    """Height (n,) of the host's first surface met straight down from above each
+    x, y (n,), mm; NaN where there is none."""
+    x, y = np.asarray(x, dtype=float).ravel(), np.asarray(y, dtype=float).ravel()
+    if not len(x):
+        return np.zeros(0)
+    origins = np.stack([x, y, np.full(len(x), top + 1.0)], axis=1)
+    hit = host.intersect(origins, np.array([0.0, 0.0, -1.0]))
+    return np.where(hit.valid, hit.point[:, 2], np.nan)
+
+
+def surface_limits(grooves: ConformingGrooves, host: Host, tool: Tool, machining: Machining,
+                   axes: int = 3) -> Limits:
+    """What a host's program may do, from the composition's settings (mm).
+
+    3 axes: the tool tip inside the host seen from above, no deeper than the
+    groove below the surface under it (``Limits.surface``: the host's first
+    surface straight down, extended a little past its edges), rapids at the
+    safe height above the host's top.
+    4 axes: the tip over the cylinder's axis (Y within half a groove) and along
+    its length, no deeper than the groove below the top of the turning cylinder
+    (Z = 0 there, however it turns), rapids at the safe height. Feeds and
+    spindle as set; the tool is a mill if it spins, else a drag tip.
+    """
+    feeds = (min(machining.feed, machining.plunge), max(machining.feed, machining.plunge))
+    spindle = (machining.spindle, machining.spindle)
+    kind = tool_kind("ball", machining.spindle)
+    # a host has no thickness setting: the ball's radius bounds how deep it reaches
+    if axes == 4:
+        if not isinstance(host, Cylinder):
+            raise SpecholoError("4-axis output is for a cylinder host (a rotary A axis)")
+        r, half = host.radius, 0.5 * host.height
+        y = 0.5 * tool.width
+
+        def on_cylinder(x: np.ndarray, yy: np.ndarray, z: np.ndarray) -> np.ndarray:
+            x, yy = np.asarray(x, dtype=float), np.asarray(yy, dtype=float)
+            with np.errstate(invalid="ignore"):
+                z = np.sqrt(r * r - yy * yy) - r
+            return np.where((np.abs(x) <= half) & (np.abs(yy) <= r), z, np.nan)
+
+        return Limits(Stock(-half, -y, half, y, tool.radius), tool.depth, machining.safe_z,
+                      feeds, spindle, kind, surface=on_cylinder, rotary=True,
+                      tolerance=SURFACE_TOLERANCE)
+    top = host_top(host)
+
+    def under(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+        return _surface_under(host, x, y, top, tool.radius - tool.depth)
+
+    return Limits(Stock(*host_extent(host, grooves), tool.radius), tool.depth,
+                  top + machining.safe_z, feeds, spindle, kind, surface=under,
+                  tolerance=SURFACE_TOLERANCE)
+
+
+def check_surface_program(path: str | os.PathLike[str], grooves: ConformingGrooves, host: Host,
+                          tool: Tool, machining: Machining, axes: int = 3) -> dict[str, Any]:
+    """Read a host's written program back through the safety check
+    (:func:`surface_limits`).
 
     Returns:
-        Figures: cutting moves, rapids, deepest cut.
+        Figures: moves by kind, cutting moves, the deepest cut below the surface
+        (mm) and the safe height (machine Z, mm).
 
     Raises:
-        SpecholoError: the first violation, with its line number.
+        SpecholoError: on any violation, in one line.
     """
-    pos = {"X": 0.0, "Y": 0.0, "Z": math.inf, "A": 0.0}
-    mode = 0
-    cuts: list[tuple[int, float, float, float, float]] = []
-    rapids = 0
-    safe = None
-    for number, raw in enumerate(text.splitlines(), 1):
-        line = re.sub(r"\(.*?\)", "", raw).strip().upper()
-        if not line:
-            continue
-        words = dict((k, float(v)) for k, v in _WORD.findall(line.replace(" ", "")))
-        if "G" in words:
-            g = int(words["G"])
-            if g in (0, 1):
-                mode = g
-        for gm in re.findall(r"G(\d+)", line):
-            if int(gm) in (0, 1):
-                mode = int(gm)
-        moved = any(k in words for k in ("X", "Y", "Z", "A"))
-        old_z = pos["Z"]
-        for axis in ("X", "Y", "Z", "A"):
-            if axis in words:
-                pos[axis] = words[axis]
-        if not moved:
-            continue
-        if mode == 0:
-            rapids += 1
-            if safe is None and "Z" in words and not any(k in words for k in ("X", "Y", "A")):
-                safe = pos["Z"]
-            if any(k in words for k in ("X", "Y", "A")) and (safe is None or old_z < safe - 1e-9):
-                raise SpecholoError(f"line {number}: rapid move below the safe height")
-        else:
-            cuts.append((number, pos["X"], pos["Y"], pos["Z"], pos["A"]))
-    if safe is None:
-        raise SpecholoError("no safe height set before the first rapid")
-    deepest = 0.0
-    if cuts:
-        arr = np.array(cuts)
-        if axes == 3:
-            centre = arr[:, 1:4] + np.array([0.0, 0.0, tool.radius])
-            near = host.project(centre)
-            n = host.normal(near)
-            dist = np.sum((centre - near) * n, axis=1)
-            bad = dist < tool.radius - tool.depth - tolerance
-            deepest = float(tool.radius - dist.min())
-            if bad.any():
-                i = int(np.flatnonzero(bad)[0])
-                raise SpecholoError(
-                    f"line {int(arr[i, 0])}: cuts {tool.radius - dist[i]:.4f} mm into the "
-                    f"surface, deeper than the groove's {tool.depth:g} mm")
-        else:
-            deepest = float(-arr[:, 3].min())
-            if deepest > tool.depth + tolerance:
-                i = int(np.argmin(arr[:, 3]))
-                raise SpecholoError(f"line {int(arr[i, 0])}: cuts {deepest:.4f} mm deep, "
-                                    f"deeper than the groove's {tool.depth:g} mm")
-    return {"cutting_moves": len(cuts), "rapids": rapids, "deepest_cut_mm": deepest,
-            "safe_z": safe}
+    limits = surface_limits(grooves, host, tool, machining, axes)
+    report = check_program(path, limits)
+    return {"moves": report.moves, "violations": 0, "cutting_moves": report.moves["cutting"],
+            "deepest_cut_mm": report.deepest, "safe_z": limits.safe_z}

@@ -441,6 +441,8 @@ class MeshHost:
             return out
         dist = np.sum((loc - o[idx][ray]) * dn[idx][ray], axis=1)
         keep = dist > -_EPS
+        if not keep.any():  # every hit lies behind its ray's start
+            return out
         loc, ray, tri, dist = loc[keep], ray[keep], tri[keep], dist[keep]
         order = np.lexsort((dist, ray))
         first = order[np.r_[True, ray[order][1:] != ray[order][:-1]]]
