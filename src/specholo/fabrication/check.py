@@ -141,9 +141,8 @@ class Limits:
         feed_range: (lowest, highest) feed of feed moves, mm/min.
         spindle_range: (lowest, highest) spindle speed (laser power) when on.
         tool: a kind of :data:`TOOL_KINDS`.
-        surface: height (mm) of the surface under the tool tip at x, y, z
-            (arrays, mm; z for a surface found from the tip's nearest point),
-            NaN where there is none; None for the plate Z = 0.
+        surface: height (mm) of the surface under points x, y (arrays, mm), NaN
+            where there is none; None for the plate Z = 0.
         rotary: the program may turn a rotary axis (``A`` words).
         tolerance: rounding allowance on positions, mm.
     """
@@ -154,7 +153,7 @@ class Limits:
     feed_range: tuple[float, float]
     spindle_range: tuple[float, float]
     tool: str = "mill"
-    surface: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
+    surface: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
     rotary: bool = False
     tolerance: float = 1e-4
 
@@ -545,8 +544,7 @@ def _arc_middles(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return cx + r * np.cos(half), cy + r * np.sin(half)
 
 
-def _above_surface(m: np.ndarray,
-                   surface: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+def _above_surface(m: np.ndarray, surface: Callable[[np.ndarray, np.ndarray], np.ndarray],
                    rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """How far the tool stays above a curved surface over each move, mm (n,):
     the least of its ends' and its middle's heights over the surface under them
@@ -563,8 +561,7 @@ def _above_surface(m: np.ndarray,
         mx[arcs], my[arcs] = _arc_middles(m[r[arcs]])
     # Z goes linearly along a line and a helix: its middle is halfway
     mz = 0.5 * (z0 + z1)
-    heights = [np.asarray(surface(x, y, z), dtype=float)
-               for x, y, z in ((x0, y0, z0), (x1, y1, z1), (mx, my, mz))]
+    heights = [np.asarray(surface(x, y), dtype=float) for x, y in ((x0, y0), (x1, y1), (mx, my))]
     least = np.minimum(np.minimum(z0 - heights[0], z1 - heights[1]), mz - heights[2])
     above[r] = least
     off[r] = np.isnan(heights[0]) | np.isnan(heights[1]) | np.isnan(heights[2])

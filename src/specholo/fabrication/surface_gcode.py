@@ -282,7 +282,7 @@ def surface_limits(grooves: ConformingGrooves, host: Host, tool: Tool, machining
         r, half = host.radius, 0.5 * host.height
         y = 0.5 * tool.width
 
-        def on_cylinder(x: np.ndarray, yy: np.ndarray, z: np.ndarray) -> np.ndarray:
+        def on_cylinder(x: np.ndarray, yy: np.ndarray) -> np.ndarray:
             x, yy = np.asarray(x, dtype=float), np.asarray(yy, dtype=float)
             with np.errstate(invalid="ignore"):
                 z = np.sqrt(r * r - yy * yy) - r
@@ -293,7 +293,7 @@ def surface_limits(grooves: ConformingGrooves, host: Host, tool: Tool, machining
                       tolerance=SURFACE_TOLERANCE)
     top = host_top(host)
 
-    def under(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    def under(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         return _surface_under(host, x, y, top, tool.radius - tool.depth)
 
     return Limits(Stock(*host_extent(host, grooves), tool.radius), tool.depth,
