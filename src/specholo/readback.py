@@ -28,6 +28,8 @@ import json
 import math
 import os
 import stat
+import struct
+import tokenize
 import zipfile
 import zlib
 from collections.abc import Iterator
@@ -171,10 +173,11 @@ def read_text(path: str | os.PathLike[str], max_bytes: int, what: str = "") -> s
         raise SpecholoError(f"{_name(what, path)} is not UTF-8 text: {one_line(exc)}") from exc
 
 
-def read_json(path: str | os.PathLike[str], max_bytes: int = MAX_JSON_BYTES,
+def read_json(path: str | os.PathLike[str], max_bytes: int | None = None,
               what: str = "") -> Any:
-    """A regular file's JSON (see :func:`read_bytes`); its structure is the caller's."""
-    data = read_bytes(path, max_bytes, what)
+    """A regular file's JSON, at most ``max_bytes`` (default :data:`MAX_JSON_BYTES`)
+    of it (see :func:`read_bytes`); its structure is the caller's."""
+    data = read_bytes(path, MAX_JSON_BYTES if max_bytes is None else max_bytes, what)
     try:
         return json.loads(data)
     except MemoryError as exc:
@@ -306,12 +309,16 @@ def _header(fh: IO[bytes]) -> tuple[tuple[int, ...], bool, np.dtype[Any]]:
     """Shape, Fortran order and dtype from an .npy member's header."""
     fmt = np.lib.format
     version = fmt.read_magic(fh)
-    if version == (1, 0):
-        return fmt.read_array_header_1_0(fh)
-    if version == (2, 0):
-        return fmt.read_array_header_2_0(fh)
     # Version 3 only adds UTF-8 field names (structured dtypes, never used here).
-    raise ValueError(f".npy format version {version[0]}.{version[1]} is not read here")
+    if version not in ((1, 0), (2, 0)):
+        raise ValueError(f".npy format version {version[0]}.{version[1]} is not read here")
+    read = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+    try:
+        return read(fh)
+    except (SyntaxError, tokenize.TokenError, RecursionError, TypeError, KeyError) as exc:
+        # numpy parses the header's dict literal with Python's tokenizer, which
+        # reports a malformed one in its own ways.
+        raise ValueError(f"malformed .npy header: {one_line(exc)}") from exc
 
 
 def _accepts(want: np.dtype[Any], got: np.dtype[Any]) -> bool:
@@ -323,13 +330,13 @@ def _accepts(want: np.dtype[Any], got: np.dtype[Any]) -> bool:
 
 
 def load_arrays(path: str | os.PathLike[str], spec: dict[str, ArraySpec],
-                max_bytes: int = MAX_ARRAY_BYTES) -> dict[str, np.ndarray]:
+                max_bytes: int | None = None) -> dict[str, np.ndarray]:
     """Read the named arrays of an ``.npz`` as ``spec`` says they must be.
 
     Every header is checked (shape, dtype, and that the member holds exactly the
-    bytes it declares) and the sizes added up against ``max_bytes`` and the
-    memory available before any array is loaded. Members not in ``spec`` are
-    not read.
+    bytes it declares) and the sizes added up against ``max_bytes`` (default
+    :data:`MAX_ARRAY_BYTES`; the file itself too) and the memory available
+    before any array is loaded. Members not in ``spec`` are not read.
 
     Returns:
         The arrays by name (optional ones only where present), C-contiguous, of
@@ -340,6 +347,8 @@ def load_arrays(path: str | os.PathLike[str], spec: dict[str, ArraySpec],
     """
     from specholo.scene.loading import format_bytes
 
+    if max_bytes is None:
+        max_bytes = MAX_ARRAY_BYTES
     name = os.fspath(path)
     fd, _ = open_regular(path, "", max_bytes)
     with os.fdopen(fd, "rb") as fh:
@@ -373,11 +382,11 @@ def load_arrays(path: str | os.PathLike[str], spec: dict[str, ArraySpec],
             raise
         except MemoryError as exc:
             raise SpecholoError(f"{name}: out of memory reading it") from exc
-        except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError,
+        except (zipfile.BadZipFile, zlib.error, struct.error, EOFError, OSError, ValueError,
                 NotImplementedError, RuntimeError, OverflowError) as exc:
             # BadZipFile: not a zip, truncated, a CRC that does not match;
-            # NotImplementedError: a compression method zipfile lacks;
-            # RuntimeError: an encrypted member.
+            # struct.error: a zip record cut short; NotImplementedError: a
+            # compression method zipfile lacks; RuntimeError: an encrypted member.
             raise SpecholoError(f"{name} is not a readable .npz file: {one_line(exc)}") from exc
 
 
