@@ -483,6 +483,15 @@ def design_composition(comp: Composition) -> ComposedDesign:
             "no groove could be designed: every view of every stipple is hidden, misses the "
             f"host ({missed} stipple-views) or needs a wall steeper than the tool's "
             f"({tilt}); enlarge the host, move the scene or use a deeper cut")
+    from specholo.readback import bounded
+    from specholo.toolpaths.grooves import MAX_COORDINATE
+
+    # What verify would refuse to read back (beyond any plate: a scene shifted far
+    # off an unbounded plane) is refused before anything is written.
+    if not bounded(grooves.point, MAX_COORDINATE):
+        raise SpecholoError(f"the grooves reach {float(np.abs(grooves.point).max()):.3g} mm "
+                            "from the host's centre, beyond any plate: bring the scenes "
+                            "(center_z, shift) closer")
     stats["stripes"] = int(np.unique(grooves.stripe).size)
     stats["samples"] = int(len(grooves.stripe))
     stats["groove_length_mm"] = grooves.length()
