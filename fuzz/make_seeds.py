@@ -88,9 +88,47 @@ def _gcode_seeds() -> dict[str, bytes]:
     return seeds
 
 
+def _folder_seeds() -> dict[str, bytes]:
+    """Each file of a tiny design folder whole (raw mode), and edits of it."""
+    base = targets.base_folder()
+    seeds = {}
+    for i, name in enumerate(targets.FOLDER_FILES):
+        stem = name.split(".")[0]
+        seeds[f"raw_{stem}"] = bytes([i, 0]) + (base / name).read_bytes()
+        for k in range(3):  # array or settings changes (1), byte edits (2)
+            rest = bytes(np.random.default_rng(10 * i + k).integers(0, 256, 24))
+            seeds[f"edit_{stem}_{k}"] = bytes([i, 1 + k % 2]) + rest
+    return seeds
+
+
+def _composition_seeds() -> dict[str, bytes]:
+    raw = {
+        "small": targets.SMALL_COMPOSITION,
+        "light": 'mode = "light"\n' + targets.SMALL_COMPOSITION + "turn = 0.5\n",
+        "cylinder": targets.SMALL_COMPOSITION.replace(
+            "[[scene]]", '[host]\nkind = "cylinder"\nradius = 40\n[[scene]]'),
+        "heightfield": targets.SMALL_COMPOSITION.replace(
+            "[[scene]]", '[host]\nkind = "heightfield"\nfile = "hf.npz"\n[[scene]]'),
+        "mesh": targets.SMALL_COMPOSITION.replace(
+            "[[scene]]", '[host]\nkind = "mesh"\nfile = "tet.obj"\n[[scene]]'),
+        "panels": targets.SMALL_COMPOSITION.replace(
+            "[[scene]]", '[host]\nkind = "panels"\n[[host.panels]]\ncentre = [0, 0, 0]\n'
+            'normal = [0, 0, 1]\nwidth = 80\nheight = 80\n[[scene]]'),
+        "frames": targets.SMALL_COMPOSITION.replace('model = "tet.obj"',
+                                                    'frames = "tet*.obj"'),
+    }
+    seeds = {f"raw_{k}": b"\x00" + v.encode() for k, v in raw.items()}
+    for i in range(8):
+        seeds[f"gen_{i}"] = bytes([1]) + bytes(np.random.default_rng(i).integers(0, 256, 24))
+    return seeds
+
+
+TARGETS = ("load_model", "config", "gcode", "folder", "composition")
+
+
 def main() -> None:
     corpus = Path(sys.argv[1]) if len(sys.argv) > 1 else HERE / "corpus"
-    for sub in ("load_model", "config", "gcode"):
+    for sub in TARGETS:
         (corpus / sub).mkdir(parents=True, exist_ok=True)
     for name, (ext, body) in _model_seeds().items():
         (corpus / "load_model" / name).write_bytes(bytes([targets.MODEL_EXTS.index(ext)]) + body)
@@ -98,7 +136,11 @@ def main() -> None:
         (corpus / "config" / name).write_bytes(body)
     for name, body in _gcode_seeds().items():
         (corpus / "gcode" / name).write_bytes(body)
-    for sub in ("load_model", "config", "gcode"):
+    for name, body in _folder_seeds().items():
+        (corpus / "folder" / name).write_bytes(body)
+    for name, body in _composition_seeds().items():
+        (corpus / "composition" / name).write_bytes(body)
+    for sub in TARGETS:
         print(f"{sub}: {len(list((corpus / sub).iterdir()))} seeds in {corpus / sub}")
 
 

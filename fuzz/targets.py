@@ -343,6 +343,385 @@ def check_gcode_bytes(data: bytes) -> None:
     check_gcode_file(path)
 
 
+# ---------------------------------------------------------------- design folders
+
+
+def compiled_modules() -> list[str]:
+    """The modules of specholo with compiled (numba) kernels, for atheris to leave
+    alone: numba compiles a kernel from its bytecode, which instrumented bytecode
+    breaks (it calls into atheris)."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("specholo")
+    assert spec is not None and spec.origin is not None
+    root = Path(spec.origin).parent
+    found = re.compile(r"^\s*(import numba|from numba)", re.MULTILINE)
+    return sorted(".".join(p.relative_to(root.parent).with_suffix("").parts)
+                  for p in root.rglob("*.py")
+                  if found.search(p.read_text(encoding="utf-8", errors="replace")))
+
+
+#: The files of a design folder that the folder fuzz target mutates.
+FOLDER_FILES = ("hologram.json", "grooves.npz", "stipples.npz", "model.ply")
+#: Commands run on a mutated folder: each must work or refuse in one line.
+FOLDER_COMMANDS = (("verify", "--step", "5"), ("render", "--width", "24", "--height", "24"),
+                   ("report",), ("stereo", "--width", "16", "--height", "16"),
+                   ("verify", "--from-gcode", "--step", "5"))
+
+_TET = ("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n"
+        "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+_BASE: Path | None = None
+
+
+def base_folder() -> Path:
+    """A tiny design folder (8 stipples on a tetrahedron), made once per process."""
+    global _BASE
+    if _BASE is None:
+        from specholo.pipeline import DesignConfig, design, write_design
+
+        model = scratch("tet.obj")
+        model.write_text(_TET)
+        d = design(model, DesignConfig(stipples=8, view_range=20.0, seed=1))
+        write_design(d, scratch("base"), ("gcode",))
+        _BASE = scratch("base")
+    return _BASE
+
+
+_HOSTILE_NUMBERS = (math.nan, math.inf, -math.inf, -1, -100, 0, 10**12, -1e12, 2**62, 1e300,
+                    -0.0, 1, 3)
+_HOSTILE_DTYPES = ("float32", "float16", "int8", "uint64", "int32", "bool", ">f8", ">i8",
+                   "complex128", "object", "U3")
+_HOSTILE_JSON: tuple[Any, ...] = (None, -1, 0, 1e308, -1e308, "x", "", [], {}, True, math.nan,
+                                  math.inf, 10**30, [1, 2], {"a": 1}, 0.5)
+
+
+def _mutate_array(a: np.ndarray, b: _Bytes) -> np.ndarray | None:
+    """One hostile change to an array (None: drop it from the file)."""
+    op = b.byte() % 9
+    flat = a.reshape(-1).copy()
+    if op == 0 and flat.size:  # one hostile element
+        v = b.pick(_HOSTILE_NUMBERS)
+        i = b.byte() % flat.size
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            flat = flat.astype(float) if isinstance(v, float) and flat.dtype.kind in "iub" \
+                else flat
+            flat[i] = v if flat.dtype.kind == "f" or not isinstance(v, float) or math.isfinite(v) \
+                else 0
+        return flat.reshape(a.shape)
+    if op == 1 and a.dtype.kind in "iuf":  # everything shifted
+        return a + b.pick((-100, -1, 1, 10**6))
+    if op == 2 and a.ndim:  # cut short
+        return a[:b.byte() % (len(a) + 1)]
+    if op == 3:  # another dtype
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return a.astype(b.pick(_HOSTILE_DTYPES))
+    if op == 4:  # another shape
+        return b.pick((a.T, a.reshape(-1), a[..., None], np.asfortranarray(a)))
+    if op == 5:
+        return None
+    if op == 6:
+        return np.zeros((0,) * max(a.ndim, 1), dtype=a.dtype)
+    if op == 7:
+        return np.array(b.pick(_HOSTILE_NUMBERS))
+    return a[::-1].copy() if a.ndim else a  # reversed: offsets that decrease
+
+
+def _mutate_npz(path: Path, b: _Bytes) -> None:
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    for _ in range(1 + b.byte() % 3):
+        if not arrays:
+            break
+        key = b.pick(sorted(arrays))
+        new = _mutate_array(arrays[key], b)
+        if new is None:
+            del arrays[key]
+        else:
+            arrays[key] = new
+    np.savez(path, **arrays)  # object arrays are pickled: the reader must refuse them
+
+
+def _mutate_json(path: Path, b: _Bytes) -> None:
+    info = json.loads(path.read_text())
+    for _ in range(1 + b.byte() % 3):
+        node = info
+        # Walk down a few levels of tables and lists, then replace or drop what is there.
+        for _ in range(b.byte() % 4):
+            keys = list(node) if isinstance(node, dict) else list(range(len(node))) \
+                if isinstance(node, list) else []
+            child = node[b.pick(keys)] if keys else None
+            if not isinstance(child, dict | list) or not child:
+                break
+            node = child
+        if isinstance(node, dict) and node:
+            key = b.pick(sorted(node))
+            if b.byte() % 5 == 0:
+                del node[key]
+            else:
+                node[key] = b.pick(_HOSTILE_JSON)
+        elif isinstance(node, list) and node:
+            node[b.byte() % len(node)] = b.pick(_HOSTILE_JSON)
+    path.write_text(json.dumps(info))
+
+
+def mutate_folder(data: bytes, folder: Path) -> str:
+    """Apply a fuzz input to the design folder ``folder`` (a copy of :func:`base_folder`).
+
+    The first byte picks the file, the second how: the rest of the input as the
+    whole file (raw), a hostile change to its arrays or settings, or byte edits
+    (truncation, overwrites) of the real file.
+
+    Returns:
+        What was done, for messages.
+    """
+    b = _Bytes(data)
+    name = FOLDER_FILES[b.byte() % len(FOLDER_FILES)]
+    mode = b.byte() % 3
+    path = folder / name
+    if mode == 0:
+        path.write_bytes(data[2:])
+        return f"{name} raw"
+    if mode == 1 and name.endswith(".npz"):
+        _mutate_npz(path, b)
+        return f"{name} arrays"
+    if mode == 1 and name.endswith(".json"):
+        _mutate_json(path, b)
+        return f"{name} settings"
+    raw = bytearray(path.read_bytes())
+    for _ in range(1 + b.byte() % 4):
+        if not raw:
+            break
+        at = (b.byte() << 8 | b.byte()) % len(raw)
+        op = b.byte() % 3
+        if op == 0:
+            del raw[at:]
+        elif op == 1:
+            raw[at] = b.byte()
+        else:
+            raw[at:at] = bytes(b.byte() for _ in range(1 + b.byte() % 8))
+    path.write_bytes(bytes(raw))
+    return f"{name} bytes"
+
+
+def run_cli(argv: list[str]) -> tuple[int, str, str]:
+    """Run a ``specholo`` command in this process: exit code, stdout, stderr."""
+    import io
+
+    from specholo_cli.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in argv])
+    return code, out.getvalue(), err.getvalue()
+
+
+def check_cli_result(code: int, err: str, what: str) -> None:
+    """A command either worked (0) or refused in one line (1, "error: ...")."""
+    lines = err.strip().splitlines()
+    if code == 0:
+        return
+    if code != 1 or len(lines) != 1 or not lines[0].startswith("error: ") \
+            or "internal error" in err or "Traceback" in err:
+        raise FuzzFailure(f"{what}: exit {code}, stderr {err.strip()[:300]!r}")
+
+
+def check_folder(folder: Path, what: str, commands: tuple[tuple[str, ...], ...] = FOLDER_COMMANDS
+                 ) -> None:
+    """Run the commands that read design folders on ``folder``."""
+    for command in commands:
+        name, *options = command
+        label = f"{what}: {' '.join(command)}"
+        with quiet_check(label):
+            code, _, err = run_cli([name, str(folder), *options])
+        check_cli_result(code, err, label)
+
+
+def check_folder_bytes(data: bytes,
+                       commands: tuple[tuple[str, ...], ...] = FOLDER_COMMANDS) -> None:
+    """The folder fuzz target: a tiny design folder, one file mutated, then read back
+    by verify, render, report and stereo (``commands``)."""
+    import shutil
+
+    base = base_folder()
+    folder = scratch("folder")
+    shutil.rmtree(folder, ignore_errors=True)
+    shutil.copytree(base, folder)
+    what = mutate_folder(data, folder)
+    check_folder(folder, what, commands)
+
+
+def check_folder_input(path: str | os.PathLike[str]) -> None:
+    """Replay a saved folder fuzz input (kept as the input itself: it edits the
+    tiny design folder of :func:`base_folder`)."""
+    check_folder_bytes(Path(path).read_bytes())
+
+
+# ---------------------------------------------------------------- compositions
+
+_COMP_NUMBERS = ("0", "1", "2", "5", "-1", "0.5", "30", "45", "60", "90", "180", "1e9", "-1e9",
+                 "nan", "inf", "-inf", "1e400", "99999999999999999999", "3.0", "1.5", "0.001")
+_COMP_KEYS: dict[str, tuple[str, ...]] = {
+    "": ("mode", "stipples", "seed", "band", "step"),
+    "host": ("kind", "radius", "height", "width", "file"),
+    "light": ("elevation", "distance", "stop"),
+    "viewer": ("distance", "range", "height", "ipd"),
+    "tool": ("radius", "depth"),
+    "machining": ("feed", "plunge", "safe_z", "spindle", "axes"),
+    "scene": ("model", "frames", "size", "center_z", "from", "to", "turn", "shift", "yaw",
+              "stipples"),
+}
+_COMP_STRINGS = ('"walk"', '"light"', '"plane"', '"cylinder"', '"sphere"', '"heightfield"',
+                 '"mesh"', '"panels"', '"tet.obj"', '"hf.npz"', '"missing.obj"', '"tet*.obj"',
+                 '"/etc/passwd"', '"../tet.obj"', '""', '"**"', '"fifo.obj"')
+#: A composition that designs in about a second, the generator's starting point.
+SMALL_COMPOSITION = ('stipples = 4\nstep = 2\n[viewer]\nrange = 10\n'
+                     '[[scene]]\nmodel = "tet.obj"\nsize = 20\ncenter_z = -20\n')
+
+
+def composition_base() -> Path:
+    """The folder compositions are read in: tet.obj, a height field hf.npz, a FIFO."""
+    base = scratch("comp")
+    if not (base / "hf.npz").exists():
+        base.mkdir(exist_ok=True)
+        (base / "tet.obj").write_text(_TET)
+        (base / "tet_1.obj").write_text(_TET)
+        x = np.linspace(-60, 60, 9)
+        np.savez(base / "hf.npz", x=x, y=x, z=np.outer(np.sin(x / 30), np.cos(x / 40)))
+        with contextlib.suppress(OSError, AttributeError):
+            os.mkfifo(base / "fifo.obj")  # read, it must be refused, never waited on
+    return base
+
+
+#: Values a composition may well hold, per key: half the generated lines take one,
+#: so that most compositions get past parsing into the design.
+_COMP_SANE: dict[str, tuple[str, ...]] = {
+    "mode": ('"walk"', '"light"'), "stipples": ("1", "2", "3"), "seed": ("0", "7"),
+    "band": ("0.2", "1"), "step": ("1", "2"),
+    "kind": ('"plane"', '"cylinder"', '"sphere"', '"heightfield"', '"mesh"', '"panels"'),
+    "radius": ("30", "60", "0.05"), "height": ("0", "60"), "width": ("100", "40"),
+    "file": ('"hf.npz"', '"tet.obj"'), "elevation": ("30", "45", "60"),
+    "distance": ("500", "600"), "stop": ("50", "70"), "range": ("5", "10", "20"),
+    "ipd": ("64",), "depth": ("0.02", "0.04"), "feed": ("300",), "plunge": ("100",),
+    "safe_z": ("1",), "spindle": ("0", "12000"), "axes": ("3", "4"),
+    "model": ('"tet.obj"', '"tet_1.obj"'), "frames": ('"tet*.obj"',), "size": ("20", "30"),
+    "center_z": ("-20", "0", "10"), "from": ("-5", "0"), "to": ("5", "50"),
+    "turn": ("0", "0.5"), "shift": ("[1, 0, 0]", "[0, 0, 0.1]"), "yaw": ("0", "30"),
+}
+
+
+def _comp_value(b: _Bytes, key: str) -> str:
+    kind = b.byte() % 8
+    if kind < 4:
+        return str(b.pick(_COMP_SANE[key]))
+    if key == "shift" or kind == 7:
+        return "[" + ", ".join(b.pick(_COMP_NUMBERS) for _ in range(b.byte() % 4)) + "]"
+    if key in ("mode", "kind", "model", "frames", "file") or kind == 6:
+        return str(b.pick(_COMP_STRINGS))
+    return str(b.pick(_COMP_NUMBERS))
+
+
+def composition_text(data: bytes) -> bytes:
+    """A composition from a fuzz input: raw TOML (first byte even), or a small
+    composition with hostile lines added to its tables (odd)."""
+    if not data or data[0] % 2 == 0:
+        return data[1:]
+    b = _Bytes(data[1:])
+    tables: dict[str, list[str]] = {name: [] for name in _COMP_KEYS}
+    for _ in range(1 + b.byte() % 5):
+        name = b.pick(sorted(_COMP_KEYS))
+        key = b.pick(_COMP_KEYS[name])
+        tables[name].append(f"{key} = {_comp_value(b, key)}")
+    lines = [*tables[""], "stipples = 4", "step = 2"]
+    for name in ("host", "light", "viewer", "tool", "machining"):
+        body = tables[name] + (["range = 10"] if name == "viewer" else [])
+        if body:
+            lines += [f"[{name}]", *body]
+    scene = tables["scene"]
+    if not any(line.startswith(("model ", "frames ")) for line in scene):
+        scene.append('model = "tet.obj"')
+    lines += ["[[scene]]", *scene, "size = 20", "center_z = -20"]
+    # TOML refuses a key given twice: keep each key's first line.
+    seen: set[tuple[str, str]] = set()
+    table, out = "", []
+    for line in lines:
+        if line.startswith("["):
+            table = line
+            seen = {k for k in seen if k[0] != table}
+            out.append(line)
+            continue
+        key = line.split("=")[0].strip()
+        if (table, key) not in seen:
+            seen.add((table, key))
+            out.append(line)
+    return ("\n".join(out) + "\n").encode("utf-8")
+
+
+def _tiny(comp: Any) -> bool:
+    """Whether a composition designs in a second or two (else it is only parsed)."""
+    return (sum(s.stipples for s in comp.scenes) <= 12 and len(comp.scenes) <= 3
+            and comp.motion.step >= math.radians(1.0))
+
+
+def check_composition_file(path: str | os.PathLike[str]) -> None:
+    """Read a composition as `specholo compose` does; a tiny one is designed,
+    verified, written and read back (verify's path)."""
+    import shutil
+
+    from specholo.compose import (
+        design_composition,
+        load_composition_folder,
+        read_composition,
+        verify_composition,
+        write_composition,
+    )
+
+    name = Path(path).name
+    with quiet_check(f"composition {name}"):
+        try:
+            comp = read_composition(path)
+        except SpecholoError as exc:
+            check_message(exc, f"composition {name}")
+            return
+        if not _tiny(comp):
+            return
+        try:
+            d = design_composition(comp)
+        except SpecholoError as exc:
+            check_message(exc, f"design composition {name}")
+            return
+        g = d.grooves
+        n = sum(len(s.points) for s in d.scenes)
+        if not (np.isfinite(g.point).all() and len(g.stipple) and g.stipple.min() >= 0
+                and g.stipple.max() < n):
+            raise FuzzFailure(f"composition {name}: bad grooves")
+        verify_composition(d, math.radians(15.0))
+        out = scratch("composed")
+        shutil.rmtree(out, ignore_errors=True)
+        try:
+            write_composition(d, out)
+        except SpecholoError as exc:  # the G-code check may refuse what the host cannot cut
+            check_message(exc, f"write composition {name}")
+            return
+        back = load_composition_folder(out)
+        if not np.array_equal(back.grooves.point, g.point):
+            raise FuzzFailure(f"composition {name}: grooves differ once read back")
+
+
+def check_composition_bytes(data: bytes) -> None:
+    """The composition fuzz target."""
+    path = composition_base() / "c.toml"
+    path.write_bytes(composition_text(data))
+    check_composition_file(path)
+
+
+def check_composition_input(path: str | os.PathLike[str]) -> None:
+    """Replay a saved composition, read in the folder of :func:`composition_base`
+    (the files it names: tet.obj, hf.npz, the FIFO)."""
+    check_composition_bytes(b"\x00" + Path(path).read_bytes())
+
+
 # ---------------------------------------------------------------- collecting crashes
 
 _SEEN: dict[str, int] = {}

@@ -5,8 +5,9 @@ folder. Covers model files (every mesh and point-cloud format: random bytes,
 truncation, corrupt headers and counts, NaN/inf/huge/tiny coordinates,
 degenerate and non-manifold meshes, tiny clouds, paths that are not files),
 TOML configs (unknown keys, wrong types, NaN/inf, negative and huge values),
-CLI options, the G-code reader, the memory limits, and every input the
-coverage-guided fuzzers in ``fuzz/`` found (``tests/fuzz_regressions/``).
+CLI options, the G-code reader, design folders with a file mutated and read
+back, compositions, the memory limits, and every input the coverage-guided
+fuzzers in ``fuzz/`` found (``tests/fuzz_regressions/``).
 
 The checks themselves live in ``fuzz/targets.py``, shared with the fuzzers.
 """
@@ -734,10 +735,38 @@ def test_gcode_numbers_out_of_range(tmp_path: Path, body: bytes) -> None:
     targets.check_gcode_file(path)
 
 
+# ---------------------------------------------------------------- design folders and compositions
+
+
+@settings(max_examples=6, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(data=st.binary(min_size=2, max_size=48))
+@example(data=bytes([1, 1, 0, 1, 1, 0]))  # every offset 100 lower (glibc abort)
+@example(data=bytes([1, 1, 0, 1, 0, 6, 5]))  # an offset of 10^12 (segfault in render)
+@example(data=bytes([1, 1, 0, 3, 0, 0, 7]))  # a NaN vertex (a numba TypingError)
+@example(data=bytes([2, 0]))  # an empty stipples.npz ("internal error")
+@example(data=bytes([0, 1, 2, 0, 1, 7, 3]))  # hologram.json settings edited
+def test_mutated_design_folders(data: bytes) -> None:
+    """A design folder with one file mutated is read back by verify and render: each
+    works or refuses in one line (the fuzz target runs report and stereo too)."""
+    targets.check_folder_bytes(data, targets.FOLDER_COMMANDS[:2])
+
+
+@settings(max_examples=20, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(data=st.binary(max_size=40))
+@example(data=b"\x00" + targets.SMALL_COMPOSITION.encode())
+def test_hostile_compositions_parse_design_and_read_back(data: bytes) -> None:
+    """Compositions from raw TOML or hostile lines added to a small one: refused in
+    one line, or designed (when tiny), verified, written and read back."""
+    targets.check_composition_bytes(data)
+
+
 # ---------------------------------------------------------------- fuzzer finds
 
 _REPLAY = {"load_model": targets.check_model_file, "config": targets.check_config_file,
-           "gcode": targets.check_gcode_file}
+           "gcode": targets.check_gcode_file, "folder": targets.check_folder_input,
+           "composition": targets.check_composition_input}
 
 
 def _regressions() -> list[tuple[str, Path]]:
