@@ -43,7 +43,7 @@ from specholo.errors import SpecholoError
 
 #: Largest JSON file read, bytes. hologram.json lists every stipple (~130 bytes
 #: each: 130 MB at 10^6 stipples, the largest design that fits in 8 GB), and
-#: json.loads holds several times the text in Python objects, so a larger file
+#: json.loads holds 4-5 times the text in Python objects, so a larger file
 #: is none this program wrote and would exhaust the memory before it was read.
 MAX_JSON_BYTES = 512 << 20
 #: Largest TOML file read (a config or a composition), bytes: these are a page or
@@ -51,8 +51,8 @@ MAX_JSON_BYTES = 512 << 20
 MAX_TOML_BYTES = 1 << 20
 #: Largest picture read whole (a report embeds the folder's PNGs), bytes.
 MAX_PICTURE_BYTES = 256 << 20
-#: Largest placed model (model.ply, scene_k.ply) read, bytes: 2 GB of binary PLY
-#: is ~80 million faces, far more than a design's occlusion tests can hold.
+#: Largest placed model (model.ply) read, bytes: 2 GB of binary PLY is ~100
+#: million faces, far more than a design's occlusion tests can hold.
 MAX_MESH_BYTES = 2 << 30
 #: Most bytes of arrays one .npz may declare (uncompressed): ten times the grooves
 #: of a 10^6-stipple design (5.7 GB). The memory available is the tighter bound
@@ -74,7 +74,7 @@ def _kind(mode: int) -> str:
         return "a device"
     if stat.S_ISSOCK(mode):
         return "a socket"
-    return "not a regular file"
+    return "a special file"
 
 
 def one_line(exc: BaseException) -> str:
@@ -153,14 +153,15 @@ def read_bytes(path: str | os.PathLike[str], max_bytes: int, what: str = "") -> 
     with os.fdopen(fd, "rb") as fh:
         _fits(path, what, size)
         try:
-            # One byte more than allowed: a file that grew since the fstat is refused.
-            data = fh.read(max_bytes + 1)
+            # One byte more than the fstat found, to see a file that grew since
+            # (asking for max_bytes would reserve that much memory up front).
+            data = fh.read(size + 1)
         except MemoryError as exc:
             raise SpecholoError(f"{_name(what, path)}: out of memory reading it") from exc
         except OSError as exc:
             raise SpecholoError(f"cannot read {_name(what, path)}: {one_line(exc)}") from exc
-    if len(data) > max_bytes:
-        raise SpecholoError(f"{_name(what, path)} grew past {max_bytes} bytes while read")
+    if len(data) > size:
+        raise SpecholoError(f"{_name(what, path)} grew while it was read")
     return data
 
 
@@ -186,14 +187,6 @@ def read_json(path: str | os.PathLike[str], max_bytes: int | None = None,
         raise SpecholoError(f"{_name(what, path)} is not valid JSON: nested too deeply") from exc
     except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError, huge integers
         raise SpecholoError(f"{_name(what, path)} is not valid JSON: {one_line(exc)}") from exc
-
-
-def is_regular(path: str | os.PathLike[str]) -> bool:
-    """Whether ``path`` is a regular file (links followed); False on any error."""
-    try:
-        return stat.S_ISREG(os.stat(path).st_mode)
-    except (OSError, ValueError):
-        return False
 
 
 def table(value: Any, where: str) -> dict[str, Any]:
@@ -232,7 +225,7 @@ def settings_from(path: str | os.PathLike[str]) -> Iterator[None]:
     except SpecholoError as exc:
         raise SpecholoError(f"{name}: {exc}") from exc
     except KeyError as exc:
-        raise SpecholoError(f"{name} lacks {exc.args[0]!r}") from exc
+        raise SpecholoError(f"{name} lacks {exc.args[0] if exc.args else 'a key'!r}") from exc
     except (TypeError, ValueError, ArithmeticError, IndexError) as exc:
         raise SpecholoError(f"{name}: bad setting: {one_line(exc)}") from exc
 

@@ -21,6 +21,7 @@ stipple each sample belongs to. From it:
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -213,9 +214,14 @@ def read_image(path: str | os.PathLike[str]) -> HeightMap:
     """
     from PIL import Image
 
+    from specholo.readback import MAX_ARRAY_BYTES, MAX_JSON_BYTES, read_bytes, read_text
+
     path = Path(path)
+    # The bytes through the safe reader (a regular file, of a size known first),
+    # then decoded from memory.
+    raw = read_bytes(path, MAX_ARRAY_BYTES, "height map")
     try:
-        with Image.open(path) as image:
+        with Image.open(io.BytesIO(raw)) as image:
             data = np.asarray(image)
             text = None
             if image.format == "PNG":
@@ -226,7 +232,7 @@ def read_image(path: str | os.PathLike[str]) -> HeightMap:
         raise SpecholoError(f"cannot read height map {path}: {exc}") from exc
     try:
         if text is None:
-            text = path.with_suffix(".json").read_text()
+            text = read_text(path.with_suffix(".json"), MAX_JSON_BYTES, "height-map scale")
         scale = json.loads(text)
         lo, hi = float(scale["z_min_mm"]), float(scale["z_max_mm"])
         levels = int(scale["levels"])

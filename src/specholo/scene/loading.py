@@ -284,7 +284,8 @@ class _FolderResolver(trimesh.resolvers.FilePathResolver):
         room = available_memory()
         if room is not None and 2 * size > room:
             raise MemoryError(f"buffer {name!r} of {format_bytes(size)} does not fit in memory")
-        return path.read_bytes()
+        # As stat'ed: a FIFO swapped in since is refused, not waited on.
+        return read_bytes(path, size)
 
 
 def _read_with_trimesh(p: Path, ext: str, data: bytes) -> Model:
@@ -304,7 +305,8 @@ def _read_with_trimesh(p: Path, ext: str, data: bytes) -> Model:
         # which must be reported instead. skip_materials: textures and material
         # files play no part (and could name any file).
         if ext == ".gltf":
-            loaded = trimesh.load(str(p), file_type="gltf", process=False,
+            # The bytes already read, not the path: the file is not opened twice.
+            loaded = trimesh.load(io.BytesIO(data), file_type="gltf", process=False,
                                   resolver=_FolderResolver(str(p)), skip_materials=True)
         else:
             loaded = trimesh.load(io.BytesIO(data), file_type=ext[1:], process=False,
