@@ -657,7 +657,7 @@ def test_read_json_refuses_what_is_not_a_small_regular_file(tmp_path: Path) -> N
     (tmp_path / "zero.json").symlink_to("/dev/zero")
     (tmp_path / "big.json").write_text("[" + "1," * 100 + "1]")
     for path, says in ((tmp_path / "fifo.json", "a FIFO"), (tmp_path / "zero.json", "a device"),
-                       (tmp_path, "a folder"), (tmp_path / "missing.json", "not found"),
+                       (tmp_path, "a folder"), (tmp_path / "missing.json", "No such file"),
                        (tmp_path / "big.json", "more than")):
         with pytest.raises(SpecholoError, match=says):
             read_json(path, max_bytes=100)

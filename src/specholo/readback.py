@@ -111,8 +111,6 @@ def open_regular(path: str | os.PathLike[str], what: str = "",
     name = _name(what, path)
     try:
         info = os.stat(path)
-    except (FileNotFoundError, NotADirectoryError) as exc:
-        raise SpecholoError(f"{name} not found") from exc
     except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
         raise SpecholoError(f"cannot read {name}: {one_line(exc)}") from exc
     if not stat.S_ISREG(info.st_mode):
