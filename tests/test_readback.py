@@ -784,3 +784,14 @@ def test_the_console_script_refuses_a_fifo_at_once(flat: Path, tmp_path: Path) -
     assert r.returncode == 1
     assert r.stderr.count("\n") == 1 and r.stderr.startswith("error: "), r.stderr
     assert "FIFO" in r.stderr
+
+
+@pytest.mark.parametrize("kind", ["FIFO", "/dev/zero"])
+def test_check_refuses_a_program_that_is_not_a_file(tmp_path: Path, kind: str) -> None:
+    program = tmp_path / "prog.ngc"
+    if kind == "FIFO":
+        os.mkfifo(program)
+    else:
+        program.symlink_to("/dev/zero")
+    refused(["check", program, "--plate-width", "50", "--plate-height", "50",
+             "--max-depth", "0.1"], names="prog.ngc", unblock=tmp_path)

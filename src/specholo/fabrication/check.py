@@ -891,6 +891,10 @@ def check_limits(path: str | os.PathLike[str], limits: Limits,
         cuts, deepest = _check_moves(moves, flag, limits, floor)
         return cuts, np.bincount(moves[:, _KIND].astype(np.int64), minlength=4), deepest
 
+    from specholo.readback import open_regular
+
+    # A FIFO would wait for a writer and a device never end: regular files only.
+    os.close(open_regular(path, "G-code file")[0])
     try:
         try:
             with _Checks(check_part) as checks:
