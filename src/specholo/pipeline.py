@@ -45,6 +45,7 @@ from specholo.setup import (
 from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import MAX_COORDINATE, Grooves
 from specholo.toolpaths.overlap import Overlaps, groove_overlaps
+from specholo.toolpaths.striped import PLACEMENTS
 
 METHODS = ("striped", "hyperbola", "arc", "ridged")
 DEFAULT_STIPPLES = 2000
@@ -181,6 +182,7 @@ class DesignConfig:
     seed: int = 0
     method: str = "striped"
     band: float = 0.2
+    placement: str = "avoid"
     tool: str = "drag"
     tool_radius: float | None = None
     tool_angle: float | None = None
@@ -228,6 +230,9 @@ class DesignConfig:
                 f"a laser is driven by --dialect marlin ({self.dialect} programs plunge a cutter)")
         if self.units not in ("mm", "inch"):
             raise SpecholoError(f"units must be mm or inch, got {self.units!r}")
+        if self.placement not in PLACEMENTS:
+            raise SpecholoError(f"placement must be one of {', '.join(PLACEMENTS)}, got "
+                                f"{self.placement!r}")
         if self.method not in METHODS:
             raise SpecholoError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.stipples is not None and self.spacing is not None:
@@ -553,7 +558,8 @@ def design_runs(runs: Runs, config: DesignConfig) -> tuple[Grooves, np.ndarray]:
 
     setup = config.setup()
     if config.method == "striped":
-        return design_striped(runs, setup, StripeOptions(band=config.band))
+        return design_striped(runs, setup, StripeOptions(band=config.band,
+                                                         placement=config.placement))
     if config.method == "hyperbola":
         from specholo.toolpaths.hyperbola import serves
 

@@ -33,6 +33,10 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("spacing", float, "Minimum stipple spacing in mm (instead of --stipples)."),
     ("seed", int, "Random seed for stippling [0]."),
     ("band", float, "Striped design: half-height of the band, bounds vertical error, mm [0.2]."),
+    ("placement", click.Choice(["avoid", "phase"]),
+     "Striped design: avoid places each stipple's stripes in turn out of the grooves placed "
+     "before (jumping between the band's paths where a crossing would cut glints away); "
+     "phase designs each stipple alone, one stripe family [avoid]."),
     ("tool", click.Choice(["ball", "vbit", "drag", "scriber", "laser"]),
      "Cutting tool: ball-end mill, V-bit, diamond drag tip, hand scriber or laser [drag]."),
     ("tool-radius", float, "Ball or tip radius, mm [ball 0.25, drag 0.05, scriber 0.05]."),

@@ -43,6 +43,13 @@ CHUNK_SAMPLES = 4_000_000
 #: refused, over the coarse pass's bound or MIN_BOUND, whichever is larger.
 MAX_GROWTH = 4**4
 MIN_BOUND = 1024
+#: Stripe placements (see :class:`StripeOptions`).
+PLACEMENTS = ("avoid", "phase")
+#: Widest stripe spacing, as a share of the band's half-height w, at which
+#: stripes are placed among the leaves; wider grooves keep one family a width apart.
+AVOID_MAX_SPACING = 0.5
+#: A band this wide never ends a stripe: the walk of one planned stripe.
+_ONE_STRIPE = 1e9
 
 
 @dataclass(frozen=True)
@@ -58,6 +65,16 @@ class StripeOptions:
         spacing: closest two stripes of one stipple may be, centreline to
             centreline, mm; None for the groove width (the paper's condition for
             grooves that do not cut into each other), 0 for a fixed band.
+        placement: "avoid" to place the stipples' stripes in turn, each among the
+            band's leaves out of the way of the grooves placed before it
+            (:mod:`._avoid_kernel`); "phase" for one family of stripes per run,
+            its band phase set at the apex (every stipple designed alone).
+        leaves: "avoid": leaves to choose from per band height 2 w.
+        jump_cost: "avoid": what a new stripe costs, in plan samples of groove
+            lost to a crossing (a jump's ends are short and each junction is a
+            place two stripes hand over).
+        plan_step: "avoid": largest x step between the plan's samples, mm.
+        plan_margin: "avoid": added to every destruction radius, mm.
     """
 
     band: float = 0.2
@@ -65,12 +82,22 @@ class StripeOptions:
     max_chord: float = 0.5
     min_light_tilt: float = 0.05
     spacing: float | None = None
+    placement: str = "avoid"
+    leaves: int = 8
+    jump_cost: float = 4.0
+    plan_step: float = 0.015
+    plan_margin: float = 0.003
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.band) and self.band > 0):
             raise SpecholoError(f"band must be a positive number of mm, got {self.band}")
         if self.spacing is not None and not (math.isfinite(self.spacing) and self.spacing >= 0):
             raise SpecholoError(f"stripe spacing must be >= 0 mm, got {self.spacing}")
+        if self.placement not in PLACEMENTS:
+            raise SpecholoError(f"placement must be one of {', '.join(PLACEMENTS)}, "
+                                f"got {self.placement!r}")
+        if not (isinstance(self.leaves, int) and 2 <= self.leaves <= 64):
+            raise SpecholoError(f"leaves must be an integer in [2, 64], got {self.leaves}")
 
 
 def _params(setup: Setup, opts: StripeOptions) -> np.ndarray:
@@ -204,6 +231,48 @@ def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
     return dense, sizes, out[0], out[1], out[2], np.empty(total, dtype=np.uint8)
 
 
+def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
+          spacing: float) -> tuple[Runs, np.ndarray, np.ndarray]:
+    """The stripes of every run, placed in turn out of each other's way
+    (:func:`._avoid_kernel.place`).
+
+    Returns:
+        One run per stripe (its stipple, point and azimuth interval), its u0 at
+        the start, and its bound on the walk's samples.
+    """
+    from specholo.hosts.flat import sightline_crossing
+    from specholo.toolpaths import _avoid_kernel
+
+    v = setup.viewer
+    ends = [sightline_crossing(v.eye(t), runs.point)[:, 0] for t in (runs.start, runs.end)]
+    # The plan's samples are plan_step apart in x or max_step apart in azimuth;
+    # the glints stray from the sightline crossings by the wall offset, < R.
+    span_x = np.abs(ends[1] - ends[0]) + 2.0 * setup.tool.radius
+    span = runs.end - runs.start
+    # The u steps are bounded too (2% of w each); u drifts by about as much as x moves.
+    sample_cap = (span / opts.max_step + 1.5 * span_x / opts.plan_step
+                  + 75.0 * (span_x + 1.0) / opts.band + 64).astype(np.int64)
+    first = sample_cap.copy()
+    while True:
+        check_work(4 * sample_cap, setup, opts.band)
+        run, a, b, u0, dx, bad = _avoid_kernel.place(
+            runs.start, runs.end, np.ascontiguousarray(runs.point), params, opts.band, spacing,
+            opts.leaves, opts.plan_step, opts.jump_cost, opts.plan_margin, sample_cap,
+            2.0 * MIN_SPACING)
+        # A run whose u drifts far faster than x (eyes high above the stipples)
+        # outgrows the estimate: the plan starts again with room for it.
+        if bad < 0 or sample_cap[bad] >= MAX_GROWTH * first[bad]:
+            break
+        sample_cap[bad] *= 4
+    if bad >= 0:
+        x, y, z = (float(q) for q in runs.point[bad])
+        raise SpecholoError(f"the striped plan for the stipple at ({x:.3g}, {y:.3g}, {z:.3g}) mm "
+                            "does not settle: its glints leave the sightline crossings")
+    stripes = Runs(runs.stipple[run], runs.point[run], a, b)
+    cap = ((b - a) / opts.max_step + dx / opts.max_chord + 70).astype(np.int64)
+    return stripes, u0, cap
+
+
 def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
                    near_plate: float | None = None) -> tuple[Grooves, np.ndarray]:
     """Striped grooves serving every run's azimuth interval.
@@ -238,6 +307,12 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
         return dots_for(near, setup), dropped
     check_work(cap, setup, w)
     spacing = setup.tool.width * (1 + SPACING_CLEARANCE) if opts.spacing is None else opts.spacing
+    # A groove wide against the band leaves no two leaves a width apart to jump
+    # between (the phase walk widens its band there instead).
+    if opts.placement == "avoid" and spacing <= AVOID_MAX_SPACING * w:
+        # Every planned stripe is walked alone, on its own leaf, never ending early.
+        far, u0, cap = _plan(far, params, setup, opts, spacing)
+        w, spacing = _ONE_STRIPE, 0.0
     out = GroovesBuilder()
     # Each taken sample is at most two vertices and each kept stripe has two or
     # more samples; unused room is never touched, so it takes no memory.

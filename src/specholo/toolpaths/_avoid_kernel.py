@@ -1,0 +1,290 @@
+"""Compiled placement of striped grooves that keeps out of each other's way.
+
+At each eye azimuth theta a stipple's glint may sit anywhere on the vertical
+segment |u| <= w about the sightline crossing (u its offset from the
+crossing): the striped paths are the leaves of a foliation, and any stretch
+of any leaf inside the band is a valid stripe. Today's design takes one
+family of leaves (one band phase). Here the stipples are placed in turn, and
+each picks, azimuth by azimuth, the leaf whose glint no placed groove's sweep
+contains and whose own sweep contains no placed glint, jumping between leaves
+(a new stripe) where that saves more than a jump costs (a dynamic programme
+over the azimuth samples and the leaves).
+
+The destruction rule is exact for a round tip cutting every groove to one
+depth d < R: a glint of tilt t sits at g = c - R n, R sin t from its own
+centreline horizontally and at the height where any other cut of the same
+depth is R sin t wide; so another groove destroys it exactly when its
+centreline passes closer to g than g's own centreline does (|g - c|).
+
+Leaves are taken to first order about one walked leaf: shifting the path by
+dy at the same azimuth moves x by (dx/dy) dy and u by (1 - dc/dy) dy, exact to
+~(dy / D)^2 (D the eye distance); the chosen stripes are then walked exactly
+by :func:`specholo.toolpaths._stripe_kernel.integrate`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from specholo.toolpaths import _stripe_kernel as sk
+
+#: Hash table size of the spatial index (a power of two).
+TABLE_BITS = 22
+#: A cost too large to pay: a jump whose stripes would cut into each other.
+_FORBIDDEN = 1e9
+#: Cost of a sample at the band's edge over one on the sightline, in samples of
+#: groove lost to a crossing.
+_CENTRING = 0.005
+
+
+@nb.njit(cache=True)
+def _leaf(th0: float, th1: float, px: float, py: float, pz: float, params: sk.Params,
+          dx_target: float, du_target: float, delta: float, w: float, out: np.ndarray) -> int:
+    """Walk the leaf through the band's centre at th0 over [th0, th1], moved back
+    by whole leaf spacings ``delta`` whenever it leaves the band |u| <= w (far
+    from the band the first-order neighbours would stray).
+
+    Samples are at most ``dx_target`` mm apart in x, ``du_target`` mm in u
+    (so a leaf overshoots the band by at most that where it hands over) and
+    the walk's largest azimuth step apart. Row j of ``out`` gets theta, x, y, u, dx/dy, du/dy,
+    the wall normal's n_x and n_y, the cosine of the path's slope, and which
+    leaf (in spacings from the first) the walk is on.
+
+    Returns:
+        the number of samples, or -1 when ``out`` is too short.
+    """
+    max_step = params[8]
+    th = th0
+    y = sk.target(th, 0.0, px, py, pz, params)[1]
+    sol = sk.solve(th, y, px, py, pz, params, sk._UP, sk._ZERO, sk._ZERO, 4)
+    k = 0
+    shift = 0
+    while True:
+        if k >= out.shape[0]:
+            return -1
+        k1, dx, dc = sk._slopes(sol)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = th, sol[0], y, y - sol[1]
+        out[k, 4], out[k, 5] = sol[6], 1.0 - sol[7]
+        out[k, 6], out[k, 7] = sol[3][0], sol[3][1]
+        out[k, 8] = abs(dx) / max(math.sqrt(dx * dx + k1 * k1), 1e-300)
+        out[k, 9] = shift
+        k += 1
+        if th1 - th <= 1e-12:
+            return k
+        du = abs(k1 - dc)
+        dth = min(max_step, dx_target / max(abs(dx), 1e-12))
+        if math.isfinite(du):  # (as the stripe walk's coarse pass, a non-finite slope is flat)
+            dth = min(dth, du_target / max(du, 1e-12))
+        if th1 - th < 1.25 * dth:
+            dth = th1 - th
+        y1, u1, sol = sk._heun(th, y, k1, dth, px, py, pz, params, sol)
+        th += dth
+        if abs(u1) > w:
+            q = int(round(u1 / delta))
+            m = sk._moved(sol, -q * delta)
+            y1 -= q * delta
+            sol = sk.solve(th, y1, px, py, pz, params, m[3], m[8], m[9], 1)
+            shift -= q  # a leaf keeps its index: it is q spacings higher on the new base
+        y = y1
+
+
+@nb.njit(cache=True, inline="always")
+def _cell(x: float, y: float, h: float) -> tuple[int, int]:
+    return int(math.floor(x / h)), int(math.floor(y / h))
+
+
+@nb.njit(cache=True, inline="always")
+def _slot(ix: int, iy: int) -> int:
+    return ((ix * 73856093) ^ (iy * 19349663)) & ((1 << TABLE_BITS) - 1)
+
+
+@nb.njit(cache=True)
+def _near(x: float, y: float, reach: float, head: np.ndarray, nxt: np.ndarray,
+          pts: np.ndarray, h: float) -> bool:
+    """Whether a stored point lies closer to (x, y) than ``reach`` plus its own radius."""
+    ix, iy = _cell(x, y, h)
+    for a in range(ix - 1, ix + 2):
+        for b in range(iy - 1, iy + 2):
+            i = head[_slot(a, b)]
+            while i >= 0:
+                dx, dy = pts[i, 0] - x, pts[i, 1] - y
+                r = reach + pts[i, 2]
+                if dx * dx + dy * dy < r * r:
+                    return True
+                i = nxt[i]
+    return False
+
+
+@nb.njit(cache=True, inline="always")
+def _insert(x: float, y: float, r: float, head: np.ndarray, nxt: np.ndarray,
+            pts: np.ndarray, n: int, h: float) -> int:
+    ix, iy = _cell(x, y, h)
+    s = _slot(ix, iy)
+    pts[n, 0], pts[n, 1], pts[n, 2] = x, y, r
+    nxt[n] = head[s]
+    head[s] = n
+    return n + 1
+
+
+@nb.njit(cache=True)
+def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray, w: float,
+          spacing: float, leaves: int, dx_target: float, jump_cost: float, margin: float,
+          sample_cap: np.ndarray, min_length: float
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """Choose every run's stripes in turn, out of the way of those placed before.
+
+    Args:
+        start, end, pts: the runs' azimuth intervals (radians) and points (mm).
+        packed: the setup (see :mod:`._stripe_kernel`).
+        w: the band's half-height, mm.
+        spacing: closest two stripes of one stipple may be where one hands over
+            to the next, centreline to centreline, mm.
+        leaves: leaves per band height 2 w (the choice at each azimuth).
+        dx_target: largest x step between the plan's samples, mm.
+        jump_cost: cost of a new stripe, in samples of groove lost to a crossing.
+        margin: added to every destruction radius, mm (the plan's leaves are
+            first-order and its samples discrete).
+        sample_cap: (r,) most samples of each run's leaf.
+        min_length: shortest stripe in x, mm.
+
+    Returns:
+        run (s,), theta start (s,), theta end (s,), u0 (s,) at the start (as
+        :func:`._stripe_kernel.integrate` takes it) and x span (s,) of each
+        chosen stripe, in placement order; and the index of a run whose leaf
+        outgrew its cap (-1 if none).
+    """
+    params = sk._unpacked(packed)
+    r_tip = params[6]
+    h = r_tip + 2.0 * margin
+    total = int(sample_cap.sum()) + 2 * start.size
+    head_c = np.full(1 << TABLE_BITS, -1, dtype=np.int64)
+    head_g = np.full(1 << TABLE_BITS, -1, dtype=np.int64)
+    nxt_c = np.empty(2 * total, dtype=np.int64)
+    nxt_g = np.empty(2 * total, dtype=np.int64)
+    cen = np.empty((2 * total, 3))
+    gli = np.empty((2 * total, 3))
+    n_c = n_g = 0
+    w_eff = 0.98 * w  # the walked leaf strays ~(dy / D)^2 from the planned one
+    # A hand-over (the old leaf kept to the new one's first sample) overshoots
+    # the band by one u step at most: within w.
+    du_target = w - w_eff
+    delta = 2.0 * w / leaves
+    width = leaves + 3
+    o_run, o_a, o_b, o_u, o_x = [0], [0.0], [0.0], [0.0], [0.0]
+    o_run.pop()
+    o_a.pop()
+    o_b.pop()
+    o_u.pop()
+    o_x.pop()
+    for r in range(start.size):
+        px, py, pz = pts[r, 0], pts[r, 1], pts[r, 2]
+        leaf = np.empty((sample_cap[r], 10))
+        m = _leaf(start[r], end[r], px, py, pz, params, dx_target, du_target, delta, w, leaf)
+        if m < 0:
+            return (np.array(o_run, dtype=np.int64), np.array(o_a), np.array(o_b),
+                    np.array(o_u), np.array(o_x), r)
+        lo = np.empty(m, dtype=np.int64)
+        hi = np.empty(m, dtype=np.int64)
+        for j in range(m):
+            step = delta * leaf[j, 5]
+            base = int(leaf[j, 9])
+            lo[j] = base + int(math.ceil((-w_eff - leaf[j, 3]) / step))
+            hi[j] = base + int(math.floor((w_eff - leaf[j, 3]) / step))
+            if hi[j] < lo[j]:  # a band narrower than the leaf spacing: the nearest leaf
+                lo[j] = hi[j] = base + int(round(-leaf[j, 3] / step))
+            hi[j] = min(hi[j], lo[j] + width - 1)
+        cost = np.full(width, np.inf)
+        prev_cost = np.full(width, np.inf)
+        back = np.full((m, width), -(1 << 40), dtype=np.int64)
+        for j in range(m):
+            x0, y0, dxdy = leaf[j, 1], leaf[j, 2], leaf[j, 4]
+            nx, ny = leaf[j, 6], leaf[j, 7]
+            rg = r_tip * math.sqrt(nx * nx + ny * ny)
+            gap_scale = leaf[j, 5] * leaf[j, 8]
+            # Costs count groove length, in plan steps: samples crowd where u
+            # drifts fast, and a crossing costs the length it cuts away.
+            j0, j1 = max(j - 1, 0), min(j + 1, m - 1)
+            weight = abs(leaf[j1, 1] - leaf[j0, 1]) / max(j1 - j0, 1) / dx_target
+            for s in range(width):
+                cost[s] = np.inf
+            for L in range(lo[j], hi[j] + 1):
+                c = (L - leaf[j, 9]) * delta
+                cx, cy = x0 + dxdy * c, y0 + c
+                # Where nothing is in the way, the leaf nearer the sightline: a
+                # smaller vertical error (a run that fits the band is centred).
+                u = (leaf[j, 3] + c * leaf[j, 5]) / w
+                here = _CENTRING * u * u
+                # Its own glint inside a placed groove's sweep, or its sweep over
+                # a placed glint: a view lost either way.
+                if _near(cx - r_tip * nx, cy - r_tip * ny, rg + margin, head_c, nxt_c, cen, h):
+                    here += 1.0
+                if _near(cx, cy, margin, head_g, nxt_g, gli, h):
+                    here += 1.0
+                best, arg = np.inf, -(1 << 40)
+                if j == 0:
+                    best, arg = 0.0, L
+                else:
+                    for Lp in range(lo[j - 1], hi[j - 1] + 1):
+                        pc = prev_cost[Lp - lo[j - 1]]
+                        if Lp != L:
+                            gap = abs(L - Lp) * delta * gap_scale
+                            pc += jump_cost if gap >= spacing else _FORBIDDEN
+                        if pc < best:
+                            best, arg = pc, Lp
+                cost[L - lo[j]] = best + weight * here
+                back[j, L - lo[j]] = arg
+            for s in range(width):
+                prev_cost[s] = cost[s]
+        # The cheapest last leaf, then back along the choices.
+        L = lo[m - 1]
+        for Lq in range(lo[m - 1], hi[m - 1] + 1):
+            if prev_cost[Lq - lo[m - 1]] < prev_cost[L - lo[m - 1]]:
+                L = Lq
+        chosen = np.empty(m, dtype=np.int64)
+        for j in range(m - 1, -1, -1):
+            chosen[j] = L
+            L = back[j, L - lo[j]]
+        # A sliver of a stripe would be dropped as too short to cut (a gap in
+        # the views): its samples stay on the leaf before it, a step or two past
+        # the band at most (each sample moves u by under 2% of w).
+        a = 0
+        for j in range(1, m + 1):
+            if j < m and chosen[j] == chosen[a]:
+                continue
+            b = min(j, m - 1)
+            sliver = abs(leaf[b, 1] - leaf[a, 1]) < min_length
+            if sliver and a > 0:
+                for q in range(a, j):
+                    chosen[q] = chosen[a - 1]
+            elif sliver and j < m:
+                for q in range(a, j):
+                    chosen[q] = chosen[j]
+            a = j
+        # Stripes: a jump at j ends the old leaf at j too (no azimuth left unserved).
+        a = 0
+        for j in range(1, m + 1):
+            if j < m and chosen[j] == chosen[a]:
+                continue
+            b = min(j, m - 1)
+            ya = leaf[a, 2] + (chosen[a] - leaf[a, 9]) * delta
+            th_a = leaf[a, 0]
+            u0 = ya - sk.target(th_a, 0.0, px, py, pz, params)[1]
+            o_run.append(r)
+            o_a.append(th_a)
+            o_b.append(leaf[b, 0])
+            o_u.append(u0)
+            o_x.append(abs(leaf[b, 1] - leaf[a, 1]))
+            for q in range(a, b + 1):
+                c = (chosen[a] - leaf[q, 9]) * delta
+                x0, y0, dxdy = leaf[q, 1], leaf[q, 2], leaf[q, 4]
+                nx, ny = leaf[q, 6], leaf[q, 7]
+                cx, cy = x0 + dxdy * c, y0 + c
+                n_c = _insert(cx, cy, 0.0, head_c, nxt_c, cen, n_c, h)
+                n_g = _insert(cx - r_tip * nx, cy - r_tip * ny,
+                              r_tip * math.sqrt(nx * nx + ny * ny), head_g, nxt_g, gli, n_g, h)
+            a = j
+    return (np.array(o_run, dtype=np.int64), np.array(o_a), np.array(o_b), np.array(o_u),
+            np.array(o_x), -1)

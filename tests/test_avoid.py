@@ -1,0 +1,127 @@
+"""Striped stripes placed out of each other's way: glints outside other grooves' sweeps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from specholo.setup import Light, Setup, Tool, Viewer
+from specholo.simulation.glints import Engraved, find_glints
+from specholo.simulation.verify import verify
+from specholo.toolpaths.common import make_runs
+from specholo.toolpaths.grooves import Grooves
+from specholo.toolpaths.striped import StripeOptions, design_striped
+
+#: The README's drag tip at its design depth: tip radius 0.05 mm, 0.0115 mm deep.
+TOOL = Tool(0.05, 0.0115)
+
+
+def _setup() -> Setup:
+    return Setup(light=Light(math.radians(45.0)),
+                 viewer=Viewer(600.0, 0.0, math.radians(45.0), 64.0), tool=TOOL)
+
+
+def _scene(n: int = 16, seed: int = 3) -> np.ndarray:
+    """Points crowded into a small box at several depths: their grooves must cross."""
+    rng = np.random.default_rng(seed)
+    return np.column_stack([rng.uniform(-2, 2, n), rng.uniform(-2, 2, n),
+                            rng.uniform(-30, -10, n)])
+
+
+def _design(points: np.ndarray, placement: str, setup: Setup) -> Grooves:
+    half = setup.viewer.design_range
+    n = len(points)
+    runs = make_runs(points, np.arange(n), np.full(n, -half), np.full(n, half))
+    grooves, dropped = design_striped(runs, setup, StripeOptions(placement=placement))
+    assert dropped.size == 0
+    return grooves
+
+
+def _centrelines(eng: Engraved, path_of_arc: np.ndarray,
+                 step: float = 0.002) -> tuple[np.ndarray, np.ndarray]:
+    """Centreline points (m, 2) every ``step`` mm or closer, and their paths (m,)."""
+    length = np.abs(eng.sweep) * eng.radius
+    length = np.where(eng.radius > 0, length, np.linalg.norm(eng.end - eng.start, axis=1))
+    k = np.maximum(np.ceil(length / step).astype(int), 1) + 1
+    idx = np.repeat(np.arange(len(k)), k)
+    u = np.concatenate([np.linspace(0.0, 1.0, q) for q in k])
+    pts, _ = eng.at(idx, u)
+    return pts[:, :2], path_of_arc[idx]
+
+
+def _survival(grooves: Grooves, setup: Setup, azimuths: np.ndarray) -> tuple[float, int]:
+    """Share of the glints no other path's swept tip contains, and how many glints.
+
+    A glint of tilt t sits R sin t from its own centreline, at the height where
+    a cut of the same depth is R sin t wide: another path destroys it exactly
+    when its centreline passes closer to the glint than that.
+    """
+    eng = Engraved.from_grooves(grooves, setup.tool)
+    arc_path = np.repeat(np.arange(grooves.n_paths), grooves.path_sizes - 1)
+    line, owner = _centrelines(eng, arc_path)
+    tree = cKDTree(line)
+    r_tip, z_centre = setup.tool.radius, setup.tool.radius - setup.tool.depth
+    kept = total = 0
+    for theta in azimuths:
+        for eye in setup.viewer.stereo(np.array([theta])):
+            gl = find_glints(eng, eye[0], setup.light)
+            cos_t = np.clip((z_centre - gl.point[:, 2]) / r_tip, -1.0, 1.0)
+            reach = r_tip * np.sqrt(1.0 - cos_t**2)
+            for g, r, path in zip(gl.point[:, :2], reach, gl.path, strict=True):
+                near = tree.query_ball_point(g, r - 1e-4)
+                total += 1
+                kept += not np.any(owner[near] != path)
+    return kept / total, total
+
+
+@pytest.fixture(scope="module")
+def designs() -> dict[str, Grooves]:
+    setup = _setup()
+    pts = _scene()
+    return {p: _design(pts, p, setup) for p in ("phase", "avoid")}
+
+
+def test_own_centreline_is_the_kill_radius() -> None:
+    """The glint's horizontal distance from its own centreline is R sin t, t its tilt."""
+    setup = _setup()
+    grooves = _design(np.array([[0.0, 0.0, -20.0]]), "phase", setup)
+    eng = Engraved.from_grooves(grooves, setup.tool)
+    arc_path = np.repeat(np.arange(grooves.n_paths), grooves.path_sizes - 1)
+    line, owner = _centrelines(eng, arc_path, step=0.0005)
+    gl = find_glints(eng, setup.viewer.eye(np.array([0.3]))[0], setup.light)
+    assert len(gl.path) >= 1
+    r_tip, z_centre = setup.tool.radius, setup.tool.radius - setup.tool.depth
+    for g, path in zip(gl.point, gl.path, strict=True):
+        own = np.min(np.linalg.norm(line[owner == path] - g[:2], axis=1))
+        sin_t = math.sqrt(1.0 - ((z_centre - g[2]) / r_tip) ** 2)
+        assert own == pytest.approx(r_tip * sin_t, abs=2e-4)
+
+
+def test_avoiding_keeps_glints_out_of_other_grooves(designs: dict[str, Grooves]) -> None:
+    """Crowded stipples: most glints stay outside every other path's sweep, far more
+    than when each stipple is designed alone."""
+    setup = _setup()
+    az = np.radians(np.arange(-45.0, 46.0, 15.0))
+    alone, n_alone = _survival(designs["phase"], setup, az)
+    placed, n_placed = _survival(designs["avoid"], setup, az)
+    assert n_alone > 100 and n_placed > 100
+    assert placed > 0.9
+    assert placed > alone + 0.1
+
+
+def test_avoiding_keeps_the_ideal_glints_on_the_sightline(designs: dict[str, Grooves]) -> None:
+    """Every stipple glints for both eyes at every azimuth, within the band of its point."""
+    setup = _setup()
+    pts = _scene()
+    for r in verify(designs["avoid"], pts, setup):
+        assert r.visibility == 1.0
+        assert r.max_error < 0.25
+
+
+def test_avoiding_keeps_the_groove_length(designs: dict[str, Grooves]) -> None:
+    """Jumping between leaves moves grooves, it does not lengthen them."""
+    a, b = designs["avoid"].total_length(), designs["phase"].total_length()
+    assert a == pytest.approx(b, rel=0.01)
