@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_gcode import check_canon, needs_rs274, run_rs274
+from test_gcode import check_canon, hopping_example, needs_rs274, run_rs274
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.check import CheckReport, Stock, check_gcode
+from specholo.fabrication.check import CheckReport, Limits, Stock, check_gcode, check_limits
 from specholo.fabrication.gcode import DIALECTS, GcodeOptions, write_gcode
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves
@@ -194,6 +194,61 @@ def test_laser_checks(tmp_path):
         (6, "laser power S300 outside [100, 255]")]
     # with the laser off, feed moves are travel and may leave the stock
     assert run(tmp_path, go + "M5\nG1 X60 F300\n", laser=True, **limits).ok
+
+
+def hop_limits(machining: Machining = MACHINING, **change) -> Limits:
+    """The limits of a job that hops as ``machining`` says and cuts at TOOL's depth."""
+    args = {"hop_max": machining.hop_max, "hop": machining.hop, "groove_depth": TOOL.depth,
+            **change}
+    return Limits(PLATE, TOOL.depth, machining.safe_z, (machining.plunge, machining.feed),
+                  (machining.spindle, machining.spindle), **args)
+
+
+def test_hops_pass_and_bad_hops_are_refused(tmp_path):
+    out = tmp_path / "hops.ngc"
+    write_gcode(out, hopping_example(), TOOL, MACHINING)
+    report = check_limits(out, hop_limits())
+    assert report.ok, report.summary()
+    assert report.moves["G1"] == 4 + 1 + 2  # plunges, a straight cut and two hops
+    lines = out.read_text().splitlines()
+    hops = [i + 1 for i, ln in enumerate(lines) if lines[i - 1].startswith("(stipple")
+            and ln.startswith("G1 X")]
+    assert len(hops) == 2
+
+    def refused(limits: Limits, program: list[str] = lines) -> list[tuple[int, str]]:
+        path = tmp_path / "bad.ngc"
+        path.write_text("\n".join(program) + "\n")
+        return caught(check_limits(path, limits))
+
+    # longer than the job allows (the first hop is 0.5 mm, the second 2 mm)
+    assert refused(hop_limits(hop_max=1.0)) == [(hops[1], (
+        "feed move of 2.00000 mm in X/Y between the surface and the safe height 1: longer "
+        "than the longest hop 1 mm"))]
+    assert [line for line, _ in refused(hop_limits(hop_max=0.0))] == hops
+    # too low: at the surface or just above it, the tip would drag over the plate
+    for z in ("0.00000", "0.01000"):
+        low = [ln.replace("G0 Z0.03000", f"G0 Z{z}") for ln in lines]
+        assert refused(hop_limits(), low) == [
+            (h, f"feed move in X/Y {float(z):.5f} above the surface: below the hop height "
+                "0.03") for h in hops]
+    # through the material: a cut, but at no groove's depth
+    dip = [ln.replace("G0 Z0.03000", "G0 Z-0.04000") for ln in lines]
+    assert refused(hop_limits(), dip) == [
+        (h, "cut in X/Y at Z -0.04000, not at the groove depth -0.08") for h in hops]
+    # a job that does not hop lets the check say nothing of such moves, as before
+    assert refused(hop_limits(hop_max=None, groove_depth=None), low) == []
+    # a hop over the edge of the stock (toward the clamps), or round a wide arc
+    def go(x: float, hop: str) -> list[str]:
+        return (f"G21 G90\nM3 S12000\nG0 Z1\nG0 X{x} Y0\nG1 Z-0.08 F100\nG1 X{x + 0.5} F300\n"
+                f"G0 Z0.03\n{hop}\n").splitlines()
+
+    assert refused(hop_limits(), go(39, "G1 X41 F300")) == [(8, (
+        "hop leaves the stock: X 39.50000..41.00000, Y 0.00000..0.00000 outside X -40..40, "
+        "Y -30..30"))]
+    arc = refused(hop_limits(), go(0, "G2 X0.6 Y0 I0.05 J2 F300"))
+    assert len(arc) == 1 and arc[0][0] == 8 and "longer than the longest hop" in arc[0][1]
+    assert float(arc[0][1].split()[3]) == pytest.approx(2 * math.pi * math.hypot(0.05, 2),
+                                                        rel=0.01)
 
 
 def test_rejects_bad_limits(tmp_path):

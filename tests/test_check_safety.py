@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_gcode import check_canon, needs_rs274, run_rs274
+from test_gcode import check_canon, hopping_example, needs_rs274, run_rs274
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.check import Limits, Stock, check_limits, check_program
@@ -49,6 +49,8 @@ class Program:
         feeds: lines of feed moves with an F word.
         rapids: lines of rapids in X/Y (turning A); for a laser, the lines that
             switch it off before a rapid.
+        hops: lines of feed moves in X/Y above the surface, in a job that hops
+            between grooves.
     """
 
     lines: list[str]
@@ -58,6 +60,7 @@ class Program:
     cuts: tuple[int, ...] = ()
     feeds: tuple[int, ...] = ()
     rapids: tuple[int, ...] = ()
+    hops: tuple[int, ...] = ()
 
     def __repr__(self) -> str:
         return f"<{len(self.lines)} lines, {self.limits.tool}>"
@@ -72,7 +75,7 @@ def _program(path: Path, limits: Limits, top: float = 0.0) -> Program:
     """Read a program's lines and find its cuts, its feed lines and its rapids."""
     lines = path.read_text().splitlines()
     motion, z, on, per_mm = -1, math.nan, False, 1.0
-    cuts, feeds, rapids = [], [], []
+    cuts, feeds, rapids, hops = [], [], [], []
     laser = limits.tool == "laser"
     curved = limits.surface is not None and not limits.rotary
     for i, line in enumerate(lines):
@@ -91,6 +94,8 @@ def _program(path: Path, limits: Limits, top: float = 0.0) -> Program:
         if motion in (1, 2, 3) and moves:
             if (on if laser else (curved or z < 0)):
                 cuts.append(i)
+            elif limits.hop_max is not None and z >= 0:  # a job that hops
+                hops.append(i)
         if motion in (1, 2, 3) and any(k == "F" for k, _ in words):
             feeds.append(i)
         if motion == 0 and moves and not laser:
@@ -99,7 +104,8 @@ def _program(path: Path, limits: Limits, top: float = 0.0) -> Program:
             after = next((ln for ln in lines[i + 1:] if ln.strip() and ln[0] != ";"), "")
             if after.startswith("G0 X"):
                 rapids.append(i)
-    return Program(lines, limits, per_mm, top, tuple(cuts), tuple(feeds), tuple(rapids))
+    return Program(lines, limits, per_mm, top, tuple(cuts), tuple(feeds), tuple(rapids),
+                   tuple(hops))
 
 
 @pytest.fixture(scope="module")
@@ -186,6 +192,11 @@ def test_every_job_and_dialect_is_covered(programs: dict[str, Program]) -> None:
             "spin-2", "spin-2-relief", "steady"} <= names
     kinds = {p.limits.tool for p in programs.values()}
     assert kinds == {"mill", "drag", "laser"}
+    # grooves near each other are hopped between, and the check bounds the hops
+    hopping = {n for n, p in programs.items() if p.hops}
+    assert {"striped-drag-grbl-mm", "striped-ball-linuxcnc-inch"} <= hopping
+    assert all(p.limits.hop_max == 3.0 and p.limits.hop == 0.03 for n, p in programs.items()
+               if n in hopping)
 
 
 def test_each_jobs_own_programs_pass(programs: dict[str, Program], scratch: Path) -> None:
@@ -254,6 +265,26 @@ def _low_rapid(p: Program, i: int, share: float) -> tuple[list[str], str]:
     return lines, "below the safe height"
 
 
+def _long_hop(p: Program, i: int, extra: float) -> tuple[list[str], str]:
+    """Hop i sent further than the longest hop, toward the plate's centre."""
+    lines = list(p.lines)
+    x = _modal(lines, i - 1, "X") / p.per_mm
+    most = p.limits.hop_max or 0.0
+    x += (most + extra) * (-1.0 if x > 0 else 1.0)
+    lines[i] = _set(lines[i], "X", _number(x * p.per_mm))
+    return lines, "longer than the longest hop"
+
+
+def _low_hop(p: Program, i: int, share: float, dip: bool) -> tuple[list[str], str]:
+    """The retract before hop i ends lower: nearer the surface than the hop
+    height, or below the surface, where the hop cuts through the plate."""
+    lines = list(p.lines)
+    k = max(j for j in range(i) if lines[j].startswith("G0 Z"))
+    z = -share * (p.limits.groove_depth or 0.0) if dip else share * p.limits.hop
+    lines[k] = _set(lines[k], "Z", _number(z * p.per_mm))
+    return lines, "not at the groove depth" if dip else "below the hop height"
+
+
 def _bad_feed(p: Program, i: int, how: str, factor: float) -> tuple[list[str], str]:
     lo, hi = p.limits.feed_range
     value = {"zero": "0", "absurd": "1" + "0" * 300,
@@ -271,9 +302,19 @@ def test_programs_made_unsafe_are_refused(programs: dict[str, Program], scratch:
                                           data: st.DataObject) -> None:
     name = data.draw(st.sampled_from(sorted(programs)), label="program")
     p = programs[name]
-    how = data.draw(st.sampled_from(["deeper", "off the plate", "low rapid", "bad feed"]),
-                    label="made unsafe")
-    if how == "deeper":
+    how = data.draw(st.sampled_from(["deeper", "off the plate", "low rapid", "bad feed",
+                                     "long hop", "low hop"]), label="made unsafe")
+    if how in ("long hop", "low hop") and not p.hops:
+        how = "deeper"
+    if how == "long hop":
+        lines, why = _long_hop(p, data.draw(st.sampled_from(p.hops)),
+                               data.draw(st.floats(0.01, 5.0)))
+    elif how == "low hop":
+        dip = data.draw(st.booleans())
+        lines, why = _low_hop(p, data.draw(st.sampled_from(p.hops)),
+                              data.draw(st.floats(0.1, 0.9) if dip else st.floats(0.0, 0.6)),
+                              dip)
+    elif how == "deeper":
         lines, why = _deeper(p, data.draw(st.sampled_from(p.cuts)),
                              data.draw(st.floats(0.01, 2.0)))
     elif how == "off the plate":
@@ -344,6 +385,24 @@ def test_a_drag_tips_plunge_made_deep_is_refused(tmp_path: Path,
     assert design_limits(d).tool == "drag"
     with pytest.raises(SpecholoError, match="deeper than"):
         check_written_gcode(bad, d)
+
+
+def test_check_bounds_hops_when_asked(tmp_path: Path,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    from specholo.fabrication.gcode import write_gcode
+    from specholo.setup import Tool
+
+    path = tmp_path / "hops.ngc"
+    write_gcode(path, hopping_example(), Tool(), Machining())  # hops of 0.5 and 2 mm
+    args = ["check", str(path), "--plate-width", "60", "--plate-height", "60", "--max-depth",
+            "0.08", "--feed", "100", "300", "--spindle", "12000", "12000"]
+    assert _run(args) == 0
+    assert _run([*args, "--hop-max", "3", "--hop", "0.03"]) == 0
+    capsys.readouterr()
+    assert _run([*args, "--hop-max", "1", "--hop", "0.03"]) == 1
+    assert "longer than the longest hop 1 mm" in capsys.readouterr().out
+    assert _run([*args, "--hop-max", "3", "--hop", "0.05"]) == 1
+    assert "below the hop height 0.05" in capsys.readouterr().out
 
 
 def test_a_laser_below_the_surface_is_refused(tmp_path: Path,
@@ -446,12 +505,31 @@ def test_compose_rapids_clear_the_hosts_top(tmp_path: Path,
 
 @pytest.mark.parametrize("machining", [dict(safe_z=0.05), dict(safe_z=0.0999),
                                        dict(feed=100_001.0), dict(plunge=1e300),
-                                       dict(spindle=2e6)])
+                                       dict(spindle=2e6), dict(hop=0.005), dict(hop=1.0),
+                                       dict(safe_z=0.2, hop=0.25), dict(hop_max=-1.0),
+                                       dict(hop_max=10.5)])
 def test_machining_refuses_what_no_machine_should_run(machining: dict[str, float]) -> None:
     with pytest.raises(SpecholoError, match="out of range|must be in") as info:
         Machining(**machining)
     assert "\n" not in str(info.value)
     Machining(safe_z=0.1, feed=100_000.0, plunge=100_000.0, spindle=1e6)  # the bounds
+
+
+def test_hops_are_a_design_setting(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = _design(tmp_path, capsys, "--hop", "0.05", "--hop-max", "2")
+    assert code == 0, err
+    info = json.loads((out / "hologram.json").read_text())
+    assert info["settings"]["hop"] == 0.05 and info["machining"]["hops"] > 0
+    text = (out / "hologram.gcode").read_text().splitlines()
+    assert text.count("G0 Z0.05000") == info["machining"]["hops"]
+    code, out, err = _design(tmp_path, capsys, "--hop-max", "0")
+    assert code == 0, err
+    assert json.loads((out / "hologram.json").read_text())["machining"]["hops"] == 0
+    assert not [ln for ln in (out / "hologram.gcode").read_text().splitlines()
+                if ln.startswith("G0 Z") and ln != "G0 Z1.00000"]
+    code, out, err = _design(tmp_path, capsys, "--hop", "1")
+    assert code == 1 and len(err.splitlines()) == 1
+    assert "hop 1 mm is out of range: it must be in [0.01, 1] mm and below the safe height" in err
 
 
 def test_inch_designs_pass_their_check(tmp_path: Path, capsys: pytest.CaptureFixture[str]

@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.gcode import (
+    DIALECTS,
     MAX_ARC_OFFSET_MM,
     SCALE,
     GcodeOptions,
@@ -99,21 +100,32 @@ def check_canon(canon: list[tuple[str, str]], grooves: Grooves, tool: Tool,
             spindle_off = len(events)
     tol = TOL * factor  # rs274 prints 4 decimals of its units
 
-    # every move on its own: rapids at the safe height (XY travel only there),
-    # feeds at the cutting depth except the vertical plunges, at the plunge rate
+    # every move on its own: rapids at the safe height (XY travel only there)
+    # or up to the hop height; feeds at the cutting depth except the vertical
+    # plunges, at the plunge rate, and the hops: X/Y at the hop height at the feed
+    hop = machining.hop
     pos = None
     for ev in events:
         if ev[0] == "stipple":
             continue
         end = ev[1]
         if ev[0] == "rapid":
-            assert abs(end[2] - safe) < tol, f"rapid to z={end[2]}"
+            assert abs(end[2] - safe) < tol or abs(end[2] - hop) < tol, f"rapid to z={end[2]}"
             if pos is not None and np.hypot(*(end[:2] - pos[:2])) > tol:
-                assert abs(pos[2] - safe) < tol, "XY rapid below the safe height"
+                assert abs(pos[2] - safe) < tol and abs(end[2] - safe) < tol, \
+                    "XY rapid below the safe height"
+            elif pos is not None:
+                assert end[2] >= pos[2] - tol, "rapid down"
         elif ev[0] == "line" and pos is not None and np.hypot(*(end[:2] - pos[:2])) < tol \
                 and abs(pos[2] - end[2]) > tol:
-            assert abs(end[2] - depth) < tol and abs(pos[2] - safe) < tol, "bad plunge"
+            assert abs(end[2] - depth) < tol, "bad plunge"
+            assert abs(pos[2] - safe) < tol or abs(pos[2] - hop) < tol, "bad plunge"
             assert abs(ev[2] - machining.plunge) < tol * max(1.0, machining.plunge / 1000)
+        elif ev[0] == "line" and pos is not None and abs(pos[2] - hop) < tol:
+            # a hop: never below the hop height, never longer than the longest hop
+            assert abs(end[2] - hop) < tol, "hop leaves the hop height"
+            assert np.hypot(*(end[:2] - pos[:2])) <= machining.hop_max + tol, "hop too long"
+            assert abs(ev[2] - machining.feed) < tol * max(1.0, machining.feed / 1000)
         else:
             assert pos is not None and abs(pos[2] - depth) < tol and abs(end[2] - depth) < tol
             assert abs(ev[2] - machining.feed) < tol * max(1.0, machining.feed / 1000)
@@ -138,12 +150,19 @@ def check_canon(canon: list[tuple[str, str]], grooves: Grooves, tool: Tool,
     wide = wide_arcs(segs, options.max_arc_offset)
     with np.errstate(all="ignore"):  # subnormal bulges of straight segments overflow
         centre, radius, _, _ = segs.geometry()
+    # a groove is hopped onto where it starts within hop_max of the last one's end
+    starts = grooves.vertices[grooves.offsets[:-1]]
+    ends = grooves.vertices[grooves.offsets[1:] - 1]
+    hopped = np.append(False, machining.hops(np.hypot(*(starts[1:] - ends[:-1]).T)))
     s = 0
     for j in range(grooves.n_paths):
         v = grooves.vertices[grooves.offsets[j]:grooves.offsets[j + 1]]
         assert events[k] == ("stipple", grooves.stipple[j]), f"groove {j}: no stipple comment"
         ev = events[k + 1]
-        assert ev[0] == "rapid" and near(ev[1], [*v[0], safe], tol)
+        if hopped[j]:
+            assert ev[0] == "line" and near(ev[1], [*v[0], hop], tol), f"groove {j}: no hop"
+        else:
+            assert ev[0] == "rapid" and near(ev[1], [*v[0], safe], tol)
         ev = events[k + 2]
         assert ev[0] == "line" and near(ev[1], [*v[0], depth], tol)
         k += 3
@@ -170,7 +189,8 @@ def check_canon(canon: list[tuple[str, str]], grooves: Grooves, tool: Tool,
             k += 1
             s += 1
         ev = events[k]
-        assert ev[0] == "rapid" and near(ev[1], [*v[-1], safe], tol), "retract"
+        up = hop if j + 1 < grooves.n_paths and hopped[j + 1] else safe
+        assert ev[0] == "rapid" and near(ev[1], [*v[-1], up], tol), "retract"
         k += 1
     assert k == len(events), "moves after the last groove"
 
@@ -480,6 +500,81 @@ def test_decimal_point_ignores_locale(tmp_path, groove_example, writer):
 
 
 # ---------------------------------------------------------------------------
+# hops
+
+
+def hopping_example() -> Grooves:
+    """A cut; an arc starting 0.5 mm from its end; a dot 10 mm away; a dot 2 mm
+    from that one."""
+    return Grooves(np.array([[0.0, 0.0], [5.0, 0.0], [5.5, 0.0], [8.0, 2.0], [18.0, 2.0],
+                             [20.0, 2.0]]),
+                   np.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0]), np.array([0, 2, 4, 5, 6]),
+                   np.array([1, 1, 2, 3]))
+
+
+def test_hops_between_near_grooves(tmp_path):
+    g = hopping_example()
+    out = tmp_path / "hops.ngc"
+    stats = write_gcode(out, g, Tool(), Machining(spindle=0.0))
+    text = lines_of(out)
+    # onto the arc (0.5 mm) and the last dot (2 mm): up to 0.03 mm, over at the
+    # cutting feed, down again; onto the far dot (10 mm): the safe height
+    k = text.index("G1 X5.00000 Y0.00000 F300.00000")
+    assert text[k + 1:k + 5] == ["G0 Z0.03000", "(stipple 1)", "G1 X5.50000 Y0.00000 F300.00000",
+                                 "G1 Z-0.08000 F100.00000"]
+    k = text.index("(stipple 2)")
+    assert text[k - 1:k + 3] == ["G0 Z1.00000", "(stipple 2)", "G0 X18.00000 Y2.00000",
+                                 "G1 Z-0.08000 F100.00000"]
+    assert text[k + 3:] == ["G0 Z0.03000", "(stipple 3)", "G1 X20.00000 Y2.00000 F300.00000",
+                            "G1 Z-0.08000 F100.00000", "G0 Z1.00000", "M2"]
+    # below the surface the tool only plunges straight down and cuts at the depth;
+    # in X/Y above it, it rapids at the safe height or hops at the hop height
+    z = math.nan
+    for line in text:
+        words = dict(re.findall(r"([XYZ])(-?[\d.]+)", line))
+        if "Z" in words:
+            z = float(words["Z"])
+            assert z in (1.0, 0.03, -0.08)
+        elif "X" in words:
+            assert (line.startswith("G0") and z == 1.0) or (line.startswith("G1") and z == 0.03) \
+                or (line.startswith(("G1", "G2", "G3")) and z == -0.08), line
+    assert stats.hops == 2 and stats.hop_length_mm == pytest.approx(2.5)
+    # four plunges and retracts, two of them to and from the hop height only
+    vertical = 4 * 1.08 - 2 * (1.0 - 0.03)
+    assert stats.cutting_length_mm == pytest.approx(g.total_length() + vertical)
+    assert stats.rapid_length_mm == pytest.approx(10.0 + vertical)
+    # the hops are no grooves
+    back = read_gcode(out)
+    np.testing.assert_array_equal(back.offsets, g.offsets)
+    np.testing.assert_allclose(back.vertices, g.vertices, atol=1e-5)
+
+
+def test_no_hops_is_the_program_without_them(tmp_path, groove_example):
+    g = hopping_example()
+    off = Machining(hop_max=0.0)
+    write_gcode(tmp_path / "off.ngc", g, Tool(), off)
+    text = lines_of(tmp_path / "off.ngc")
+    assert "G0 Z0.03000" not in text
+    assert [t for t in text if t.startswith("G1 X")] == ["G1 X5.00000 Y0.00000 F300.00000"]
+    assert text.count("G0 Z1.00000") == 1 + 4
+    # where no groove is near another, hops change nothing
+    for dialect in DIALECTS:
+        options = GcodeOptions(dialect=dialect)
+        write_gcode(tmp_path / "a.ngc", groove_example, Tool(), off, options=options)
+        write_gcode(tmp_path / "b.ngc", groove_example, Tool(), Machining(), options=options)
+        assert (tmp_path / "a.ngc").read_bytes() == (tmp_path / "b.ngc").read_bytes()
+
+
+def test_a_laser_never_hops(tmp_path):
+    g = hopping_example()
+    options = GcodeOptions(dialect="marlin")
+    write_gcode(tmp_path / "a.ngc", g, Tool(), Machining(hop_max=0.0), options=options)
+    stats = write_gcode(tmp_path / "b.ngc", g, Tool(), Machining(), options=options)
+    assert (tmp_path / "a.ngc").read_bytes() == (tmp_path / "b.ngc").read_bytes()
+    assert stats.hops == 0
+
+
+# ---------------------------------------------------------------------------
 # LinuxCNC's interpreter
 
 
@@ -492,6 +587,18 @@ def test_rs274_cuts_the_example(tmp_path, groove_example, dialect, units):
     write_gcode(out, groove_example, Tool(), Machining(), header={"model": "example"},
                 options=options)
     check_canon(run_rs274(out), groove_example, Tool(), Machining(), options)
+
+
+@needs_rs274
+@pytest.mark.parametrize("units", ["mm", "inch"])
+@pytest.mark.parametrize("dialect", ["grbl", "linuxcnc"])
+def test_rs274_hops(tmp_path, dialect, units):
+    g = Grooves.concatenate([hopping_example(), hopping_example()])
+    out = tmp_path / "hops.ngc"
+    options = GcodeOptions(dialect=dialect, units=units)
+    for machining in (Machining(), Machining(hop=0.05, hop_max=10.0), Machining(hop_max=0.0)):
+        write_gcode(out, g, Tool(), machining, options=options)
+        check_canon(run_rs274(out), g, Tool(), machining, options)
 
 
 @needs_rs274
@@ -523,6 +630,7 @@ def test_rs274_cuts_random_grooves(tmp_path, grooves_strategy, data):
     machining = Machining(
         feed=data.draw(st.floats(1.0, 5000.0)), plunge=data.draw(st.floats(1.0, 1000.0)),
         safe_z=data.draw(st.floats(0.1, 20.0)), spindle=data.draw(st.sampled_from([0.0, 9000.0])),
+        hop=data.draw(st.floats(0.01, 0.09)), hop_max=data.draw(st.sampled_from([0.0, 1.0, 10.0])),
     )
     options = GcodeOptions(dialect=data.draw(st.sampled_from(["grbl", "linuxcnc"])),
                            units=data.draw(st.sampled_from(["mm", "inch"])),
@@ -770,16 +878,18 @@ def test_path_chunks_read_from_the_offsets(monkeypatch):
 
 
 def test_chunks_change_nothing(tmp_path, groove_example, monkeypatch):
-    """Written a few paths at a time, the program is the same byte for byte."""
+    """Written a few paths at a time, the program is the same byte for byte
+    (hops onto and off each chunk's paths included)."""
     from specholo.fabrication import gcode
 
-    g = Grooves.concatenate([groove_example] * 7)
+    g = Grooves.concatenate([groove_example, hopping_example()] * 4)
     whole = tmp_path / "whole.ngc"
     stats = write_gcode(whole, g, Tool(), Machining())
+    assert stats.hops == 4 * 2
     monkeypatch.setattr(gcode, "_CHUNK_ROWS", 3)
     parts = tmp_path / "parts.ngc"
     again = write_gcode(parts, g, Tool(), Machining())
-    assert (again.lines, again.paths) == (stats.lines, stats.paths)
+    assert (again.lines, again.paths, again.hops) == (stats.lines, stats.paths, stats.hops)
     # lengths are summed chunk by chunk: equal to rounding
     assert again.cutting_length_mm == pytest.approx(stats.cutting_length_mm, rel=1e-12)
     assert again.rapid_length_mm == pytest.approx(stats.rapid_length_mm, rel=1e-12)

@@ -114,6 +114,8 @@ def test_the_bounds_themselves_are_valid() -> None:
                 values.update(depth=value / 2, shell=value / 4)
             if name == "safe_z":
                 values["depth"] = 0.01
+            if name == "hop":  # a hop stays below the safe height
+                values["safe_z"] = max(1.0, 2 * value)
             DesignConfig.from_dict(values)
 
 

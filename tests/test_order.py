@@ -11,9 +11,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
+from specholo.fabrication.gcode import write_gcode
 from specholo.fabrication.order import OrderStats, order_paths, reorder, travel_length
 from specholo.fabrication.timing import estimate_time
-from specholo.setup import Machining
+from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves
 
 
@@ -179,6 +180,7 @@ def test_rejects_bad_grooves():
 
 A = 100.0  # mm/s^2
 MILL = Machining(feed=600.0, plunge=100.0, safe_z=1.0, spindle=0.0)  # 10 and 5/3 mm/s
+NO_HOPS = Machining(feed=600.0, plunge=100.0, safe_z=1.0, spindle=0.0, hop_max=0.0)
 
 
 def one_groove(vertices, bulges=None, stipple=7) -> Grooves:
@@ -264,11 +266,60 @@ def test_ordering_saves_time():
     g = Grooves(np.stack([start, start + rng.normal(0, 1, (n, 2))], 1).reshape(-1, 2),
                 np.zeros(2 * n), np.arange(0, 2 * n + 1, 2), np.arange(n) // 2)
     out, _ = order_paths(g)
-    before, after = estimate_time(g, 0.08, MILL), estimate_time(out, 0.08, MILL)
+    before, after = estimate_time(g, 0.08, NO_HOPS), estimate_time(out, 0.08, NO_HOPS)
     assert after.rapid_s < 0.5 * before.rapid_s  # short hops are bound by the acceleration
     assert after.cutting_s == pytest.approx(before.cutting_s)
     assert after.plunge_s == pytest.approx(before.plunge_s)
     assert after.stipples == before.stipples == n // 2
+    # the order also brings grooves within a hop of each other: fewer full plunges
+    hopping = estimate_time(out, 0.08, MILL)
+    assert hopping.hops > estimate_time(g, 0.08, MILL).hops
+    assert hopping.plunge_s < after.plunge_s and hopping.total_s < after.total_s
+
+
+def test_time_of_a_hop():
+    # 10 mm cut, a hop of 1 mm (within 3 mm), another 10 mm cut
+    g = Grooves.concatenate([one_groove([[0.0, 0.0], [10.0, 0.0]], stipple=1),
+                             one_groove([[11.0, 0.0], [21.0, 0.0]], stipple=2)])
+    est = estimate_time(g, 0.08, MILL, accel=A)
+    assert est.hops == 1
+    assert est.cutting_s == pytest.approx(2 * 1.1)
+    # the hop: 1 mm at the feed, 10 mm/s, just reached halfway: 2 sqrt(1 / 100)
+    assert est.hop_s == pytest.approx(0.2)
+    # plunges from the safe height, 1.08 mm, and from the hop height, 0.11 mm,
+    # both reaching 5/3 mm/s over 1/72 mm
+    assert est.plunge_s == pytest.approx((1.08 + 0.11) * 0.6 + 2 * (5 / 3) / A)
+    # no travel to the first groove (it starts at the origin); a retract of
+    # 0.11 mm to the hop height and the last one of 1.08 mm, never at 50 mm/s
+    assert est.rapid_s == pytest.approx(2 * math.sqrt(0.11 / A) + 2 * math.sqrt(1.08 / A))
+    assert est.total_s == pytest.approx(est.cutting_s + est.hop_s + est.plunge_s + est.rapid_s)
+    # without hops: a rapid of 1 mm and full retracts and plunges
+    full = estimate_time(g, 0.08, NO_HOPS, accel=A)
+    assert full.hops == 0 and full.hop_s == 0.0
+    assert full.plunge_s == pytest.approx(2 * (1.08 * 0.6 + (5 / 3) / A))
+    assert full.rapid_s == pytest.approx(2 * math.sqrt(1 / A) + 2 * 2 * math.sqrt(1.08 / A))
+    # a laser never hops: it has no Z
+    assert estimate_time(g, 0.08, MILL, accel=A, laser=True).hops == 0
+
+
+def test_estimate_hops_where_the_writer_does(tmp_path):
+    # the next groove at exactly the longest hop is hopped onto, a hair further is not
+    g = Grooves.concatenate([one_groove([[0.0, 0.0], [2.0, 0.0]]),
+                             one_groove([[5.0, 0.0], [6.0, 0.0]]),
+                             one_groove([[9.0 + 1e-9, 0.0], [10.0, 0.0]]),
+                             one_groove([[10.5, 0.0]])])
+    est = estimate_time(g, 0.08, MILL)
+    stats = write_gcode(tmp_path / "x.ngc", g, Tool(), MILL)
+    lines = (tmp_path / "x.ngc").read_text().splitlines()
+    hops = [ln for ln, before in zip(lines[1:], lines, strict=False)
+            if before.startswith("(stipple") and ln.startswith("G1 X")]
+    assert hops == ["G1 X5.00000 Y0.00000 F600.00000", "G1 X10.50000 Y0.00000 F600.00000"]
+    assert est.hops == stats.hops == 2
+    assert stats.hop_length_mm == pytest.approx(3.5)
+    rnd = _random_strokes(6, 300)
+    ordered, _ = order_paths(rnd)
+    stats = write_gcode(tmp_path / "r.ngc", ordered, Tool(), MILL)
+    assert stats.hops == estimate_time(ordered, 0.08, MILL).hops > 0
 
 
 def _random_strokes(seed: int, n: int) -> Grooves:

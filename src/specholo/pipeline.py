@@ -34,7 +34,10 @@ from specholo.fabrication.tools import (
 from specholo.setup import (
     ACRYLIC_INDEX,
     MAX_FEED,
+    MAX_HOP,
+    MAX_HOP_DISTANCE,
     MAX_INDEX,
+    MIN_HOP,
     MIN_SAFE_Z,
     BackLight,
     Light,
@@ -104,6 +107,8 @@ SETTING_BOUNDS: dict[str, tuple[float, float, str]] = {
     "feed": (0.01, MAX_FEED, "mm/min"),
     "plunge": (0.01, MAX_FEED, "mm/min"),
     "safe_z": (MIN_SAFE_Z, 1000.0, "mm"),
+    "hop": (MIN_HOP, MAX_HOP, "mm"),
+    "hop_max": (0.0, MAX_HOP_DISTANCE, "mm"),
     "spindle": (0.0, 1e6, "rpm"),
 }
 
@@ -199,6 +204,8 @@ class DesignConfig:
     feed: float = 300.0
     plunge: float = 100.0
     safe_z: float = 1.0
+    hop: float = 0.03
+    hop_max: float = 3.0
     spindle: float | None = None
     elevation_range: float = 15.0
     shell: float = 0.1
@@ -391,7 +398,8 @@ class DesignConfig:
                               math.radians(float(self.view_range)), float(self.ipd)),
                 tool=self.cutter().model(self.depth_mm),
                 machining=Machining(float(self.feed), float(self.plunge), float(self.safe_z),
-                                    float(self.spindle or 0.0)),
+                                    float(self.spindle or 0.0), float(self.hop),
+                                    float(self.hop_max)),
             )
         except (TypeError, ValueError) as exc:
             if isinstance(exc, SpecholoError):
@@ -808,9 +816,11 @@ DEFAULT_FORMATS = ("gcode", "svg")
 def design_limits(d: Design) -> Any:
     """What a design's G-code may do (``fabrication.check.Limits``), from its
     settings: cut inside the plate (less half a groove, as the tool centre is
-    checked), no deeper than the groove, rapids only at the safe height, feeds,
-    spindle and laser power as set. In mm whatever the program's units: the
-    check reads a G20 program in mm."""
+    checked), every cut in X/Y at the groove's depth, rapids only at the safe
+    height, feed moves between the surface and the safe height (hops) no longer
+    than the longest hop nor lower than the hop height, feeds, spindle and
+    laser power as set. In mm whatever the program's units: the check reads a
+    G20 program in mm."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
     from specholo.fabrication.gcode import GcodeOptions
 
@@ -822,8 +832,12 @@ def design_limits(d: Design) -> Any:
                   plate[1, 1] - half, d.config.stock_thickness)
     kind = tool_kind(d.config.tool, m.spindle)
     power = GcodeOptions(dialect="marlin").laser_power if kind == "laser" else m.spindle
+    # a laser has no Z: no hops, and its depth is set by power and feed
+    milled = kind != "laser"
     return Limits(stock, d.config.depth_mm, m.safe_z, (min(m.feed, m.plunge),
-                  max(m.feed, m.plunge)), (power, power), kind)
+                  max(m.feed, m.plunge)), (power, power), kind,
+                  hop_max=m.hop_max if milled else None, hop=m.hop,
+                  groove_depth=d.config.depth_mm if milled else None)
 
 
 def check_written_gcode(path: str | os.PathLike[str], d: Design) -> Any:
@@ -942,14 +956,19 @@ def write_design(d: Design, out: str | os.PathLike[str],
         d = dataclasses.replace(d, grooves=grooves)
         timings["ordering"] = time.perf_counter() - t0
     info = hologram_json(d)
-    estimate = estimate_time(grooves, d.config.depth_mm, setup.machining,
-                             laser=d.config.dialect == "marlin")
+    options = GcodeOptions(dialect=d.config.dialect,  # type: ignore[arg-type]
+                           units=d.config.units)  # type: ignore[arg-type]
+    laser = d.config.dialect == "marlin"
+    # the program waits options.dwell after starting a spindle (a mill's only)
+    estimate = estimate_time(grooves, d.config.depth_mm, setup.machining, laser=laser,
+                             dwell=options.dwell if options.mill and setup.machining.spindle > 0
+                             else 0.0)
     info["machining"] = {
         "dialect": d.config.dialect, "units": d.config.units,
         "estimated_hours": estimate.total_s / 3600.0,
         "cutting_hours": estimate.cutting_s / 3600.0, "rapid_hours": estimate.rapid_s / 3600.0,
-        "plunge_hours": estimate.plunge_s / 3600.0,
-        "stipples_per_second": estimate.stipples_per_s,
+        "plunge_hours": estimate.plunge_s / 3600.0, "hop_hours": estimate.hop_s / 3600.0,
+        "hops": estimate.hops, "stipples_per_second": estimate.stipples_per_s,
     }
     if d.config.order:
         info["machining"]["travel_unordered_mm"] = order_stats.travel_before_mm
@@ -961,9 +980,7 @@ def write_design(d: Design, out: str | os.PathLike[str],
             write_gcode(path, grooves, setup.tool, setup.machining,
                         header={"design": d.config.method, "stipples": str(len(d.points)),
                                 "cutter": d.config.cutter().describe()},
-                        options=GcodeOptions(dialect=d.config.dialect,  # type: ignore[arg-type]
-                                             units=d.config.units),  # type: ignore[arg-type]
-                        depth=d.config.depth_mm)
+                        options=options, depth=d.config.depth_mm)
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = check_written_gcode(path, d)

@@ -269,6 +269,19 @@ class Tool:
 #: table is trammed to ~0.05 mm over a plate), so a rapid any closer drags the
 #: tip across the plate at full speed wherever it stands proud.
 MIN_SAFE_Z = 0.1
+#: Lowest hop clearance, mm. A hop (see :class:`Machining`) starts where a
+#: groove ended and ends where the next begins, at most ``hop_max`` away: over
+#: a few mm a plate flat to a few hundredths over its whole size changes by a
+#: micrometre or two, so what the hop must clear is the local error of Z = 0,
+#: which the grooves' own depth (12-80 um) already needs well below its size,
+#: and the lip a ploughing tip raises beside a groove (a few um).
+MIN_HOP = 0.01
+#: Highest hop clearance, mm: a lift of a millimetre is a full retract (the
+#: default safe height).
+MAX_HOP = 1.0
+#: Longest hop, mm: over 10 mm a plate tilted 0.05 mm across 100 mm rises by
+#: 5 um, still well inside the lowest clearance.
+MAX_HOP_DISTANCE = 10.0
 #: Highest cutting and plunge feed, mm/min: beyond the fastest machines (a
 #: linear-motor router runs at ~60 m/min), and short enough that every firmware
 #: reads the F word whole (GRBL reads 8 significant digits).
@@ -281,12 +294,25 @@ MAX_SPINDLE = 1e6
 class Machining:
     """Feeds and heights for the G-code (mm and mm/min), shared by every job: a
     setting no machine should run is refused here, before any program is written.
+
+    Between two paths the tool retracts to ``safe_z`` and rapids over, unless
+    the next path starts at most ``hop_max`` from where the last one ended: it
+    then *hops*, lifting only ``hop`` above the surface and moving over at the
+    cutting feed (a ``G1``: rapids stay at the safe height), and plunges that
+    short way back. ``hop_max`` 0 turns hops off. The default clearance 0.03 mm
+    is about twice what a hop must clear (see :data:`MIN_HOP`); each further
+    0.01 mm costs 0.01 mm / ``plunge`` per hop. The default distance 3 mm is
+    about where, at the default feeds and heights, a hop stops being faster than
+    a full retract: it saves 0.58 s of plunging (0.97 mm at 100 mm/min) and
+    loses 0.18 s per mm of travel (300 rather than 3000 mm/min), even at 3.2 mm.
     """
 
     feed: float = 300.0
     plunge: float = 100.0
     safe_z: float = 1.0
     spindle: float = 12000.0
+    hop: float = 0.03
+    hop_max: float = 3.0
 
     def __post_init__(self) -> None:
         for name in ("feed", "plunge", "safe_z"):
@@ -304,6 +330,23 @@ class Machining:
         s = _finite("spindle speed", self.spindle)
         if not 0 <= s <= MAX_SPINDLE:
             raise SpecholoError(f"spindle speed must be in [0, {MAX_SPINDLE:g}] rpm, got {s:g}")
+        h = _finite("hop", self.hop)
+        if not (MIN_HOP <= h <= MAX_HOP and h < self.safe_z):
+            raise SpecholoError(f"hop {h:g} mm is out of range: it must be in [{MIN_HOP:g}, "
+                                f"{MAX_HOP:g}] mm and below the safe height {self.safe_z:g} mm")
+        d = _finite("hop max", self.hop_max)
+        if not 0 <= d <= MAX_HOP_DISTANCE:
+            raise SpecholoError(f"hop max {d:g} mm is out of range: it must be in "
+                                f"[0, {MAX_HOP_DISTANCE:g}] mm (0 for no hops)")
+
+    def hops(self, lengths: np.ndarray) -> np.ndarray:
+        """Which moves between paths, of XY lengths (k,) mm, are hops (bool (k,)).
+
+        The writer and the time estimate both decide here, so they agree."""
+        lengths = np.asarray(lengths, dtype=float)
+        if self.hop_max <= 0:
+            return np.zeros(lengths.shape, dtype=bool)
+        return lengths <= self.hop_max
 
 
 @dataclass(frozen=True)

@@ -245,7 +245,8 @@ def spin_limits(grooves: Any, depth: float, machining: Machining) -> Any:
     (``fabrication.check.Limits``), from the design's settings: the tool centre
     inside the grooves' extent plus a blank border (the plate has no size
     setting, as a flat design's without one), no deeper than the cut, rapids at
-    the safe height, feeds and spindle as set."""
+    the safe height, hops as set, every cut in X/Y at the cut's depth, feeds and
+    spindle as set."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
     from specholo.pipeline import PLATE_MARGIN, groove_extent
 
@@ -254,7 +255,7 @@ def spin_limits(grooves: Any, depth: float, machining: Machining) -> Any:
     # no thickness setting: the cut's own depth is the floor
     return Limits(Stock(float(x0), float(y0), float(x1), float(y1), depth), depth, m.safe_z,
                   (min(m.feed, m.plunge), max(m.feed, m.plunge)), (m.spindle, m.spindle),
-                  tool_kind("ball", m.spindle))
+                  tool_kind("ball", m.spindle), hop_max=m.hop_max, hop=m.hop, groove_depth=depth)
 
 
 def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,

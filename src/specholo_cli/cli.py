@@ -54,6 +54,9 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("feed", float, "Cutting feed, mm/min [300]."),
     ("plunge", float, "Plunge feed, mm/min [100]."),
     ("safe-z", float, "Rapid (safe) height, mm [1]."),
+    ("hop", float, "Hop height: between grooves at most --hop-max apart the tool lifts only "
+     "this far above the surface and moves over at the cutting feed, mm [0.03]."),
+    ("hop-max", float, "Longest hop, mm; 0 retracts to --safe-z between all grooves [3]."),
     ("spindle", float, "Spindle speed, rpm; 0 for none [12000 for ball and vbit, else 0]."),
     ("elevation-range", float, "Ridged design: heads' elevation within +- this many degrees "
      "[15]."),
@@ -461,17 +464,24 @@ def _verify_ridged(folder: Path, step: float) -> None:
                    "surface [ball].")
 @click.option("--laser", is_flag=True, help="As --tool laser.")
 @click.option("--no-spindle", is_flag=True, help="As --tool drag.")
+@click.option("--hop-max", type=float, default=None,
+              help="Longest feed move in X/Y between the surface and --safe-z (a hop between "
+                   "grooves), mm; 0 allows none [not checked].")
+@click.option("--hop", type=float, default=0.0, show_default=True,
+              help="Lowest height of those moves above the surface, mm.")
 def check(gcode: Path, plate_width: float, plate_height: float, stock_thickness: float,
           max_depth: float, safe_z: float, feed: tuple[float, float],
           spindle: tuple[float, float], tool: str | None, laser: bool,
-          no_spindle: bool) -> None:
+          no_spindle: bool, hop_max: float | None, hop: float) -> None:
     """Check any G-code file (G20 programs are read in mm) against limits in mm.
 
     Every cut stays inside the plate (origin at its centre, Z = 0 on its surface),
     arcs over their whole sweep, and no deeper than --max-depth (or the stock)
     below the surface, whatever the tool; a laser never goes below the surface.
     Rapids move in X/Y only at --safe-z or above and never plunge below it (a
-    laser's only with the beam off). Feed moves run within --feed, the spindle
+    laser's only with the beam off); with --hop-max, feed moves in X/Y above
+    the surface and below --safe-z run no further than that, no lower than
+    --hop and over the plate. Feed moves run within --feed, the spindle
     (laser power) within --spindle when on, and a ball or V-bit only cuts while
     it spins. Unknown words, moves from unknown positions, arcs off their circle
     and moves after the program's end are reported. Exits with status 1 if
@@ -491,7 +501,7 @@ def check(gcode: Path, plate_width: float, plate_height: float, stock_thickness:
     if not gcode.is_file():
         raise SpecholoError(f"G-code file {gcode} not found")
     limits = Limits(Stock.centred(plate_width, plate_height, stock_thickness), max_depth,
-                    safe_z, feed, spindle, kind)
+                    safe_z, feed, spindle, kind, hop_max=hop_max, hop=hop)
     report = check_limits(gcode, limits)
     click.echo(report.summary())
     if not report.ok:

@@ -21,6 +21,14 @@ wherever it is on and never goes below the surface. It reports, line by line:
   whatever the tool; on a laser, any move below the surface;
 - a rapid (``G0``) moving in X or Y (or turning the rotary axis) below the
   safe height, or plunging below it (on a laser: a rapid with the laser on);
+- where the job hops between grooves (``Limits.hop_max``): a feed move in X or
+  Y above the surface and below the safe height (a hop) longer than
+  ``hop_max``, lower than ``hop`` above the surface, or leaving the stock
+  rectangle. Such a move is not a cut, so nothing else bounds it: unchecked, a
+  "hop" could be a long traverse a hair above the plate and over its clamps;
+- where the job cuts at one depth (``Limits.groove_depth``, a flat plate's
+  grooves): a cut in X or Y at any other depth, as a hop dipping below the
+  surface between two grooves would be;
 - a feed outside ``feed_range``, a feed move at zero feed, a spindle (laser
   power) switched on outside ``spindle_range``, a mill cutting with the
   spindle off;
@@ -145,6 +153,12 @@ class Limits:
             where there is none; None for the plate Z = 0.
         rotary: the program may turn a rotary axis (``A`` words).
         tolerance: rounding allowance on positions, mm.
+        hop_max: longest feed move in X/Y above the surface and below the safe
+            height, mm, measured along it (0: none may run there); None leaves
+            such moves unchecked.
+        hop: lowest height above the surface of those moves, mm.
+        groove_depth: the one depth below the surface (mm) of every cut moving
+            in X/Y, or None for cuts at any depth down to ``max_depth``.
     """
 
     stock: Stock
@@ -156,6 +170,9 @@ class Limits:
     surface: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
     rotary: bool = False
     tolerance: float = 1e-4
+    hop_max: float | None = None
+    hop: float = 0.0
+    groove_depth: float | None = None
 
     def __post_init__(self) -> None:
         pairs = {"feed range": self.feed_range, "spindle range": self.spindle_range}
@@ -165,7 +182,9 @@ class Limits:
                 raise SpecholoError(f"{name} must be two finite numbers 0 <= low <= high, "
                                     f"got {tuple(pair)}")
             object.__setattr__(self, name.replace(" ", "_"), (lo, hi))
-        for name in ("max_depth", "safe_z", "tolerance"):
+        for name in ("max_depth", "safe_z", "tolerance", "hop", "hop_max", "groove_depth"):
+            if getattr(self, name) is None:
+                continue
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0:
                 raise SpecholoError(f"{name.replace('_', ' ')} must be a finite number >= 0, "
@@ -638,6 +657,13 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
                 each(cut & off, lambda i: "cut where the host has no surface")
                 each(cut & (above < floor - tol),
                      lambda i: f"cut {-above[i]:.5f} below the surface, deeper than {-floor:g}")
+            if lim.groove_depth is not None:
+                # below the surface, an X/Y feed move is a cut whatever it was
+                # meant to be: one at another depth than the grooves' is no groove
+                gd = lim.groove_depth
+                at = np.where(np.abs(z0 + gd) > np.abs(z1 + gd), z0, z1)
+                each(cut & moves_xy & ((np.abs(z0 + gd) > tol) | (np.abs(z1 + gd) > tol)),
+                     lambda i: f"cut in X/Y at Z {at[i]:.5f}, not at the groove depth {-gd:g}")
 
         # XY extent of each cut: a line on the plate only where below its surface
         sx, sy, ex, ey = x0.copy(), y0.copy(), x1.copy(), y1.copy()
@@ -664,10 +690,50 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
         out = cut & ((bx0 < s.x0 - tol) | (by0 < s.y0 - tol) | (bx1 > s.x1 + tol)
                      | (by1 > s.y1 + tol))
         each(out, lambda i: _outside(s, bx0[i], by0[i], bx1[i], by1[i]))
+        if not laser and lim.hop_max is not None:
+            _check_hops(m, each, lim, fed & moves_xy & known & (above >= 0.0)
+                        & (low < safe_z - tol) & ~off_circle, above, (bx0, by0, bx1, by1))
         deepest = 0.0
         if not laser and cut.any():
             deepest = max(deepest, -float(np.nanmin(np.where(cut, above, np.inf))))
     return int(cut.sum()), deepest
+
+
+def _check_hops(m: np.ndarray, each: Callable[[np.ndarray, Callable[[int], str]], None],
+                lim: Limits, hop: np.ndarray, above: np.ndarray,
+                bounds: tuple[np.ndarray, ...]) -> None:
+    """Flag the hops (rows ``hop`` (n,) of the move table m: feed moves in X/Y
+    between the surface and the safe height) that are too long, too low or off
+    the stock; ``above`` (n,) is each move's least height over the surface, mm,
+    ``bounds`` its XY extent (x0, y0, x1, y1), each (n,)."""
+    tol, most, least = lim.tolerance, float(lim.hop_max or 0.0), lim.hop
+    length = np.hypot(m[:, _X1] - m[:, _X0], m[:, _Y1] - m[:, _Y0])
+    arcs = np.flatnonzero(hop & (m[:, _KIND] >= 2))
+    if len(arcs):  # along the arc: its chord may be short where it swings wide
+        length[arcs] = _arc_lengths(m[arcs])
+    each(hop & (length > most + tol),
+         lambda i: f"feed move of {length[i]:.5f} mm in X/Y between the surface and the safe "
+                   f"height {lim.safe_z:g}: longer than the longest hop {most:g} mm")
+    each(hop & (above < least - tol),
+         lambda i: f"feed move in X/Y {above[i]:.5f} above the surface: below the hop height "
+                   f"{least:g}")
+    s = lim.stock
+    x0, y0, x1, y1 = bounds
+    out = hop & ((x0 < s.x0 - tol) | (y0 < s.y0 - tol) | (x1 > s.x1 + tol) | (y1 > s.y1 + tol))
+    each(out, lambda i: f"hop leaves the stock: X {x0[i]:.5f}..{x1[i]:.5f}, "
+                        f"Y {y0[i]:.5f}..{y1[i]:.5f} outside X {s.x0:g}..{s.x1:g}, "
+                        f"Y {s.y0:g}..{s.y1:g}")
+
+
+def _arc_lengths(m: np.ndarray) -> np.ndarray:
+    """XY length (k,) of each arc of move rows m (k, _COLS), along its sweep."""
+    sx, sy, ex, ey, cx, cy = (m[:, c] for c in (_X0, _Y0, _X1, _Y1, _CX, _CY))
+    a0 = np.arctan2(sy - cy, sx - cx)
+    turn = np.arctan2(ey - cy, ex - cx) - a0
+    ccw = m[:, _KIND] == 3
+    sweep = np.where(ccw, np.mod(turn, 2.0 * math.pi), np.mod(-turn, 2.0 * math.pi))
+    sweep = np.where((sx == ex) & (sy == ey), 2.0 * math.pi, sweep)  # a full circle
+    return np.hypot(sx - cx, sy - cy) * sweep
 
 
 #: Program bytes read at a time, and most lines whose moves are checked together:

@@ -27,7 +27,11 @@ minute, with its origin at the plate centre and Z = 0 on the plate surface.
 Each groove is cut as: a comment ``(stipple N)``, a rapid to its start at the
 safe height, a plunge to ``-depth``, its arcs as ``G2``/``G3`` (centre given by
 ``I J`` relative to the arc's start) or ``G1`` when they are straight, and a
-retract. A dot is a plunge and a retract.
+retract. A dot is a plunge and a retract. Where the next groove starts within
+``Machining.hop_max`` of the last one's end, the retract goes up only to the
+hop height ``Machining.hop`` above the surface, and the move to the next start
+is a ``G1`` at the cutting feed at that height (a *hop*; a rapid never runs
+below the safe height); the plunge is the same line from there.
 
 Coordinates are written with 5 decimals in mm (10 nm), 6 in inches (25 nm: 5
 would round to 0.25 um). Coarser rounding shows: a groove's glints follow its
@@ -188,12 +192,16 @@ class GcodeStats:
         cutting_length_mm: length of all feed moves (grooves and plunges), mm.
         rapid_length_mm: length of all rapid moves (travel and retracts), mm,
             taking the job to start above the origin (plate centre).
+        hops: moves between grooves made as hops (feed moves just above the surface).
+        hop_length_mm: XY length of the hops, mm.
     """
 
     lines: int
     paths: int
     cutting_length_mm: float
     rapid_length_mm: float
+    hops: int = 0
+    hop_length_mm: float = 0.0
 
 
 def chord_lengths(start: np.ndarray, end: np.ndarray) -> np.ndarray:
@@ -645,8 +653,6 @@ def write_gcode(
     def num(mm: float) -> str:
         return format_number(mm * opt.per_mm, dec)
 
-    vertical = n_paths * (safe + depth) if mill else 0.0
-
     unit = "mm" if opt.units == "mm" else "in"
     comment = _comment if mill else (lambda text: _comment(text, semicolon=True))
     head = [comment("specholo specular hologram"),
@@ -691,6 +697,7 @@ def write_gcode(
         stipple_open, stipple_close = "(stipple ", ")\n"
         start_text = f"G1 Z{num(-depth)} F{num(machining.plunge)}\n"
         end_text = f"G0 Z{num(safe)}\n"
+        hop_end_text = f"G0 Z{num(machining.hop)}\n"
         dot_text = ""
         rapid_text = ""
     else:
@@ -699,28 +706,46 @@ def write_gcode(
         stipple_open, stipple_close = "; stipple ", "\n"
         start_text = f"{opt.laser_on} S{_short_number(opt.laser_power)}\n"
         end_text = "M5\n"
+        hop_end_text = ""  # a laser has no Z: it travels by rapids with the beam off
         # Marlin's G4 takes P in milliseconds
         dot_text = f"G4 P{round(opt.dot_time * 1000)}\n" if opt.dot_time > 0 else ""
         rapid_text = f" F{num(opt.rapid_feed)}"
     feed = f" F{num(machining.feed)}"
 
     n_lines = len(head) + len(tail)
-    cutting = rapid = 0.0
-    chords = 0
+    cutting = rapid = hop_length = 0.0
+    chords = hop_count = 0
     offsets = grooves.offsets
 
-    def chunk(lo: int, hi: int) -> tuple[bytes, int, int, float, float]:
+    def hops_onto(prev: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Which moves from ends prev (k, 2) to starts (k, 2) are hops (k,), and
+        their lengths (k,): the same lengths and rule as the time estimate's."""
+        air = chord_lengths(prev, starts)
+        return (machining.hops(air) if mill else np.zeros(len(air), dtype=bool)), air
+
+    def chunk(lo: int, hi: int) -> tuple[bytes, int, int, float, float, int, float]:
         """Paths lo:hi as program text: (text, lines, chords added, cutting and
-        rapid length). Chunks are independent: the rapid onto path lo leaves
-        from the end of path lo - 1 (the origin for the first)."""
+        rapid length, hops and their length). Chunks are independent: the move
+        onto path lo leaves from the end of path lo - 1 (the origin for the
+        first), and path hi - 1 retracts for the move onto path hi."""
         part = slice_paths(grooves, lo, hi)
         rows = _move_rows(part, scale, opt.max_arc_offset)
         g = rows.grooves
-        starts = g.vertices[g.offsets[:-1]]
-        ends = g.vertices[g.offsets[1:] - 1]
+        starts = part.vertices[part.offsets[:-1]]
+        ends = part.vertices[part.offsets[1:] - 1]
         before = grooves.vertices[offsets[lo] - 1] if lo else np.zeros(2)
         # from the last groove's end (or the origin) to each groove's start
-        hops = float(chord_lengths(np.vstack([before, ends[:-1]]), starts).sum())
+        hop, air = hops_onto(np.vstack([before, ends[:-1]]), starts)
+        if lo == 0:
+            hop[0] = False  # the job starts at the safe height
+        onto_next = hi < n_paths and bool(hops_onto(
+            grooves.vertices[offsets[hi] - 1][None], grooves.vertices[offsets[hi]][None])[0][0])
+        m = len(g.vertices)
+        hop_row = np.zeros(m, dtype=bool)  # the first vertex of a groove hopped onto
+        hop_row[g.offsets[:-1][hop]] = True
+        low_row = np.zeros(m, dtype=bool)  # the last vertex of a groove left by a hop
+        low_row[g.offsets[1:][np.append(hop[1:], onto_next)] - 1] = True
+        code = np.where(hop_row, 4, rows.code)
         texts = []
         for r in range(0, len(g.vertices), _CHUNK_ROWS):
             s = slice(r, r + _CHUNK_ROWS)
@@ -728,7 +753,7 @@ def write_gcode(
             f = rows.first[s]
             t.text(stipple_open, f)
             t.number(rows.stipple[s], 0, f)
-            t.choice([stipple_close + "G0", "G1", "G2", "G3"], rows.code[s])
+            t.choice([stipple_close + "G0", "G1", "G2", "G3", stipple_close + "G1"], code[s])
             t.text(" X")
             t.number(rows.qv[s, 0], dec)
             t.text(" Y")
@@ -738,37 +763,47 @@ def write_gcode(
             t.number(rows.qij[s, 0], dec, a)
             t.text(" J", a)
             t.number(rows.qij[s, 1], dec, a)
-            t.text(feed, rows.second[s])
+            t.text(feed, rows.second[s] | hop_row[s])  # a hop moves at the cutting feed
             if rapid_text:
                 t.text(rapid_text, f)
             t.text("\n")
             t.text(start_text, f)
             if dot_text:
                 t.text(dot_text, f & rows.last[s])
-            t.text(end_text, rows.last[s])
+            t.text(end_text, rows.last[s] & ~low_row[s])
+            if hop_end_text:
+                t.text(hop_end_text, low_row[s])
             texts.append(t.tobytes())
         text = b"".join(texts)
         return (text, text.count(b"\n"), len(g.vertices) - len(part.vertices), rows.length,
-                hops)
+                float(air[~hop].sum()), int(hop.sum()), float(air[hop].sum()))
 
     with atomic_open(path, "wb") as fh:
         fh.write(("\n".join(head) + "\n").encode("ascii"))
-        for text, lines, added, length, hops in in_order(chunk, path_chunks(grooves, _CHUNK_ROWS)):
+        for text, lines, added, length, travel, hops, hopped in in_order(
+                chunk, path_chunks(grooves, _CHUNK_ROWS)):
             chords += added
             if chords > _MAX_CHORDS:
                 raise SpecholoError(f"wide arcs would need more than {_MAX_CHORDS:.0e} chords")
             cutting += length
-            rapid += hops
+            rapid += travel
+            hop_count += hops
+            hop_length += hopped
             n_lines += lines
             fh.write(text)
         if tail:
             fh.write(("\n".join(tail) + "\n").encode("ascii"))
 
+    # every groove plunges and retracts, from and to the hop height where a hop
+    # reaches or leaves it (each hop shortens one plunge and one retract)
+    vertical = n_paths * (safe + depth) - hop_count * (safe - machining.hop) if mill else 0.0
     return GcodeStats(
         lines=n_lines,
         paths=n_paths,
         cutting_length_mm=cutting + vertical,
         rapid_length_mm=rapid + vertical,
+        hops=hop_count,
+        hop_length_mm=hop_length,
     )
 
 

@@ -4,10 +4,15 @@ The model follows the programs :func:`~specholo.fabrication.gcode.write_gcode`
 writes: the tool starts above the origin at the safe height; for each path it
 rapids to the start, plunges at the plunge rate, cuts along the arcs at the
 feed and retracts at the rapid rate (a laser has no plunge or retract, and
-fires for ``dot_time`` on a dot).
+fires for ``dot_time`` on a dot). Where the writer hops between paths
+(:meth:`~specholo.setup.Machining.hops`, decided on the same lengths), the
+retract and the plunge run between the groove and the hop height, and the move
+over is a feed move at the cutting feed.
 
 Every move accelerates and brakes at ``accel`` (trapezoidal velocity). Rapids,
-plunges and retracts start and end at rest. Within a groove the machine does
+plunges, retracts and hops start and end at rest (GRBL's planner would carry a
+little speed through their right-angle corners: its junction deviation allows
+~2.5 mm/s there at the defaults, so short hops take a few ms less). Within a groove the machine does
 not stop between arcs; as in GRBL's planner, its speed is limited
 
 - at each junction by the junction deviation ``delta``: turning by phi allows
@@ -47,6 +52,8 @@ class TimeEstimate:
         dwell_s: the wait after starting the spindle, and laser dots.
         stipples: distinct stipple ids cut.
         stipples_per_s: stipples per second of machining (0 if nothing is cut).
+        hop_s: hops between grooves (feed moves just above the surface).
+        hops: moves between grooves made as hops.
     """
 
     total_s: float
@@ -56,6 +63,8 @@ class TimeEstimate:
     dwell_s: float
     stipples: int
     stipples_per_s: float
+    hop_s: float = 0.0
+    hops: int = 0
 
 
 def trapezoid_time(length: np.ndarray, cap: np.ndarray | float, accel: float,
@@ -198,7 +207,7 @@ def estimate_time(grooves: Grooves, depth: float, machining: Machining,
     Args:
         grooves: n paths, cut in order, each from its first vertex.
         depth: groove depth, mm.
-        machining: feed and plunge rates (mm/min) and safe height (mm).
+        machining: feed and plunge rates (mm/min), safe height and hops (mm).
         accel: acceleration of every axis, mm/s^2.
         rapid: rapid (G0) rate, mm/min.
         junction_deviation: GRBL's ``$11``, mm: sets the speed through corners.
@@ -238,20 +247,31 @@ def estimate_time(grooves: Grooves, depth: float, machining: Machining,
         return hop_lengths(starts, ends, lo - a, hi - a)
 
     # A block of paths at a time: the temporaries stay small at any size.
-    rapid_s = sum((float(trapezoid_time(hops(lo, min(lo + HOPS, n)), rapid_rate, accel).sum())
-                   for lo in range(0, n, HOPS)), 0.0)
+    rapid_s = hop_s = 0.0
+    hopped = 0
+    for lo in range(0, n, HOPS):
+        air = hops(lo, min(lo + HOPS, n))
+        hop = np.zeros(len(air), dtype=bool) if laser else machining.hops(air)
+        if lo == 0:
+            hop[0] = False  # the job starts at the safe height
+        rapid_s += float(trapezoid_time(air[~hop], rapid_rate, accel).sum())
+        hop_s += float(trapezoid_time(air[hop], feed, accel).sum())
+        hopped += int(hop.sum())
     plunge_s = 0.0
     dwell_s = dwell if n else 0.0
     if laser:
         dwell_s += dot_time * int(np.sum(grooves.is_dot))
     else:
-        z = machining.safe_z + depth
-        plunge_s = n * float(trapezoid_time(np.array([z]), plunge_rate, accel)[0])
-        rapid_s += n * float(trapezoid_time(np.array([z]), rapid_rate, accel)[0])
+        # every path plunges once and retracts once; a hop shortens the retract
+        # before it and the plunge after it to the hop height
+        z = np.array([machining.safe_z + depth, machining.hop + depth])
+        count = np.array([n - hopped, hopped])
+        plunge_s = float(count @ trapezoid_time(z, plunge_rate, accel))
+        rapid_s += float(count @ trapezoid_time(z, rapid_rate, accel))
 
     cutting_s = float(_cutting_time(verts, np.ascontiguousarray(grooves.bulges, dtype=float),
                                     offsets, feed, accel, junction_deviation))
 
-    total = cutting_s + rapid_s + plunge_s + dwell_s
+    total = cutting_s + rapid_s + plunge_s + dwell_s + hop_s
     return TimeEstimate(total, cutting_s, rapid_s, plunge_s, dwell_s, stipples,
-                        stipples / total if total > 0 else 0.0)
+                        stipples / total if total > 0 else 0.0, hop_s, hopped)
