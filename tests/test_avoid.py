@@ -3,18 +3,22 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+from specholo.errors import SpecholoError
 from specholo.setup import Light, Setup, Tool, Viewer
 from specholo.simulation.glints import Engraved, find_glints
 from specholo.simulation.verify import verify
-from specholo.toolpaths.common import make_runs
+from specholo.toolpaths import striped
+from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import Grooves
 from specholo.toolpaths.striped import StripeOptions, design_striped
 
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
 #: The README's drag tip at its design depth: tip radius 0.05 mm, 0.0115 mm deep.
 TOOL = Tool(0.05, 0.0115)
 
@@ -31,11 +35,16 @@ def _scene(n: int = 16, seed: int = 3) -> np.ndarray:
                             rng.uniform(-30, -10, n)])
 
 
-def _design(points: np.ndarray, placement: str, setup: Setup) -> Grooves:
+def _runs(points: np.ndarray, setup: Setup) -> Runs:
     half = setup.viewer.design_range
     n = len(points)
-    runs = make_runs(points, np.arange(n), np.full(n, -half), np.full(n, half))
-    grooves, dropped = design_striped(runs, setup, StripeOptions(placement=placement))
+    return make_runs(points, np.arange(n), np.full(n, -half), np.full(n, half))
+
+
+def _design(points: np.ndarray, placement: str, setup: Setup,
+            info: dict[str, str] | None = None) -> Grooves:
+    grooves, dropped = design_striped(_runs(points, setup), setup,
+                                      StripeOptions(placement=placement), info=info)
     assert dropped.size == 0
     return grooves
 
@@ -125,3 +134,55 @@ def test_avoiding_keeps_the_groove_length(designs: dict[str, Grooves]) -> None:
     """Jumping between leaves moves grooves, it does not lengthen them."""
     a, b = designs["avoid"].total_length(), designs["phase"].total_length()
     assert a == pytest.approx(b, rel=0.01)
+
+
+def _same(a: Grooves, b: Grooves) -> bool:
+    return bool(np.array_equal(a.path_sizes, b.path_sizes)
+                and np.array_equal(a.vertices, b.vertices))
+
+
+def test_auto_places_a_small_design_by_avoiding(designs: dict[str, Grooves]) -> None:
+    """A design whose plan fits is placed out of the way, and says so."""
+    info: dict[str, str] = {}
+    grooves = _design(_scene(), "auto", _setup(), info)
+    assert info == {"placement": "avoid"}
+    assert _same(grooves, designs["avoid"])
+
+
+def test_auto_falls_back_to_phase_over_the_work_bound(
+        designs: dict[str, Grooves], monkeypatch: pytest.MonkeyPatch) -> None:
+    """Over the plan's bound "auto" takes the phase walk, and says why."""
+    monkeypatch.setattr(striped, "AUTO_MAX_PLAN_SAMPLES", 1000)
+    info: dict[str, str] = {}
+    grooves = _design(_scene(), "auto", _setup(), info)
+    assert info["placement"] == "phase"
+    assert "plan samples" in info["fallback"]
+    assert _same(grooves, designs["phase"])
+
+
+def test_avoid_that_does_not_fit_is_refused(
+        designs: dict[str, Grooves], monkeypatch: pytest.MonkeyPatch) -> None:
+    """With memory for the phase walk but not the plan: auto takes phase, avoid is refused."""
+    import specholo.scene.loading as loading
+
+    setup, pts = _setup(), _scene()
+    cap, _ = striped._plan_estimate(_runs(pts, setup), setup, StripeOptions())
+    room = int(4 * cap.sum()) * striped.BYTES_PER_SAMPLE - 1
+    monkeypatch.setattr(loading, "available_memory", lambda: room)
+    info: dict[str, str] = {}
+    assert _same(_design(pts, "auto", setup, info), designs["phase"])
+    assert info["placement"] == "phase" and "memory" in info["fallback"]
+    with pytest.raises(SpecholoError, match="--placement avoid: .*--placement phase"):
+        _design(pts, "avoid", setup)
+
+
+def test_the_placement_used_is_recorded() -> None:
+    """hologram.json keeps the setting ("auto") and gives the placement used in its stats."""
+    from specholo.pipeline import DesignConfig, design, hologram_json
+
+    cfg = DesignConfig(stipples=30, size=20.0)
+    d = design(EXAMPLE, cfg, check_overlaps=False)
+    info = hologram_json(d)
+    assert info["settings"]["placement"] == "auto"
+    assert info["stats"]["placement"] == "avoid"
+    assert info["stats"]["placement_fallback"] is None

@@ -187,7 +187,7 @@ class DesignConfig:
     seed: int = 0
     method: str = "striped"
     band: float = 0.2
-    placement: str = "avoid"
+    placement: str = "auto"
     tool: str = "drag"
     tool_radius: float | None = None
     tool_angle: float | None = None
@@ -423,6 +423,7 @@ class Design:
     overlaps: Overlaps | None = None  # where grooves cut into each other
     plate: np.ndarray | None = None  # (2, 2) plate corners, mm
     coverage: Coverage | None = None  # which stipples got a groove
+    placement: dict[str, str] | None = None  # striped: "placement" used, "fallback" why
 
 
 @dataclass(frozen=True)
@@ -558,8 +559,13 @@ def auto_depth(cutter: Cutter, config: DesignConfig, points: np.ndarray, runs: R
     return depth
 
 
-def design_runs(runs: Runs, config: DesignConfig) -> tuple[Grooves, np.ndarray]:
-    """Grooves for the given view intervals with the configured method."""
+def design_runs(runs: Runs, config: DesignConfig,
+                info: dict[str, str] | None = None) -> tuple[Grooves, np.ndarray]:
+    """Grooves for the given view intervals with the configured method.
+
+    ``info``, if given, gets the striped design's placement used and why "auto"
+    fell back (see :func:`~specholo.toolpaths.striped.design_striped`).
+    """
     from specholo.toolpaths.classic import design_classic
     from specholo.toolpaths.hyperbola import design_hyperbola
     from specholo.toolpaths.striped import StripeOptions, design_striped
@@ -567,7 +573,7 @@ def design_runs(runs: Runs, config: DesignConfig) -> tuple[Grooves, np.ndarray]:
     setup = config.setup()
     if config.method == "striped":
         return design_striped(runs, setup, StripeOptions(band=config.band,
-                                                         placement=config.placement))
+                                                         placement=config.placement), info=info)
     if config.method == "hyperbola":
         from specholo.toolpaths.hyperbola import serves
 
@@ -651,7 +657,8 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
             f"of the views ({views.stipples_losing} stipples); {views.suggestion}")
     timings["tool check"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    grooves, dropped = design_runs(runs, config)
+    placed: dict[str, str] = {}
+    grooves, dropped = design_runs(runs, config, placed)
     timings["toolpaths"] = time.perf_counter() - t0
     cover = coverage(len(points), runs, grooves, dropped)
     if cover.grooved == 0:
@@ -675,7 +682,7 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
                                total_length=total) if check_overlaps else None
     timings["overlaps"] = time.perf_counter() - t0
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
-                  views, overlaps, plate, cover)
+                  views, overlaps, plate, cover, placement=placed or None)
 
 
 class StippleRows:
@@ -732,7 +739,11 @@ def hologram_json(d: Design) -> dict[str, Any]:
                   "dropped_stipples": d.dropped.tolist(),
                   "dropped_reasons": drop_reasons(d.points, d.dropped, setup),
                   "hidden_stipples": cover.hidden,
-                  "stipples_with_grooves": cover.grooved},
+                  "stipples_with_grooves": cover.grooved,
+                  # what "auto" chose, and why it fell back (settings keep "auto")
+                  **({"placement": d.placement["placement"],
+                      "placement_fallback": d.placement.get("fallback")}
+                     if d.placement else {})},
         "stipples": StippleRows(d.points, d.runs),
     }
 

@@ -33,10 +33,11 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("spacing", float, "Minimum stipple spacing in mm (instead of --stipples)."),
     ("seed", int, "Random seed for stippling [0]."),
     ("band", float, "Striped design: half-height of the band, bounds vertical error, mm [0.2]."),
-    ("placement", click.Choice(["avoid", "phase"]),
+    ("placement", click.Choice(["auto", "avoid", "phase"]),
      "Striped design: avoid places each stipple's stripes in turn out of the grooves placed "
      "before (jumping between the band's paths where a crossing would cut glints away); "
-     "phase designs each stipple alone, one stripe family [avoid]."),
+     "phase designs each stipple alone, one stripe family; auto is avoid where its plan fits "
+     "in memory and time, else phase [auto]."),
     ("tool", click.Choice(["ball", "vbit", "drag", "scriber", "laser"]),
      "Cutting tool: ball-end mill, V-bit, diamond drag tip, hand scriber or laser [drag]."),
     ("tool-radius", float, "Ball or tip radius, mm [ball 0.25, drag 0.05, scriber 0.05]."),
@@ -206,6 +207,8 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     stats = (f"{len(d.points)} stipples, {d.grooves.n_paths} paths, "
              f"{d.grooves.total_length() / 1000:.2f} m of groove")
     click.echo(f"{config.method}: {stats} -> {out}")
+    if d.placement and "fallback" in d.placement:
+        click.echo(f"placement: {d.placement['fallback']}; stripes placed by phase instead")
     if d.views is not None:
         lo, hi = (math.degrees(v) for v in d.views.needed)
         click.echo(f"tool: {d.config.cutter().describe()}, {d.config.depth_mm:g} mm deep; "

@@ -44,7 +44,11 @@ CHUNK_SAMPLES = 4_000_000
 MAX_GROWTH = 4**4
 MIN_BOUND = 1024
 #: Stripe placements (see :class:`StripeOptions`).
-PLACEMENTS = ("avoid", "phase")
+PLACEMENTS = ("auto", "avoid", "phase")
+#: "auto": most plan samples (by the runs' estimate, see :func:`_plan_estimate`)
+#: placed by "avoid"; a larger design is placed by "phase", which takes seconds
+#: where the placement would take many minutes.
+AUTO_MAX_PLAN_SAMPLES = 10_000_000
 #: Widest stripe spacing, as a share of the band's half-height w, at which
 #: stripes are placed among the leaves; wider grooves keep one family a width apart.
 AVOID_MAX_SPACING = 0.5
@@ -68,7 +72,9 @@ class StripeOptions:
         placement: "avoid" to place the stipples' stripes in turn, each among the
             band's leaves out of the way of the grooves placed before it
             (:mod:`._avoid_kernel`); "phase" for one family of stripes per run,
-            its band phase set at the apex (every stipple designed alone).
+            its band phase set at the apex (every stipple designed alone);
+            "auto" for "avoid" where its plan fits in memory and in
+            :data:`AUTO_MAX_PLAN_SAMPLES`, else "phase".
         leaves: "avoid": leaves to choose from per band height 2 w.
         jump_cost: "avoid": what a new stripe costs, in plan samples of groove
             lost to a crossing (a jump's ends are short and each junction is a
@@ -82,7 +88,7 @@ class StripeOptions:
     max_chord: float = 0.5
     min_light_tilt: float = 0.05
     spacing: float | None = None
-    placement: str = "avoid"
+    placement: str = "auto"
     leaves: int = 8
     jump_cost: float = 4.0
     plan_step: float = 0.015
@@ -231,30 +237,62 @@ def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
     return dense, sizes, out[0], out[1], out[2], np.empty(total, dtype=np.uint8)
 
 
+def _plan_estimate(runs: Runs, setup: Setup, opts: StripeOptions) -> tuple[np.ndarray, int]:
+    """Each run's bound on its plan samples (a leaf's walk), and the plan's likely samples.
+
+    The plan's samples are plan_step apart in x or max_step apart in azimuth;
+    the glints stray from the sightline crossings by the wall offset, < R.
+    The bound also has room for u steps (2% of w each; u drifts by about as
+    much as x moves), which few runs take: the estimate leaves them out.
+    """
+    from specholo.hosts.flat import sightline_crossing
+
+    v = setup.viewer
+    ends = [sightline_crossing(v.eye(t), runs.point)[:, 0] for t in (runs.start, runs.end)]
+    span_x = np.abs(ends[1] - ends[0]) + 2.0 * setup.tool.radius
+    span = runs.end - runs.start
+    likely = span / opts.max_step + span_x / opts.plan_step
+    sample_cap = (span / opts.max_step + 1.5 * span_x / opts.plan_step
+                  + 75.0 * (span_x + 1.0) / opts.band + 64).astype(np.int64)
+    return sample_cap, int(likely.sum())
+
+
+def _avoid_refusal(sample_cap: np.ndarray, likely: int, setup: Setup,
+                   opts: StripeOptions) -> str | None:
+    """Why "auto" places the stripes by phase rather than avoid (None: it need not)."""
+    if likely > AUTO_MAX_PLAN_SAMPLES:
+        return (f"avoid would take ~{likely:.2g} plan samples (over "
+                f"{AUTO_MAX_PLAN_SAMPLES:.2g})")
+    try:
+        check_work(4 * sample_cap, setup, opts.band)
+    except SpecholoError:
+        from specholo.scene.loading import format_bytes
+
+        need = format_bytes(int(4 * sample_cap.sum()) * BYTES_PER_SAMPLE)
+        return f"avoid would need ~{need} of memory"
+    return None
+
+
 def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
-          spacing: float) -> tuple[Runs, np.ndarray, np.ndarray]:
+          spacing: float, sample_cap: np.ndarray) -> tuple[Runs, np.ndarray, np.ndarray]:
     """The stripes of every run, placed in turn out of each other's way
     (:func:`._avoid_kernel.place`).
+
+    Args:
+        sample_cap: each run's bound on its plan samples (:func:`_plan_estimate`).
 
     Returns:
         One run per stripe (its stipple, point and azimuth interval), its u0 at
         the start, and its bound on the walk's samples.
     """
-    from specholo.hosts.flat import sightline_crossing
     from specholo.toolpaths import _avoid_kernel
 
-    v = setup.viewer
-    ends = [sightline_crossing(v.eye(t), runs.point)[:, 0] for t in (runs.start, runs.end)]
-    # The plan's samples are plan_step apart in x or max_step apart in azimuth;
-    # the glints stray from the sightline crossings by the wall offset, < R.
-    span_x = np.abs(ends[1] - ends[0]) + 2.0 * setup.tool.radius
-    span = runs.end - runs.start
-    # The u steps are bounded too (2% of w each); u drifts by about as much as x moves.
-    sample_cap = (span / opts.max_step + 1.5 * span_x / opts.plan_step
-                  + 75.0 * (span_x + 1.0) / opts.band + 64).astype(np.int64)
     first = sample_cap.copy()
     while True:
-        check_work(4 * sample_cap, setup, opts.band)
+        try:
+            check_work(4 * sample_cap, setup, opts.band)
+        except SpecholoError as exc:
+            raise SpecholoError(f"--placement avoid: {exc} (or --placement phase)") from None
         run, a, b, u0, dx, bad = _avoid_kernel.place(
             runs.start, runs.end, np.ascontiguousarray(runs.point), params, opts.band, spacing,
             opts.leaves, opts.plan_step, opts.jump_cost, opts.plan_margin, sample_cap,
@@ -274,7 +312,8 @@ def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
 
 
 def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
-                   near_plate: float | None = None) -> tuple[Grooves, np.ndarray]:
+                   near_plate: float | None = None,
+                   info: dict[str, str] | None = None) -> tuple[Grooves, np.ndarray]:
     """Striped grooves serving every run's azimuth interval.
 
     Args:
@@ -283,6 +322,8 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
         opts: construction options.
         near_plate: points with |p_z| at most this many mm become dimples;
             default half the groove width.
+        info: if given, gets "placement", the placement used ("avoid" or
+            "phase"), and where "auto" fell back to phase, "fallback": why.
 
     Returns:
         The grooves, and the ids of stipples that could not be designed: the
@@ -309,10 +350,27 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     spacing = setup.tool.width * (1 + SPACING_CLEARANCE) if opts.spacing is None else opts.spacing
     # A groove wide against the band leaves no two leaves a width apart to jump
     # between (the phase walk widens its band there instead).
-    if opts.placement == "avoid" and spacing <= AVOID_MAX_SPACING * w:
-        # Every planned stripe is walked alone, on its own leaf, never ending early.
-        far, u0, cap = _plan(far, params, setup, opts, spacing)
-        w, spacing = _ONE_STRIPE, 0.0
+    used = "phase"
+    if opts.placement != "phase" and spacing <= AVOID_MAX_SPACING * w:
+        sample_cap, likely = _plan_estimate(far, setup, opts)
+        why = _avoid_refusal(sample_cap, likely, setup, opts) if opts.placement == "auto" else None
+        planned = None
+        if why is None:
+            try:
+                planned = _plan(far, params, setup, opts, spacing, sample_cap)
+            except SpecholoError as exc:
+                if opts.placement == "avoid":
+                    raise
+                # "auto" never fails where the phase walk would not.
+                planned, why = None, str(exc)
+        if planned is not None:
+            # Every planned stripe is walked alone, on its own leaf, never ending early.
+            far, u0, cap = planned
+            w, spacing, used = _ONE_STRIPE, 0.0, "avoid"
+        elif info is not None and why is not None:
+            info["fallback"] = why
+    if info is not None:
+        info["placement"] = used
     out = GroovesBuilder()
     # Each taken sample is at most two vertices and each kept stripe has two or
     # more samples; unused room is never touched, so it takes no memory.
