@@ -299,3 +299,12 @@ def test_cut_in_chunks_is_the_same_plate(small_design: Path,
     gb = find_cut_glints(whole, eye, setup.light).glints
     assert len(gb.path) > 0
     assert np.array_equal(ga.path, gb.path) and np.array_equal(ga.point, gb.point)
+
+
+def test_default_bounds_hold_arcs_bulging_past_their_ends() -> None:
+    """A semicircle's far side, 1 mm beyond its ends' box, is cut into the field."""
+    g = one_path([[-1.0, 0.0], [1.0, 0.0]], [1.0, 0.0])  # counter-clockwise: through y = -1
+    hf = cut_surface(g, TOOL, TOOL.depth, resolution=0.01)
+    z, _ = hf.surface(np.array([[0.0, -1.0], [0.0, 1.0]]))
+    assert z[0] == pytest.approx(-TOOL.depth, abs=1e-6)
+    assert z[1] == 0.0  # the near side of the chord is not cut

@@ -16,7 +16,7 @@ import time
 from collections.abc import Iterable, Iterator
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -49,6 +49,9 @@ from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import MAX_COORDINATE, Grooves
 from specholo.toolpaths.overlap import Overlaps, groove_overlaps
 from specholo.toolpaths.striped import PLACEMENTS
+
+if TYPE_CHECKING:
+    from specholo.simulation.survival import AsCut
 
 METHODS = ("striped", "hyperbola", "arc", "ridged")
 DEFAULT_STIPPLES = 2000
@@ -423,6 +426,7 @@ class Design:
     overlaps: Overlaps | None = None  # where grooves cut into each other
     plate: np.ndarray | None = None  # (2, 2) plate corners, mm
     coverage: Coverage | None = None  # which stipples got a groove
+    as_cut: AsCut | None = None  # what survives the cutting, per azimuth
     placement: dict[str, str] | None = None  # striped: "placement" used, "fallback" why
 
 
@@ -614,7 +618,8 @@ def _stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
 
 
 def design(model_path: str | os.PathLike[str], config: DesignConfig,
-           rng: np.random.Generator | None = None, check_overlaps: bool = True) -> Design:
+           rng: np.random.Generator | None = None, check_overlaps: bool = True,
+           expect_as_cut: bool = True) -> Design:
     """Load, place, stipple, crop by occlusion, check the tool, design the grooves.
 
     Args:
@@ -622,6 +627,8 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
         config: the options.
         rng: random generator for stippling; default seeded from ``config.seed``.
         check_overlaps: measure where grooves cut into each other.
+        expect_as_cut: find which glints survive the other grooves' cuts
+            (:func:`expected_as_cut`).
 
     Raises:
         SpecholoError: on bad input, a plate smaller than the design, or (with
@@ -681,8 +688,59 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     overlaps = groove_overlaps(grooves, section.width, extent=extent,
                                total_length=total) if check_overlaps else None
     timings["overlaps"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    as_cut = expected_as_cut(config, points, runs, grooves) if expect_as_cut else None
+    timings["as cut"] = time.perf_counter() - t0
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
-                  views, overlaps, plate, cover, placement=placed or None)
+                  views, overlaps, plate, cover, as_cut, placement=placed or None)
+
+
+#: Head azimuths of the design's as-cut estimate are at most this far apart, degrees.
+AS_CUT_STEP_DEG = 5.0
+
+
+def expected_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
+                    grooves: Grooves) -> AsCut:
+    """The stereo figures of the plate as cut, every :data:`AS_CUT_STEP_DEG` over the range.
+
+    Each eye's designed glints are kept where no other groove's cut removes
+    them (:func:`~specholo.simulation.survival.verify_as_cut`). A stipple is
+    unoccluded for an eye when the eye's azimuth lies in one of the stipple's
+    view intervals (``runs``, what the grooves were designed to serve) rather
+    than by casting rays again: the same edges to ~0.01 degrees, at no cost.
+    """
+    from specholo.simulation.survival import verify_as_cut
+    from specholo.simulation.verify import view_azimuths
+    from specholo.visibility.occlusion import Intervals
+
+    setup = config.setup()
+    seen_from = Intervals(runs.stipple, runs.start, runs.end)
+
+    def vis(p: np.ndarray, eyes: np.ndarray) -> np.ndarray:
+        # verify asks for all the stipples, in order, from one eye
+        return seen_from.contains(np.arange(len(p)), np.arctan2(eyes[:, 0], eyes[:, 2]))
+
+    az = view_azimuths(setup.viewer.half_range, math.radians(AS_CUT_STEP_DEG))
+    return verify_as_cut(grooves, points, setup, config.cutter(), config.depth_mm, vis, az)
+
+
+def as_cut_json(as_cut: AsCut) -> dict[str, Any]:
+    """``hologram.json``'s ``expected``: the as-cut stereo visibility per azimuth."""
+    figures = as_cut.mean_and_lowest()
+    mean, low, at = figures if figures is not None else (None, None, None)
+    return {"as_cut_stereo_visibility": {
+        "mean": mean, "lowest": low, "lowest_azimuth_deg": at,
+        "per_azimuth": [
+            {"azimuth_deg": r.azimuth,
+             "visibility": None if math.isnan(r.visibility) else r.visibility,
+             "stipples_seen": r.stipples_seen,
+             "glints": [int(v) for v in g], "surviving": [int(v) for v in s]}
+            for r, g, s in zip(as_cut.reports, as_cut.glints, as_cut.surviving, strict=True)],
+        "how": ("share of the stipples unoccluded for both eyes whose left and right designed "
+                "glints both survive every other groove's cut (exact for a round tip cut "
+                "within its radius); glints and surviving count each eye's glints, left and "
+                "right"),
+    }}
 
 
 class StippleRows:
@@ -730,6 +788,7 @@ def hologram_json(d: Design) -> dict[str, Any]:
                                  "max_wall_tilt_deg": math.degrees(setup.tool.max_tilt)}},
         "views": d.views.as_dict() if d.views is not None else None,
         "overlaps": d.overlaps.as_dict() if d.overlaps is not None else None,
+        "expected": as_cut_json(d.as_cut) if d.as_cut is not None else None,
         "plate": {"groove_extent_mm": [lo.tolist(), hi.tolist()],
                   "plate_mm": d.plate.tolist() if d.plate is not None else None,
                   "stock_thickness_mm": d.config.stock_thickness},
@@ -1135,29 +1194,73 @@ def verify_design(loaded: Loaded, max_step_deg: float = 5.0) -> list[Any]:
     return verify(loaded.grooves, loaded.points, setup, _visibility(loaded), az)
 
 
-def verify_cut_design(loaded: Loaded, max_step_deg: float = 5.0, resolution: float = 0.02,
-                      stl: str | os.PathLike[str] | None = None) -> tuple[list[Any], Any]:
-    """Cut the design's grooves into a simulated plate and verify on that surface.
+#: How ``verify --cut`` finds what the cutting leaves (:func:`cut_method`).
+CUT_METHODS = ("survival", "field")
+#: Height-field sample spacing when none is given, mm.
+DEFAULT_RESOLUTION = 0.02
+
+
+def cut_method(method: str | None, resolution: float | None, stl: object | None) -> str:
+    """How to check the plate as cut: ``survival`` (exact, from the grooves) unless
+    the height field is asked for, by name or by its own settings (a resolution,
+    an STL of the cut plate).
+
+    Raises:
+        SpecholoError: a method not in :data:`CUT_METHODS`, or the survival test
+            with a height field's setting.
+    """
+    if method is None:
+        return "field" if resolution is not None or stl is not None else "survival"
+    if method not in CUT_METHODS:
+        raise SpecholoError(f"cut method must be one of {', '.join(CUT_METHODS)}, got "
+                            f"{method!r}")
+    if method == "survival" and (resolution is not None or stl is not None):
+        raise SpecholoError("--resolution and --stl are the height field's: use --cut-method "
+                            "field, or leave them out for the exact survival test")
+    return method
+
+
+def verify_cut_design(loaded: Loaded, max_step_deg: float = 5.0,
+                      resolution: float | None = None,
+                      stl: str | os.PathLike[str] | None = None,
+                      method: str | None = None) -> tuple[list[Any], Any]:
+    """Verify the design on the plate as cut.
+
+    By default (``survival``) each eye's designed glints are kept where no other
+    path's cut removes them (:mod:`specholo.simulation.survival`): exact, with
+    no resolution to converge. ``field`` cuts the grooves into a simulated
+    height field and finds the glints on that surface (:mod:`specholo.simulation.cut`).
 
     Args:
         loaded: the design (grooves read back from its G-code, usually).
         max_step_deg: largest azimuth step between eye pairs, degrees.
-        resolution: height-field sample spacing, mm.
-        stl: also write the cut plate here as a watertight STL.
+        resolution: height-field sample spacing, mm (default :data:`DEFAULT_RESOLUTION`).
+        stl: also write the cut plate here as a watertight STL (height field only).
+        method: ``survival`` or ``field`` (default: see :func:`cut_method`).
 
     Returns:
-        The per-azimuth reports on the cut plate, and the height field.
+        The per-azimuth reports on the cut plate, and the height field (None
+        for the survival test).
     """
-    from specholo.simulation.cut import cut_design, verify_cut, write_stl
     from specholo.simulation.verify import view_azimuths
 
+    method = cut_method(method, resolution, stl)
+    setup = loaded.config.setup()
+    az = view_azimuths(setup.viewer.half_range, math.radians(max_step_deg))
+    if method == "survival":
+        from specholo.simulation.survival import verify_as_cut
+
+        as_cut = verify_as_cut(loaded.grooves, loaded.points, setup, loaded.config.cutter(),
+                               loaded.config.depth_mm, _visibility(loaded), az)
+        return as_cut.reports, None
+    from specholo.simulation.cut import cut_design, verify_cut, write_stl
+
+    resolution = DEFAULT_RESOLUTION if resolution is None else resolution
     if not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
         raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
-    setup = loaded.config.setup()
     field = cut_design(loaded, resolution)
     if stl is not None:
         write_stl(stl, field, loaded.config.stock_thickness)
-    az = view_azimuths(setup.viewer.half_range, math.radians(max_step_deg))
     return verify_cut(field, loaded.points, setup, _visibility(loaded), az), field
 
 

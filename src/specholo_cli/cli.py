@@ -229,6 +229,8 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
             click.echo("warning: most glints will be cut away by other grooves; use fewer "
                        "stipples, a finer tip (e.g. --tool drag --tool-radius 0.05 --depth "
                        "0.012) or a larger model (check with `specholo verify --cut`)", err=True)
+    if d.as_cut is not None and d.as_cut.describe():
+        click.echo(d.as_cut.describe())
     mach = written.machining
     travel = (f", air travel {mach['travel_mm'] / 1000:.1f} m (unordered "
               f"{mach['travel_unordered_mm'] / 1000:.1f} m)" if "travel_mm" in mach else "")
@@ -290,14 +292,18 @@ def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...]
 @click.option("--from-gcode", is_flag=True,
               help="Verify the grooves parsed from hologram.gcode, the file that will be cut.")
 @click.option("--cut", is_flag=True,
-              help="Also simulate cutting hologram.gcode into the plate and verify the glints "
-                   "on that surface (writes verify_cut.json).")
-@click.option("--resolution", type=float, default=0.02, show_default=True,
-              help="Cut simulation: height-field sample spacing, mm.")
+              help="Also verify the plate as hologram.gcode cuts it: each eye's glints that "
+                   "no other groove's cut removes (writes verify_cut.json).")
+@click.option("--cut-method", type=click.Choice(["survival", "field"]), default=None,
+              help="How --cut finds what the cutting leaves: survival, exact from the "
+                   "grooves [default], or field, a simulated height field of the plate "
+                   "[the default with --resolution or --stl].")
+@click.option("--resolution", type=float, default=None,
+              help="Height-field cut: sample spacing, mm [0.02].")
 @click.option("--stl", type=click.Path(path_type=Path), default=None,
-              help="Cut simulation: write the cut plate as a watertight STL here.")
-def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: float,
-           stl: Path | None) -> None:
+              help="Height-field cut: write the cut plate as a watertight STL here.")
+def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: str | None,
+           resolution: float | None, stl: Path | None) -> None:
     """Simulate stereo eye pairs along the arc and measure where each stipple appears."""
     from rich.console import Console
     from rich.table import Table
@@ -305,11 +311,13 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
     from specholo.fabrication.atomic import atomic_open
     from specholo.folders import publish
     from specholo.pipeline import (
+        DEFAULT_RESOLUTION,
         is_ridged_folder,
         load_design,
         verify_cut_design,
         verify_design,
     )
+    from specholo.pipeline import cut_method as choose_cut_method
     from specholo.preview.preview import plot_verification
     from specholo.simulation.verify import reports_to_dicts, summarise
 
@@ -317,6 +325,8 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
         raise SpecholoError(f"step must be in [0.01, 5] degrees, got {step}")
     if stl is not None and not cut:
         raise SpecholoError("--stl needs --cut")
+    if cut_method is not None and not cut:
+        raise SpecholoError("--cut-method needs --cut")
     if stl is not None and stl.suffix.lower() != ".stl":
         raise SpecholoError(f"--stl must name an .stl file, got {stl.name!r}")
     # Checked before the cut is simulated (minutes), not when the file is written.
@@ -324,8 +334,11 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
         raise SpecholoError(f"--stl {stl}: folder {stl.parent} does not exist")
     if stl is not None and stl.is_dir():
         raise SpecholoError(f"--stl {stl} is a folder: name an .stl file")
-    if not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
+    if resolution is not None and not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
         raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
+    method = choose_cut_method(cut_method, resolution, stl) if cut else None
+    if method == "field" and resolution is None:
+        resolution = DEFAULT_RESOLUTION
     from specholo.compose import is_composed_folder
     from specholo.spin import is_spin_folder
     from specholo.steady import is_steady_folder
@@ -352,8 +365,10 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
     summary = summarise(reports)
     cut_rows: list[dict[str, Any]] = []
     if cut:
-        with Console(stderr=True).status("cutting the plate and simulating eye pairs..."):
-            cut_reports, _ = verify_cut_design(loaded, step, resolution, stl)
+        status = ("finding which glints the other grooves' cuts leave..." if method == "survival"
+                  else "cutting the plate and simulating eye pairs...")
+        with Console(stderr=True).status(status):
+            cut_reports, _ = verify_cut_design(loaded, step, resolution, stl, method)
         cut_rows = reports_to_dicts(cut_reports)
     table = Table(title=f"{loaded.config.method} design, {len(loaded.points)} stipples")
     for col in ("azimuth", "median mm", "p95 mm", "p95 depth mm", "max mm", "visibility",
@@ -376,8 +391,10 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
     source = "hologram.gcode" if from_gcode or cut else "grooves.npz"
     if cut:
         cut_summary = summarise(cut_reports)
-        click.echo(f"cut plate: worst p95 error {cut_summary['worst_p95_error']:.3f} mm, "
-                   f"min visibility {cut_summary['min_visibility']:.3f} "
+        how = ("the glints no other groove's cut removes" if method == "survival"
+               else f"height field at {resolution:g} mm")
+        click.echo(f"cut plate ({how}): worst p95 error {cut_summary['worst_p95_error']:.3f} "
+                   f"mm, min visibility {cut_summary['min_visibility']:.3f} "
                    f"(other grooves cut away the rest)")
     # The verification's files appear together or not at all.
     names = {"verify.json", "verify.png", *(["verify_cut.json"] if cut else [])}
@@ -388,8 +405,9 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, resolution: f
         if cut:
             with atomic_open(stage / "verify_cut.json") as fh:
                 json.dump({"method": loaded.config.method, "source": source,
-                           "resolution_mm": resolution, "summary": cut_summary,
-                           "azimuths": cut_rows}, fh, indent=1)
+                           "cut_method": method,
+                           "resolution_mm": resolution if method == "field" else None,
+                           "summary": cut_summary, "azimuths": cut_rows}, fh, indent=1)
         plot_verification(rows, stage / "verify.png",
                           f"{loaded.config.method}: stereo verification")
 

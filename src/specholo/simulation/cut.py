@@ -55,8 +55,8 @@ from specholo.simulation.glints import Glints
 from specholo.simulation.verify import (
     ViewReport,
     VisibilityFn,
-    stereo_errors,
     view_azimuths,
+    view_report,
 )
 from specholo.toolpaths.grooves import Grooves
 
@@ -493,7 +493,7 @@ def cut_surface(grooves: Grooves, tool_profile: ToolProfile | Tool | Any, depth:
     profile = as_profile(tool_profile, depth)
     r_cut = profile.cut_radius(depth)
     if bounds is None:
-        b = grooves.bounds()
+        b = grooves.extent()  # arcs count where they bulge past their ends
         bounds = np.stack([b[0] - r_cut - res, b[1] + r_cut + res])
     bounds = np.asarray(bounds, dtype=float)
     if bounds.shape != (2, 2) or not np.all(np.isfinite(bounds)) or np.any(
@@ -738,26 +738,7 @@ def _view_report(theta: float, points: np.ndarray, gl: Glints, gr: Glints, eye_l
     else:
         vis_l = visible(points, np.broadcast_to(eye_l, (n, 3)))
         vis_r = visible(points, np.broadcast_to(eye_r, (n, 3)))
-    lit_l = np.bincount(gl.stipple, minlength=n) > 0
-    lit_r = np.bincount(gr.stipple, minlength=n) > 0
-    seen = vis_l & vis_r
-    both = np.flatnonzero(seen & lit_l & lit_r)
-    if both.size:
-        err, depth = stereo_errors(points, gl, gr, eye_l, eye_r, both)
-    else:  # (stereo_errors needs at least one stipple)
-        err = depth = np.zeros(0)
-    hidden = int((~vis_l).sum() + (~vis_r).sum())
-    false = int((~vis_l & lit_l).sum() + (~vis_r & lit_r).sum())
-    return ViewReport(
-        azimuth=math.degrees(theta),
-        stipples_seen=int(seen.sum()),
-        median_error=float(np.median(err)) if err.size else math.nan,
-        p95_error=float(np.percentile(err, 95)) if err.size else math.nan,
-        p95_depth_error=float(np.percentile(np.abs(depth), 95)) if err.size else math.nan,
-        max_error=float(err.max()) if err.size else math.nan,
-        visibility=float(both.size / seen.sum()) if seen.any() else math.nan,
-        false_glints=float(false / hidden) if hidden else 0.0,
-    )
+    return view_report(theta, points, gl, gr, eye_l, eye_r, vis_l, vis_r)
 
 
 def verify_cut(field: HeightField | CutCells, points: np.ndarray, setup: Setup,

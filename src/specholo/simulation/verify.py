@@ -103,6 +103,40 @@ def stereo_errors(points: np.ndarray, left: Glints, right: Glints, eye_l: np.nda
     return worst[ids], depth[ids]
 
 
+def view_report(theta: float, points: np.ndarray, gl: Glints, gr: Glints, eye_l: np.ndarray,
+                eye_r: np.ndarray, vis_l: np.ndarray, vis_r: np.ndarray) -> ViewReport:
+    """The figures of one head from both eyes' glints, as :func:`verify` reports them.
+
+    Args:
+        theta: head azimuth, radians.
+        points: (n, 3) all stipples.
+        gl, gr: the left and right eye's glints, sorted by stipple.
+        eye_l, eye_r: (3,) eye positions.
+        vis_l, vis_r: (n,) whether each stipple is unoccluded from each eye.
+    """
+    n = len(points)
+    lit_l = np.bincount(gl.stipple, minlength=n) > 0
+    lit_r = np.bincount(gr.stipple, minlength=n) > 0
+    seen = vis_l & vis_r
+    both = np.flatnonzero(seen & lit_l & lit_r)
+    if both.size:
+        err, depth = stereo_errors(points, gl, gr, eye_l, eye_r, both)
+    else:  # (stereo_errors needs at least one stipple)
+        err = depth = np.zeros(0)
+    hidden = int((~vis_l).sum() + (~vis_r).sum())
+    false = int((~vis_l & lit_l).sum() + (~vis_r & lit_r).sum())
+    return ViewReport(
+        azimuth=math.degrees(theta),
+        stipples_seen=int(seen.sum()),
+        median_error=float(np.median(err)) if err.size else math.nan,
+        p95_error=float(np.percentile(err, 95)) if err.size else math.nan,
+        p95_depth_error=float(np.percentile(np.abs(depth), 95)) if err.size else math.nan,
+        max_error=float(err.max()) if err.size else math.nan,
+        visibility=float(both.size / seen.sum()) if seen.any() else math.nan,
+        false_glints=float(false / hidden) if hidden else 0.0,
+    )
+
+
 #: Groove vertices simulated at once; bigger designs are verified in stipple
 #: chunks, which gives the same figures (every glint belongs to one stipple).
 #: Small chunks stay in the caches: at 10^5 stipples (24 million vertices)
