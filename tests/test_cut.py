@@ -282,8 +282,9 @@ def test_cut_in_chunks_is_the_same_plate(small_design: Path,
     monkeypatch.setattr(cut_module, "CHUNK_VERTICES", max(len(grooves.vertices) // 7, 2))
     monkeypatch.setattr(cut_module, "CHUNK_FROM", 0)
     parts = cut_surface(grooves, setup.tool, setup.tool.depth, resolution=0.02)
-    # Seven chunks; only moves that cut some sample deepest are kept.
-    assert len(parts.program) < len(whole.program)
+    # Seven chunks; only moves that cut some sample deepest are kept (stripes
+    # placed out of each other's way may leave no move wholly cut over).
+    assert len(parts.program) <= len(whole.program)
     assert np.array_equal(parts.z, whole.z)
     assert np.array_equal(parts.labels, whole.labels)
     cut = whole.moves >= 0

@@ -348,3 +348,23 @@ def test_design_states_and_verify_checks_what_survives(tmp_path, capsys) -> None
     err = capsys.readouterr().err.strip()
     assert err.startswith("error:") and "\n" not in err
     assert not (tmp_path / "plate.stl").exists()
+
+
+def test_a_large_design_leaves_its_as_cut_figures_to_verify(tmp_path, capsys,
+                                                             monkeypatch) -> None:
+    """Over AS_CUT_MAX_STIPPLES the design says how to get the as-cut figures
+    instead of finding them, and records why."""
+    import json
+    from pathlib import Path
+
+    import specholo.pipeline as pipeline
+    from specholo_cli.cli import main
+
+    monkeypatch.setattr(pipeline, "AS_CUT_MAX_STIPPLES", 10)
+    out = tmp_path / "holo"
+    bunny = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
+    assert main(["design", str(bunny), "--out", str(out), "--stipples", "30"]) == 0
+    said = capsys.readouterr().out
+    assert "as cut: not estimated" in said and "specholo verify FOLDER --cut" in said
+    expected = json.loads((out / "hologram.json").read_text())["expected"]
+    assert expected["as_cut_stereo_visibility"] is None and "verify" in expected["why"]

@@ -619,7 +619,7 @@ def _stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
 
 def design(model_path: str | os.PathLike[str], config: DesignConfig,
            rng: np.random.Generator | None = None, check_overlaps: bool = True,
-           expect_as_cut: bool = True) -> Design:
+           expect_as_cut: bool | None = None) -> Design:
     """Load, place, stipple, crop by occlusion, check the tool, design the grooves.
 
     Args:
@@ -628,7 +628,8 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
         rng: random generator for stippling; default seeded from ``config.seed``.
         check_overlaps: measure where grooves cut into each other.
         expect_as_cut: find which glints survive the other grooves' cuts
-            (:func:`expected_as_cut`).
+            (:func:`expected_as_cut`); None for designs of at most
+            :data:`AS_CUT_MAX_STIPPLES` stipples.
 
     Raises:
         SpecholoError: on bad input, a plate smaller than the design, or (with
@@ -689,6 +690,8 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
                                total_length=total) if check_overlaps else None
     timings["overlaps"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    if expect_as_cut is None:
+        expect_as_cut = len(points) <= AS_CUT_MAX_STIPPLES
     as_cut = expected_as_cut(config, points, runs, grooves) if expect_as_cut else None
     timings["as cut"] = time.perf_counter() - t0
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
@@ -697,6 +700,13 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
 
 #: Head azimuths of the design's as-cut estimate are at most this far apart, degrees.
 AS_CUT_STEP_DEG = 5.0
+#: Most stipples whose as-cut figures a design finds by itself. Finding every
+#: eye's glints costs about a verification (~30 s at 10^5 stipples, against a
+#: ~5 s walk), so larger designs leave it to ``specholo verify --cut``.
+AS_CUT_MAX_STIPPLES = 20_000
+#: What a design without its own as-cut figures says instead.
+AS_CUT_SKIPPED = (f"as cut: not estimated by designs of over {AS_CUT_MAX_STIPPLES:,} "
+                  "stipples; `specholo verify FOLDER --cut` measures it")
 
 
 def expected_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
@@ -788,7 +798,8 @@ def hologram_json(d: Design) -> dict[str, Any]:
                                  "max_wall_tilt_deg": math.degrees(setup.tool.max_tilt)}},
         "views": d.views.as_dict() if d.views is not None else None,
         "overlaps": d.overlaps.as_dict() if d.overlaps is not None else None,
-        "expected": as_cut_json(d.as_cut) if d.as_cut is not None else None,
+        "expected": (as_cut_json(d.as_cut) if d.as_cut is not None else
+                     {"as_cut_stereo_visibility": None, "why": AS_CUT_SKIPPED}),
         "plate": {"groove_extent_mm": [lo.tolist(), hi.tolist()],
                   "plate_mm": d.plate.tolist() if d.plate is not None else None,
                   "stock_thickness_mm": d.config.stock_thickness},

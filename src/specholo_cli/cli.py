@@ -223,14 +223,25 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
                    f"{o.crossings} crossings between stipples, "
                    f"{o.crossed_length / max(o.total_length, 1e-9):.0%} of the groove length "
                    "within a groove width of another stipple's")
-        click.echo(f"grooves cover {o.coverage:.2f}x their area: about {o.surviving:.0%} of "
-                   "each eye's glints survive the other grooves' cuts")
-        if o.surviving < 0.5:
-            click.echo("warning: most glints will be cut away by other grooves; use fewer "
-                       "stipples, a finer tip (e.g. --tool drag --tool-radius 0.05 --depth "
-                       "0.012) or a larger model (check with `specholo verify --cut`)", err=True)
-    if d.as_cut is not None and d.as_cut.describe():
+    # What survives the cutting: from the grooves themselves where the design
+    # found it, else the rough share from the grooves' coverage.
+    figures = d.as_cut.mean_and_lowest() if d.as_cut is not None else None
+    if figures is not None and d.as_cut is not None:
         click.echo(d.as_cut.describe())
+        surviving = figures[0]
+    elif d.overlaps is not None:
+        from specholo.pipeline import AS_CUT_SKIPPED
+
+        o = d.overlaps
+        click.echo(f"grooves cover {o.coverage:.2f}x their area (roughly {o.surviving:.0%} of "
+                   "each eye's glints survive the other grooves' cuts); " + AS_CUT_SKIPPED)
+        surviving = o.surviving
+    else:
+        surviving = math.nan
+    if surviving < 0.5:
+        click.echo("warning: most stipples will not show in both eyes on the cut plate; use "
+                   "fewer stipples, a finer tip or a larger model (check with `specholo "
+                   "verify --cut`)", err=True)
     mach = written.machining
     travel = (f", air travel {mach['travel_mm'] / 1000:.1f} m (unordered "
               f"{mach['travel_unordered_mm'] / 1000:.1f} m)" if "travel_mm" in mach else "")
