@@ -166,13 +166,14 @@ def test_avoid_that_does_not_fit_is_refused(
     import specholo.scene.loading as loading
 
     setup, pts = _setup(), _scene()
-    cap, _ = striped._plan_estimate(_runs(pts, setup), setup, StripeOptions())
-    room = int(4 * cap.sum()) * striped.BYTES_PER_SAMPLE - 1
+    # Room for the phase walk (a few MB here) but not for the plan's index.
+    cap, likely = striped._plan_estimate(_runs(pts, setup), setup, StripeOptions())
+    room = likely * striped.PLAN_BYTES_PER_SAMPLE
     monkeypatch.setattr(loading, "available_memory", lambda: room)
     info: dict[str, str] = {}
     assert _same(_design(pts, "auto", setup, info), designs["phase"])
     assert info["placement"] == "phase" and "memory" in info["fallback"]
-    with pytest.raises(SpecholoError, match="--placement avoid: .*--placement phase"):
+    with pytest.raises(SpecholoError, match="--placement avoid: .*memory.*--placement phase"):
         _design(pts, "avoid", setup)
 
 
@@ -186,3 +187,15 @@ def test_the_placement_used_is_recorded() -> None:
     assert info["settings"]["placement"] == "auto"
     assert info["stats"]["placement"] == "avoid"
     assert info["stats"]["placement_fallback"] is None
+
+
+def test_the_index_size_does_not_change_the_stripes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The placed grooves' index starts small and doubles, its hash table sized from
+    the plan's estimate: neither changes a choice (the same stripes with the
+    smallest table, every cell's points sharing chains with others')."""
+    from specholo.toolpaths import _avoid_kernel
+
+    setup, pts = _setup(), _scene()
+    wide = _design(pts, "avoid", setup)
+    monkeypatch.setattr(_avoid_kernel, "table_bits", lambda points: _avoid_kernel.MIN_TABLE_BITS)
+    assert _same(_design(pts, "avoid", setup), wide)

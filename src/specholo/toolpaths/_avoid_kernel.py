@@ -31,8 +31,13 @@ import numpy as np
 
 from specholo.toolpaths import _stripe_kernel as sk
 
-#: Hash table size of the spatial index (a power of two).
-TABLE_BITS = 22
+#: Hash table sizes of the spatial index, as powers of two: about two slots a
+#: point (few chains shared by two cells) from the plan's expected count.
+MIN_TABLE_BITS = 16
+MAX_TABLE_BITS = 26
+#: Points the index has room for at first; it doubles as it fills, so it holds
+#: what the placed stripes need, not the runs' worst-case bounds.
+_FIRST_ROOM = 1 << 16
 #: A cost too large to pay: a jump whose stripes would cut into each other.
 _FORBIDDEN = 1e9
 #: Cost of a sample at the band's edge over one on the sightline, in samples of
@@ -96,43 +101,68 @@ def _cell(x: float, y: float, h: float) -> tuple[int, int]:
     return int(math.floor(x / h)), int(math.floor(y / h))
 
 
+def table_bits(points: int) -> int:
+    """Hash table bits for an index expected to hold ``points`` points."""
+    return min(max(int(points).bit_length() + 1, MIN_TABLE_BITS), MAX_TABLE_BITS)
+
+
 @nb.njit(cache=True, inline="always")
-def _slot(ix: int, iy: int) -> int:
-    return ((ix * 73856093) ^ (iy * 19349663)) & ((1 << TABLE_BITS) - 1)
+def _slot(ix: int, iy: int, mask: int) -> int:
+    return ((ix * 73856093) ^ (iy * 19349663)) & mask
 
 
-@nb.njit(cache=True)
-def _near(x: float, y: float, reach: float, head: np.ndarray, nxt: np.ndarray,
-          pts: np.ndarray, h: float) -> bool:
-    """Whether a stored point lies closer to (x, y) than ``reach`` plus its own radius."""
-    ix, iy = _cell(x, y, h)
-    for a in range(ix - 1, ix + 2):
-        for b in range(iy - 1, iy + 2):
-            i = head[_slot(a, b)]
-            while i >= 0:
-                dx, dy = pts[i, 0] - x, pts[i, 1] - y
-                r = reach + pts[i, 2]
-                if dx * dx + dy * dy < r * r:
-                    return True
-                i = nxt[i]
+@nb.njit(cache=True, inline="always")
+def _chain_near(i: int, x: float, y: float, reach: float, pts: np.ndarray) -> bool:
+    while i >= 0:
+        dx, dy = pts[i, 0] - x, pts[i, 1] - y
+        r = reach + pts[i, 2]
+        if dx * dx + dy * dy < r * r:
+            return True
+        i = int(pts[i, 3])
     return False
 
 
-@nb.njit(cache=True, inline="always")
-def _insert(x: float, y: float, r: float, head: np.ndarray, nxt: np.ndarray,
-            pts: np.ndarray, n: int, h: float) -> int:
+@nb.njit(cache=True)
+def _near(x: float, y: float, reach: float, head: np.ndarray, pts: np.ndarray,
+          h: float) -> bool:
+    """Whether a stored point lies closer to (x, y) than ``reach`` plus its own radius.
+
+    Row i of ``pts`` is x, y, radius and the next point of its chain (-1 at the
+    end), together so that a step along a chain reads one place in memory; the
+    cell of (x, y) goes first, where a point in reach is likeliest. Reach plus
+    radius is under the cell size ``h``: the 3 x 3 cells about (x, y) hold
+    every point in reach.
+    """
+    mask = head.size - 1
     ix, iy = _cell(x, y, h)
-    s = _slot(ix, iy)
-    pts[n, 0], pts[n, 1], pts[n, 2] = x, y, r
-    nxt[n] = head[s]
+    if _chain_near(head[_slot(ix, iy, mask)], x, y, reach, pts):
+        return True
+    for a in range(ix - 1, ix + 2):
+        for b in range(iy - 1, iy + 2):
+            if (a != ix or b != iy) and _chain_near(head[_slot(a, b, mask)], x, y, reach, pts):
+                return True
+    return False
+
+
+@nb.njit(cache=True)
+def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: int,
+            h: float) -> np.ndarray:
+    """Store point n (``pts`` doubled when full); returns ``pts``."""
+    if n >= pts.shape[0]:
+        more = np.empty((2 * pts.shape[0], 4))
+        more[:n] = pts[:n]
+        pts = more
+    ix, iy = _cell(x, y, h)
+    s = _slot(ix, iy, head.size - 1)
+    pts[n, 0], pts[n, 1], pts[n, 2], pts[n, 3] = x, y, r, head[s]
     head[s] = n
-    return n + 1
+    return pts
 
 
 @nb.njit(cache=True)
 def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray, w: float,
           spacing: float, leaves: int, dx_target: float, jump_cost: float, margin: float,
-          sample_cap: np.ndarray, min_length: float
+          sample_cap: np.ndarray, min_length: float, bits: int
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Choose every run's stripes in turn, out of the way of those placed before.
 
@@ -149,6 +179,7 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
             first-order and its samples discrete).
         sample_cap: (r,) most samples of each run's leaf.
         min_length: shortest stripe in x, mm.
+        bits: the spatial index's hash table size (:func:`table_bits`).
 
     Returns:
         run (s,), theta start (s,), theta end (s,), u0 (s,) at the start (as
@@ -158,15 +189,18 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
     """
     params = sk._unpacked(packed)
     r_tip = params[6]
+    # Cells as wide as the farthest reach: a query searches 3 x 3 of them. (Cells
+    # sized to the groove's steepest wall, a third smaller, spread the points
+    # over more chains: fewer points to test, but slower on the whole.)
     h = r_tip + 2.0 * margin
-    total = int(sample_cap.sum()) + 2 * start.size
-    head_c = np.full(1 << TABLE_BITS, -1, dtype=np.int64)
-    head_g = np.full(1 << TABLE_BITS, -1, dtype=np.int64)
-    nxt_c = np.empty(2 * total, dtype=np.int64)
-    nxt_g = np.empty(2 * total, dtype=np.int64)
-    cen = np.empty((2 * total, 3))
-    gli = np.empty((2 * total, 3))
-    n_c = n_g = 0
+    head_c = np.full(1 << bits, -1, dtype=np.int64)
+    head_g = np.full(1 << bits, -1, dtype=np.int64)
+    cen = np.empty((_FIRST_ROOM, 4))
+    gli = np.empty((_FIRST_ROOM, 4))
+    n_c = 0
+    # One run's leaf and choices at a time, in room kept from run to run.
+    leaf_room = np.empty((0, 10))
+    back_room = np.empty((0, leaves + 3), dtype=np.int64)
     w_eff = 0.98 * w  # the walked leaf strays ~(dy / D)^2 from the planned one
     # A hand-over (the old leaf kept to the new one's first sample) overshoots
     # the band by one u step at most: within w.
@@ -181,7 +215,9 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
     o_x.pop()
     for r in range(start.size):
         px, py, pz = pts[r, 0], pts[r, 1], pts[r, 2]
-        leaf = np.empty((sample_cap[r], 10))
+        if leaf_room.shape[0] < sample_cap[r]:
+            leaf_room = np.empty((max(sample_cap[r], 2 * leaf_room.shape[0]), 10))
+        leaf = leaf_room[:sample_cap[r]]
         m = _leaf(start[r], end[r], px, py, pz, params, dx_target, du_target, delta, w, leaf)
         if m < 0:
             return (np.array(o_run, dtype=np.int64), np.array(o_a), np.array(o_b),
@@ -198,7 +234,10 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
             hi[j] = min(hi[j], lo[j] + width - 1)
         cost = np.full(width, np.inf)
         prev_cost = np.full(width, np.inf)
-        back = np.full((m, width), -(1 << 40), dtype=np.int64)
+        if back_room.shape[0] < m:
+            back_room = np.empty((max(m, 2 * back_room.shape[0]), width), dtype=np.int64)
+        back = back_room[:m]
+        back[:] = -(1 << 40)
         for j in range(m):
             x0, y0, dxdy = leaf[j, 1], leaf[j, 2], leaf[j, 4]
             nx, ny = leaf[j, 6], leaf[j, 7]
@@ -219,9 +258,9 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
                 here = _CENTRING * u * u
                 # Its own glint inside a placed groove's sweep, or its sweep over
                 # a placed glint: a view lost either way.
-                if _near(cx - r_tip * nx, cy - r_tip * ny, rg + margin, head_c, nxt_c, cen, h):
+                if _near(cx - r_tip * nx, cy - r_tip * ny, rg + margin, head_c, cen, h):
                     here += 1.0
-                if _near(cx, cy, margin, head_g, nxt_g, gli, h):
+                if _near(cx, cy, margin, head_g, gli, h):
                     here += 1.0
                 best, arg = np.inf, -(1 << 40)
                 if j == 0:
@@ -282,9 +321,10 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
                 x0, y0, dxdy = leaf[q, 1], leaf[q, 2], leaf[q, 4]
                 nx, ny = leaf[q, 6], leaf[q, 7]
                 cx, cy = x0 + dxdy * c, y0 + c
-                n_c = _insert(cx, cy, 0.0, head_c, nxt_c, cen, n_c, h)
-                n_g = _insert(cx - r_tip * nx, cy - r_tip * ny,
-                              r_tip * math.sqrt(nx * nx + ny * ny), head_g, nxt_g, gli, n_g, h)
+                rg = r_tip * math.sqrt(nx * nx + ny * ny)
+                cen = _insert(cx, cy, 0.0, head_c, cen, n_c, h)
+                gli = _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h)
+                n_c += 1
             a = j
     return (np.array(o_run, dtype=np.int64), np.array(o_a), np.array(o_b), np.array(o_u),
             np.array(o_x), -1)

@@ -47,8 +47,12 @@ MIN_BOUND = 1024
 PLACEMENTS = ("auto", "avoid", "phase")
 #: "auto": most plan samples (by the runs' estimate, see :func:`_plan_estimate`)
 #: placed by "avoid"; a larger design is placed by "phase", which takes seconds
-#: where the placement would take many minutes.
-AUTO_MAX_PLAN_SAMPLES = 10_000_000
+#: where the placement would take many minutes (the README example has 8e6
+#: plan samples at 2,000 stipples, and each costs more as the grooves crowd).
+AUTO_MAX_PLAN_SAMPLES = 25_000_000
+#: Memory of the plan per sample, bytes: each placed sample is a point of two
+#: indexes (32 bytes each), and an index doubling holds old and new at once.
+PLAN_BYTES_PER_SAMPLE = 3 * 2 * 32
 #: Widest stripe spacing, as a share of the band's half-height w, at which
 #: stripes are placed among the leaves; wider grooves keep one family a width apart.
 AVOID_MAX_SPACING = 0.5
@@ -242,8 +246,9 @@ def _plan_estimate(runs: Runs, setup: Setup, opts: StripeOptions) -> tuple[np.nd
 
     The plan's samples are plan_step apart in x or max_step apart in azimuth;
     the glints stray from the sightline crossings by the wall offset, < R.
-    The bound also has room for u steps (2% of w each; u drifts by about as
-    much as x moves), which few runs take: the estimate leaves them out.
+    The u steps are bounded too (2% of w each): the bound has room for u
+    drifting by about as much as x moves; on the README example it drifts
+    about a quarter of that (the estimate's 20 steps per band over 75).
     """
     from specholo.hosts.flat import sightline_crossing
 
@@ -251,35 +256,47 @@ def _plan_estimate(runs: Runs, setup: Setup, opts: StripeOptions) -> tuple[np.nd
     ends = [sightline_crossing(v.eye(t), runs.point)[:, 0] for t in (runs.start, runs.end)]
     span_x = np.abs(ends[1] - ends[0]) + 2.0 * setup.tool.radius
     span = runs.end - runs.start
-    likely = span / opts.max_step + span_x / opts.plan_step
+    likely = span / opts.max_step + span_x / opts.plan_step + 20.0 * span_x / opts.band
     sample_cap = (span / opts.max_step + 1.5 * span_x / opts.plan_step
                   + 75.0 * (span_x + 1.0) / opts.band + 64).astype(np.int64)
     return sample_cap, int(likely.sum())
 
 
-def _avoid_refusal(sample_cap: np.ndarray, likely: int, setup: Setup,
-                   opts: StripeOptions) -> str | None:
+def _plan_memory(sample_cap: np.ndarray, likely: int) -> str | None:
+    """Why the plan would not fit in memory (None: it fits).
+
+    What it holds: the two indexes of placed samples (about the likely count,
+    with room to double), their hash tables, and one run's leaf at a time.
+    """
+    from specholo.scene.loading import available_memory, format_bytes
+    from specholo.toolpaths._avoid_kernel import table_bits
+
+    need = (likely * PLAN_BYTES_PER_SAMPLE + 16 * (1 << table_bits(likely))
+            + 160 * int(sample_cap.max(initial=0)))
+    room = available_memory()
+    if room is not None and need > room:
+        return (f"avoid would need ~{format_bytes(need)} of memory "
+                f"({format_bytes(room)} available)")
+    return None
+
+
+def _avoid_refusal(sample_cap: np.ndarray, likely: int) -> str | None:
     """Why "auto" places the stripes by phase rather than avoid (None: it need not)."""
     if likely > AUTO_MAX_PLAN_SAMPLES:
         return (f"avoid would take ~{likely:.2g} plan samples (over "
                 f"{AUTO_MAX_PLAN_SAMPLES:.2g})")
-    try:
-        check_work(4 * sample_cap, setup, opts.band)
-    except SpecholoError:
-        from specholo.scene.loading import format_bytes
-
-        need = format_bytes(int(4 * sample_cap.sum()) * BYTES_PER_SAMPLE)
-        return f"avoid would need ~{need} of memory"
-    return None
+    return _plan_memory(sample_cap, likely)
 
 
 def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
-          spacing: float, sample_cap: np.ndarray) -> tuple[Runs, np.ndarray, np.ndarray]:
+          spacing: float, sample_cap: np.ndarray,
+          likely: int) -> tuple[Runs, np.ndarray, np.ndarray]:
     """The stripes of every run, placed in turn out of each other's way
     (:func:`._avoid_kernel.place`).
 
     Args:
-        sample_cap: each run's bound on its plan samples (:func:`_plan_estimate`).
+        sample_cap, likely: each run's bound on its plan samples, and the plan's
+            likely samples (:func:`_plan_estimate`).
 
     Returns:
         One run per stripe (its stipple, point and azimuth interval), its u0 at
@@ -289,14 +306,13 @@ def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
 
     first = sample_cap.copy()
     while True:
-        try:
-            check_work(4 * sample_cap, setup, opts.band)
-        except SpecholoError as exc:
-            raise SpecholoError(f"--placement avoid: {exc} (or --placement phase)") from None
+        why = _plan_memory(sample_cap, likely)
+        if why is not None:
+            raise SpecholoError(f"--placement avoid: {why}; use --placement phase or auto")
         run, a, b, u0, dx, bad = _avoid_kernel.place(
             runs.start, runs.end, np.ascontiguousarray(runs.point), params, opts.band, spacing,
             opts.leaves, opts.plan_step, opts.jump_cost, opts.plan_margin, sample_cap,
-            2.0 * MIN_SPACING)
+            2.0 * MIN_SPACING, _avoid_kernel.table_bits(likely))
         # A run whose u drifts far faster than x (eyes high above the stipples)
         # outgrows the estimate: the plan starts again with room for it.
         if bad < 0 or sample_cap[bad] >= MAX_GROWTH * first[bad]:
@@ -353,11 +369,11 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     used = "phase"
     if opts.placement != "phase" and spacing <= AVOID_MAX_SPACING * w:
         sample_cap, likely = _plan_estimate(far, setup, opts)
-        why = _avoid_refusal(sample_cap, likely, setup, opts) if opts.placement == "auto" else None
+        why = _avoid_refusal(sample_cap, likely) if opts.placement == "auto" else None
         planned = None
         if why is None:
             try:
-                planned = _plan(far, params, setup, opts, spacing, sample_cap)
+                planned = _plan(far, params, setup, opts, spacing, sample_cap, likely)
             except SpecholoError as exc:
                 if opts.placement == "avoid":
                     raise
