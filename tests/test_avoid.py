@@ -199,3 +199,19 @@ def test_the_index_size_does_not_change_the_stripes(monkeypatch: pytest.MonkeyPa
     wide = _design(pts, "avoid", setup)
     monkeypatch.setattr(_avoid_kernel, "table_bits", lambda points: _avoid_kernel.MIN_TABLE_BITS)
     assert _same(_design(pts, "avoid", setup), wide)
+
+
+def test_glints_beyond_the_cell_size_are_found(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Cells sized for a shallower wall than the glints need: the queries search
+    more cells and make the same choices."""
+    from specholo.toolpaths import _avoid_kernel
+
+    setup, pts = _setup(), _scene()
+    wide = _design(pts, "avoid", setup)
+    place = _avoid_kernel.place
+
+    def small_cells(*args: object) -> object:
+        return place(*args[:-1], 0.2 * float(args[-1]))  # type: ignore[arg-type]
+
+    monkeypatch.setattr(_avoid_kernel, "place", small_cells)
+    assert _same(_design(pts, "avoid", setup), wide)

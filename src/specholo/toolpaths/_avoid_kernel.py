@@ -107,8 +107,13 @@ def table_bits(points: int) -> int:
 
 
 @nb.njit(cache=True, inline="always")
-def _slot(ix: int, iy: int, mask: int) -> int:
-    return ((ix * 73856093) ^ (iy * 19349663)) & mask
+def _slot(ix: int, iy: int, mask: int, side: int) -> int:
+    """The cells wrapped onto the table as a square grid, row by row: a query's
+    3 x 3 cells are three runs of neighbouring slots (a scattering hash puts
+    each in a different page of memory, and finding them costs more than the
+    points they hold), and two cells share a chain only a whole grid apart
+    (2,048 cells of ~0.06 mm at the smallest table over 16 bits...)."""
+    return (iy * side + ix) & mask
 
 
 @nb.njit(cache=True, inline="always")
@@ -124,36 +129,76 @@ def _chain_near(i: int, x: float, y: float, reach: float, pts: np.ndarray) -> bo
 
 @nb.njit(cache=True)
 def _near(x: float, y: float, reach: float, head: np.ndarray, pts: np.ndarray,
-          h: float) -> bool:
+          h: float, side: int, r_max: float) -> bool:
     """Whether a stored point lies closer to (x, y) than ``reach`` plus its own radius.
 
     Row i of ``pts`` is x, y, radius and the next point of its chain (-1 at the
     end), together so that a step along a chain reads one place in memory; the
-    cell of (x, y) goes first, where a point in reach is likeliest. Reach plus
-    radius is under the cell size ``h``: the 3 x 3 cells about (x, y) hold
-    every point in reach.
+    cell of (x, y) goes first, where a point in reach is likeliest. The cells
+    searched are those within ``reach`` plus the largest stored radius
+    ``r_max``: the 3 x 3 about (x, y) while that is under the cell size ``h``.
     """
     mask = head.size - 1
     ix, iy = _cell(x, y, h)
-    if _chain_near(head[_slot(ix, iy, mask)], x, y, reach, pts):
+    if _chain_near(head[_slot(ix, iy, mask, side)], x, y, reach, pts):
         return True
-    for a in range(ix - 1, ix + 2):
-        for b in range(iy - 1, iy + 2):
-            if (a != ix or b != iy) and _chain_near(head[_slot(a, b, mask)], x, y, reach, pts):
+    if reach + r_max < h:  # (the common case, kept apart: a fixed loop is faster)
+        for a in range(ix - 1, ix + 2):
+            for b in range(iy - 1, iy + 2):
+                if (a != ix or b != iy) and _chain_near(head[_slot(a, b, mask, side)], x, y,
+                                                        reach, pts):
+                    return True
+        return False
+    k = int(math.ceil((reach + r_max) / h))
+    for a in range(ix - k, ix + k + 1):
+        for b in range(iy - k, iy + k + 1):
+            if (a != ix or b != iy) and _chain_near(head[_slot(a, b, mask, side)], x, y,
+                                                    reach, pts):
                 return True
     return False
 
 
 @nb.njit(cache=True)
+def _compacted(head: np.ndarray, pts: np.ndarray, n: int, h: float, side: int,
+               room: int) -> np.ndarray:
+    """The n points in ``room`` rows, each chain's points side by side in memory.
+
+    Points are stored as placed, so a chain (one cell's points, placed by many
+    grooves at different times) would be read from all over memory: sorted
+    by chain, a query reads a few runs of neighbouring rows. ``head`` is
+    relinked to the new rows.
+    """
+    mask = head.size - 1
+    start = np.zeros(head.size + 1, dtype=np.int64)
+    slot = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        ix, iy = _cell(pts[i, 0], pts[i, 1], h)
+        slot[i] = _slot(ix, iy, mask, side)
+        start[slot[i] + 1] += 1
+    for s in range(head.size):
+        start[s + 1] += start[s]
+    out = np.empty((room, 4))
+    for i in range(n):
+        k = start[slot[i]]
+        start[slot[i]] += 1
+        out[k, 0], out[k, 1], out[k, 2] = pts[i, 0], pts[i, 1], pts[i, 2]
+    head[:] = -1
+    for k in range(n):
+        ix, iy = _cell(out[k, 0], out[k, 1], h)
+        s = _slot(ix, iy, mask, side)
+        out[k, 3] = head[s]
+        head[s] = k
+    return out
+
+
+@nb.njit(cache=True)
 def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: int,
-            h: float) -> np.ndarray:
-    """Store point n (``pts`` doubled when full); returns ``pts``."""
+            h: float, side: int) -> np.ndarray:
+    """Store point n (``pts`` doubled and compacted when full); returns ``pts``."""
     if n >= pts.shape[0]:
-        more = np.empty((2 * pts.shape[0], 4))
-        more[:n] = pts[:n]
-        pts = more
+        pts = _compacted(head, pts, n, h, side, 2 * pts.shape[0])
     ix, iy = _cell(x, y, h)
-    s = _slot(ix, iy, head.size - 1)
+    s = _slot(ix, iy, head.size - 1, side)
     pts[n, 0], pts[n, 1], pts[n, 2], pts[n, 3] = x, y, r, head[s]
     head[s] = n
     return pts
@@ -162,7 +207,7 @@ def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: 
 @nb.njit(cache=True)
 def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray, w: float,
           spacing: float, leaves: int, dx_target: float, jump_cost: float, margin: float,
-          sample_cap: np.ndarray, min_length: float, bits: int
+          sample_cap: np.ndarray, min_length: float, bits: int, max_offset: float
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Choose every run's stripes in turn, out of the way of those placed before.
 
@@ -180,6 +225,9 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
         sample_cap: (r,) most samples of each run's leaf.
         min_length: shortest stripe in x, mm.
         bits: the spatial index's hash table size (:func:`table_bits`).
+        max_offset: the largest glint offset from its centreline the groove
+            offers, R sin t for its steepest wall t, mm (glints needing more
+            are still found, their queries searching more cells).
 
     Returns:
         run (s,), theta start (s,), theta end (s,), u0 (s,) at the start (as
@@ -189,10 +237,11 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
     """
     params = sk._unpacked(packed)
     r_tip = params[6]
-    # Cells as wide as the farthest reach: a query searches 3 x 3 of them. (Cells
-    # sized to the groove's steepest wall, a third smaller, spread the points
-    # over more chains: fewer points to test, but slower on the whole.)
-    h = r_tip + 2.0 * margin
+    # Cells as wide as the farthest reach a groove's walls offer: a query
+    # searches 3 x 3 of them, little more than its reach.
+    h = min(max_offset, r_tip) + 2.0 * margin
+    r_max_g = 0.0  # the largest radius stored in the glints' index
+    side = 1 << (bits // 2)  # the table's grid of cells (see _slot)
     head_c = np.full(1 << bits, -1, dtype=np.int64)
     head_g = np.full(1 << bits, -1, dtype=np.int64)
     cen = np.empty((_FIRST_ROOM, 4))
@@ -258,9 +307,9 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
                 here = _CENTRING * u * u
                 # Its own glint inside a placed groove's sweep, or its sweep over
                 # a placed glint: a view lost either way.
-                if _near(cx - r_tip * nx, cy - r_tip * ny, rg + margin, head_c, cen, h):
+                if _near(cx - r_tip * nx, cy - r_tip * ny, rg + margin, head_c, cen, h, side, 0.0):
                     here += 1.0
-                if _near(cx, cy, margin, head_g, gli, h):
+                if _near(cx, cy, margin, head_g, gli, h, side, r_max_g):
                     here += 1.0
                 best, arg = np.inf, -(1 << 40)
                 if j == 0:
@@ -322,8 +371,9 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
                 nx, ny = leaf[q, 6], leaf[q, 7]
                 cx, cy = x0 + dxdy * c, y0 + c
                 rg = r_tip * math.sqrt(nx * nx + ny * ny)
-                cen = _insert(cx, cy, 0.0, head_c, cen, n_c, h)
-                gli = _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h)
+                r_max_g = max(r_max_g, rg)
+                cen = _insert(cx, cy, 0.0, head_c, cen, n_c, h, side)
+                gli = _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h, side)
                 n_c += 1
             a = j
     return (np.array(o_run, dtype=np.int64), np.array(o_a), np.array(o_b), np.array(o_u),

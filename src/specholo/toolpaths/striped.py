@@ -312,7 +312,8 @@ def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
         run, a, b, u0, dx, bad = _avoid_kernel.place(
             runs.start, runs.end, np.ascontiguousarray(runs.point), params, opts.band, spacing,
             opts.leaves, opts.plan_step, opts.jump_cost, opts.plan_margin, sample_cap,
-            2.0 * MIN_SPACING, _avoid_kernel.table_bits(likely))
+            2.0 * MIN_SPACING, _avoid_kernel.table_bits(likely),
+            setup.tool.radius * math.sin(setup.tool.max_tilt))
         # A run whose u drifts far faster than x (eyes high above the stipples)
         # outgrows the estimate: the plan starts again with room for it.
         if bad < 0 or sample_cap[bad] >= MAX_GROWTH * first[bad]:
