@@ -215,3 +215,17 @@ def test_glints_beyond_the_cell_size_are_found(monkeypatch: pytest.MonkeyPatch) 
 
     monkeypatch.setattr(_avoid_kernel, "place", small_cells)
     assert _same(_design(pts, "avoid", setup), wide)
+
+
+def test_auto_falls_back_to_phase_where_the_plan_outgrows_its_estimate() -> None:
+    """Eyes far above the plate make the glints drift far faster than the plan's
+    estimate: "auto" gives the plan one larger try, then walks by phase (the
+    grooves still serve every view) instead of growing the plan for minutes."""
+    from specholo.pipeline import DesignConfig, design
+
+    bunny = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
+    d = design(bunny, DesignConfig(stipples=8, eye_height=1e5), check_overlaps=False,
+               expect_as_cut=False)
+    assert d.placement is not None and d.placement["placement"] == "phase"
+    assert "does not settle" in d.placement["fallback"]
+    assert d.grooves.n_paths > 0

@@ -289,14 +289,15 @@ def _avoid_refusal(sample_cap: np.ndarray, likely: int) -> str | None:
 
 
 def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
-          spacing: float, sample_cap: np.ndarray,
-          likely: int) -> tuple[Runs, np.ndarray, np.ndarray]:
+          spacing: float, sample_cap: np.ndarray, likely: int,
+          growth: int = MAX_GROWTH) -> tuple[Runs, np.ndarray, np.ndarray]:
     """The stripes of every run, placed in turn out of each other's way
     (:func:`._avoid_kernel.place`).
 
     Args:
         sample_cap, likely: each run's bound on its plan samples, and the plan's
             likely samples (:func:`_plan_estimate`).
+        growth: most times a run's bound may grow before the plan is refused.
 
     Returns:
         One run per stripe (its stipple, point and azimuth interval), its u0 at
@@ -316,7 +317,7 @@ def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
             setup.tool.radius * math.sin(setup.tool.max_tilt))
         # A run whose u drifts far faster than x (eyes high above the stipples)
         # outgrows the estimate: the plan starts again with room for it.
-        if bad < 0 or sample_cap[bad] >= MAX_GROWTH * first[bad]:
+        if bad < 0 or sample_cap[bad] >= growth * first[bad]:
             break
         sample_cap[bad] *= 4
     if bad >= 0:
@@ -374,7 +375,10 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
         planned = None
         if why is None:
             try:
-                planned = _plan(far, params, setup, opts, spacing, sample_cap, likely)
+                # "auto" lets a run's bound grow once: a plan far beyond its
+                # estimate (eyes far above the plate) would take minutes.
+                planned = _plan(far, params, setup, opts, spacing, sample_cap, likely,
+                                MAX_GROWTH if opts.placement == "avoid" else 4)
             except SpecholoError as exc:
                 if opts.placement == "avoid":
                     raise
