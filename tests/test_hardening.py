@@ -345,7 +345,8 @@ def test_ctrl_c_while_writing_removes_the_staged_files(tmp_path: Path) -> None:
     """Interrupted while its files are being staged beside the output folder."""
     out = tmp_path / "new" / "holo"
     proc = subprocess.Popen([*_exe(), "design", str(BUNNY), "--out", str(out), "--stipples",
-                             "3000", "--formats", "gcode,svg,dxf"], stdout=subprocess.PIPE,
+                             "3000", "--formats", "gcode,svg,dxf", "--placement", "phase"],
+                            stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, cwd=ROOT)
     t0 = time.perf_counter()
     while not (out.parent.is_dir() and any(out.parent.iterdir())):
@@ -372,7 +373,8 @@ def test_ctrl_c_during_a_design_keeps_the_older_one(tmp_path: Path, capsys) -> N
     assert _snapshot(out) == before
     assert [p.name for p in tmp_path.iterdir()] == ["holo"]
     proc = subprocess.Popen([*_exe(), "design", str(BUNNY), "--out", str(out), "--stipples",
-                             "3000", "--formats", "gcode,svg,dxf"], stdout=subprocess.PIPE,
+                             "3000", "--formats", "gcode,svg,dxf", "--placement", "phase"],
+                            stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, cwd=ROOT)
     t0 = time.perf_counter()
     while len(list(tmp_path.iterdir())) < 2:
