@@ -34,6 +34,7 @@ with the elevation and the views the design serves).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -45,7 +46,8 @@ from specholo.fabrication.heightmap import HeightMap
 from specholo.setup import BackLight, Light, Setup, Viewer
 from specholo.simulation.cut import MIN_COVERAGE
 from specholo.simulation.glints import Glints
-from specholo.simulation.verify import ViewReport, VisibilityFn, stereo_errors
+from specholo.simulation.verify import ViewReport, VisibilityFn
+from specholo.simulation.verify import view_report as verify_view_report
 
 #: Angular sigma of the specular lobe, radians.
 LOBE = 4e-4
@@ -621,33 +623,18 @@ def view_report(azimuth: float, elevation: float, points: np.ndarray, gl: Glints
     else:
         vis_l = visible(points, np.broadcast_to(eye_l, (n, 3)))
         vis_r = visible(points, np.broadcast_to(eye_r, (n, 3)))
-    lit_l = np.bincount(gl.stipple, minlength=n) > 0
-    lit_r = np.bincount(gr.stipple, minlength=n) > 0
-    seen = vis_l & vis_r
-    both = np.flatnonzero(seen & lit_l & lit_r)
-    if both.size:
-        err, depth = stereo_errors(points, gl, gr, eye_l, eye_r, both)
-    else:
-        err = depth = np.zeros(0)
-    hidden = int((~vis_l).sum() + (~vis_r).sum())
-    false = int((~vis_l & lit_l).sum() + (~vis_r & lit_r).sum())
+    base = verify_view_report(azimuth, points, gl, gr, eye_l, eye_r, vis_l, vis_r)
     n_served = -1
     served_vis = math.nan
     if served is not None:
-        serve = served & seen
+        both_lit = ((np.bincount(gl.stipple, minlength=n) > 0)
+                    & (np.bincount(gr.stipple, minlength=n) > 0))
+        serve = served & vis_l & vis_r
         n_served = int(serve.sum())
         if n_served:
-            served_vis = float((serve & lit_l & lit_r).sum() / n_served)
-    return FullViewReport(
-        azimuth=math.degrees(azimuth),
-        stipples_seen=int(seen.sum()),
-        median_error=float(np.median(err)) if err.size else math.nan,
-        p95_error=float(np.percentile(err, 95)) if err.size else math.nan,
-        p95_depth_error=float(np.percentile(np.abs(depth), 95)) if err.size else math.nan,
-        max_error=float(err.max()) if err.size else math.nan,
-        visibility=float(both.size / seen.sum()) if seen.any() else math.nan,
-        false_glints=float(false / hidden) if hidden else 0.0,
-        elevation=math.degrees(elevation), served=n_served, served_visibility=served_vis)
+            served_vis = float((serve & both_lit).sum() / n_served)
+    return FullViewReport(**dataclasses.asdict(base), elevation=math.degrees(elevation),
+                          served=n_served, served_visibility=served_vis)
 
 
 def default_views() -> tuple[np.ndarray, np.ndarray]:
