@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from specholo.errors import SpecholoError
 from specholo.fabrication.gcode import write_gcode
 from specholo.fabrication.order import OrderStats, order_paths, reorder, travel_length
-from specholo.fabrication.timing import estimate_time
+from specholo.fabrication.timing import describe_machining, estimate_time, plain_duration
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -210,6 +210,22 @@ def test_time_of_rapids_plunges_and_retracts():
     assert est.dwell_s == 2.0
     assert est.total_s == pytest.approx(est.cutting_s + est.rapid_s + est.plunge_s + 2.0)
     assert est.stipples == 1 and est.stipples_per_s == pytest.approx(1 / est.total_s)
+
+
+@pytest.mark.parametrize("seconds, words", [
+    (10, "under a minute"), (90, "2 min"), (3600, "1 h"), (8.1 * 3600, "8 h 6 min"),
+    (49 * 3600, "2 days 1 h"), (float("nan"), "unknown")])
+def test_durations_in_plain_words(seconds, words):
+    assert plain_duration(seconds) == words
+
+
+def test_machining_line_states_the_whole_job_and_its_parts():
+    est = estimate_time(one_groove([[30.0, 0.0], [3030.0, 0.0]]), 0.08, MILL, accel=A)
+    hours = {"estimated_hours": est.total_s / 3600, "cutting_hours": est.cutting_s / 3600,
+             "rapid_hours": est.rapid_s / 3600, "plunge_hours": est.plunge_s / 3600}
+    line = describe_machining(hours, MILL.feed)
+    # 3 m at 600 mm/min is 5 min of cutting; the rest (seconds) is not itemised
+    assert line == f"machining: about 5 min at {MILL.feed:g} mm/min (cutting 5 min)"
 
 
 def test_time_through_junctions():

@@ -169,6 +169,7 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     """Design a hologram of MODEL (OBJ, STL, PLY, OFF, GLB; PLY/XYZ/CSV point clouds)."""
     from rich.console import Console
 
+    from specholo.fabrication.timing import describe_machining
     from specholo.pipeline import (
         DEFAULT_FORMATS,
         DEFAULT_RIDGED_FORMATS,
@@ -245,8 +246,8 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     mach = written.machining
     travel = (f", air travel {mach['travel_mm'] / 1000:.1f} m (unordered "
               f"{mach['travel_unordered_mm'] / 1000:.1f} m)" if "travel_mm" in mach else "")
-    click.echo(f"machining: about {mach['estimated_hours']:.1f} h, "
-               f"{mach['stipples_per_second']:.2f} stipples/s{travel}")
+    click.echo(describe_machining(mach, d.config.feed)
+               + f"; {mach['stipples_per_second']:.2f} stipples/s{travel}")
     if len(d.dropped):
         from collections import Counter
 
@@ -258,6 +259,9 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
                    + ", ".join(f"{n}: {r}" for r, n in sorted(why.items())) + ")", err=True)
     if d.coverage is not None and d.coverage.mostly_ungrooved:
         click.echo(f"warning: {d.coverage.describe()}", err=True)
+    elif d.coverage is not None:
+        click.echo(f"hidden: {d.coverage.hidden} of {d.coverage.stipples} stipples are hidden "
+                   "from every view (no groove)")
 
 
 def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...],

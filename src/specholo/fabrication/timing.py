@@ -275,3 +275,31 @@ def estimate_time(grooves: Grooves, depth: float, machining: Machining,
     total = cutting_s + rapid_s + plunge_s + dwell_s + hop_s
     return TimeEstimate(total, cutting_s, rapid_s, plunge_s, dwell_s, stipples,
                         stipples / total if total > 0 else 0.0, hop_s, hopped)
+
+
+def plain_duration(seconds: float) -> str:
+    """A duration as a maker reads it: "40 min", "3 h 20 min", "2 days 5 h"."""
+    if not math.isfinite(seconds) or seconds < 0:
+        return "unknown"
+    minutes = round(seconds / 60.0)
+    if minutes < 1:
+        return "under a minute"
+    if minutes < 60:
+        return f"{minutes} min"
+    hours, minutes = divmod(minutes, 60)
+    if hours < 48:
+        return f"{hours} h {minutes} min" if minutes else f"{hours} h"
+    days, hours = divmod(hours, 24)
+    return f"{days} days {hours} h" if hours else f"{days} days"
+
+
+def describe_machining(machining: dict[str, float], feed: float) -> str:
+    """One line in plain words from a design's ``machining`` figures (hours, as in
+    hologram.json): the whole job, what takes the time, and the feed assumed."""
+    total = 3600.0 * machining["estimated_hours"]
+    parts = [(what, 3600.0 * machining.get(key, 0.0)) for what, key in (
+        ("cutting", "cutting_hours"), ("hopping between grooves", "hop_hours"),
+        ("plunging", "plunge_hours"), ("rapids and retracts", "rapid_hours"))]
+    split = ", ".join(f"{what} {plain_duration(s)}" for what, s in parts if s >= 30.0)
+    return (f"machining: about {plain_duration(total)} at {feed:g} mm/min"
+            + (f" ({split})" if split else ""))
