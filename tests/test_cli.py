@@ -176,6 +176,9 @@ def _bad_inputs(tmp_path: Path) -> list[list[str]]:
         ["design", m, "--config", str(toml)],
         ["design", m, "--config", str(unknown)],
         ["design", m, "--method", "spiral"],
+        ["design", m, "--visibility", "1.5"],
+        ["design", m, "--visibility", "0.8", "--spacing", "2"],
+        ["design", m, "--visibility", "0.8", "--method", "ridged"],
         ["verify", str(tmp_path)],
     ]
 

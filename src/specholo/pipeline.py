@@ -187,6 +187,7 @@ class DesignConfig:
     ipd: float = 64.0
     stipples: int | None = None
     spacing: float | None = None
+    visibility: float | None = None
     seed: int = 0
     method: str = "striped"
     band: float = 0.2
@@ -251,6 +252,14 @@ class DesignConfig:
                                           or int(self.stipples) != self.stipples
                                           or self.stipples <= 0):
             raise SpecholoError(f"stipples must be a positive integer, got {self.stipples}")
+        if self.visibility is not None and not 0.0 < self.visibility < 1.0:
+            raise SpecholoError("visibility must be a share between 0 and 1 (e.g. 0.8), "
+                                f"got {self.visibility}")
+        if self.visibility is not None and self.spacing is not None:
+            raise SpecholoError("give either visibility or spacing, not both")
+        if self.visibility is not None and self.method == "ridged":
+            raise SpecholoError("visibility needs a grooved design (striped, hyperbola or arc): "
+                                "a ridged plate's facets do not cut into each other")
         if self.spacing is not None and not (math.isfinite(self.spacing) and self.spacing > 0):
             raise SpecholoError(f"spacing must be a positive number of mm, got {self.spacing}")
         for name in ("size", "center_z", "band"):

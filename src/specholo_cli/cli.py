@@ -31,6 +31,9 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("ipd", float, "Interocular distance, mm [64]."),
     ("stipples", int, "Number of stipples [2000]."),
     ("spacing", float, "Minimum stipple spacing in mm (instead of --stipples)."),
+    ("visibility", float, "Design with the most stipples that show in both eyes at every "
+     "view on the plate as cut at least this share of the time (e.g. 0.8): several designs "
+     "are tried, from --stipples [off]."),
     ("seed", int, "Random seed for stippling [0]."),
     ("band", float, "Striped design: half-height of the band, bounds vertical error, mm [0.2]."),
     ("placement", click.Choice(["auto", "avoid", "phase"]),
@@ -200,8 +203,18 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
         _design_ridged(model, out, config, wanted, [model, config_path])
         return
     console = Console(stderr=True)
-    with console.status("designing..."):
-        d = run_design(model, config)
+    if config.visibility is not None:
+        from specholo.density import design_for_visibility
+
+        def tried(n: int, v: float) -> None:
+            console.print(f"{n} stipples: as cut, {v:.0%} in both eyes at the lowest view")
+
+        with console.status(f"finding the most stipples that keep {config.visibility:.0%} "
+                            "as cut..."):
+            d = design_for_visibility(model, config, tried)
+    else:
+        with console.status("designing..."):
+            d = run_design(model, config)
     with console.status("writing..."):
         written = write_design(d, out, wanted, command=_command_line(),
                                inputs=[model, config_path])
