@@ -96,20 +96,25 @@ def plot(rows: list[dict[str, Any]], path: Path, scene: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
-    for method in dict.fromkeys(r["method"] for r in rows):
+    counts = sorted({r["stipples"] for r in rows})
+    for i, method in enumerate(dict.fromkeys(r["method"] for r in rows)):
         mine = [r for r in rows if r["method"] == method]
         n = [r["stipples"] for r in mine]
-        a.plot(n, [r["cut_mean"] for r in mine], "o-", label=f"{method}, mean")
-        a.plot(n, [r["cut_min"] for r in mine], "x--", label=f"{method}, lowest azimuth")
-        b.plot(n, [r["stereo_points_mean"] for r in mine], "o-", label=method)
+        colour = f"C{i}"
+        a.plot(n, [r["cut_mean"] for r in mine], "o-", color=colour, label=f"{method}, mean")
+        a.plot(n, [r["cut_min"] for r in mine], "x--", color=colour,
+               label=f"{method}, lowest view")
+        b.plot(n, [r["stereo_points_mean"] for r in mine], "o-", color=colour, label=method)
     for ax in (a, b):
         ax.set_xscale("log")
+        ax.set_xticks(counts, [f"{c:,}" for c in counts])
+        ax.minorticks_off()
         ax.set_xlabel("stipples")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     a.set_ylabel("stereo visibility as cut")
     a.set_ylim(0, 1)
-    b.set_ylabel("stipples seen in stereo as cut (mean over azimuths)")
+    b.set_ylabel("stipples in both eyes as cut (mean)")
     fig.suptitle(f"As cut, by stipple count ({scene} scene)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
