@@ -12,9 +12,9 @@ from hypothesis import strategies as st
 from specholo.hosts.flat import sightline_crossing
 from specholo.optics.foliation import hyperbola_slope, hyperbola_y
 from specholo.optics.normality import reflect, unit
+from specholo.optics.stereo import triangulate
 from specholo.setup import Light, Setup, Tool, Viewer
 from specholo.simulation.glints import Engraved, find_glints
-from specholo.simulation.stereo import triangulate
 from specholo.toolpaths.arcs import biarc
 from specholo.toolpaths.common import make_runs
 from specholo.toolpaths.striped import StripeOptions, design_striped

@@ -1130,7 +1130,7 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
         from_gcode: read the grooves from ``hologram.gcode`` (the file that will be
             cut) instead of ``grooves.npz``.
     """
-    from specholo.readback import read_mesh
+    from specholo.scene.loading import read_mesh
 
     folder = Path(folder)
     info = _design_json(folder)
@@ -1569,7 +1569,8 @@ class LoadedRidged:
 
 def load_ridged_design(folder: str | os.PathLike[str]) -> LoadedRidged:
     """Read a ridged design folder written by :func:`write_ridged_design`."""
-    from specholo.readback import read_mesh, within
+    from specholo.readback import within
+    from specholo.scene.loading import read_mesh
     from specholo.toolpaths.ridged import load_ridged
 
     folder = Path(folder)

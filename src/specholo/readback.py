@@ -23,7 +23,6 @@ The arrays' own consistency (offsets within range and so on) is the caller's.
 from __future__ import annotations
 
 import contextlib
-import io
 import json
 import math
 import os
@@ -34,11 +33,11 @@ import zipfile
 import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
-from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 
+from specholo._memory import available_memory, format_bytes
 from specholo.errors import SpecholoError
 
 #: Largest JSON file read, bytes. hologram.json lists every stipple (~130 bytes
@@ -51,17 +50,10 @@ MAX_JSON_BYTES = 512 << 20
 MAX_TOML_BYTES = 1 << 20
 #: Largest picture read whole (a report embeds the folder's PNGs), bytes.
 MAX_PICTURE_BYTES = 256 << 20
-#: Largest placed model (model.ply) read, bytes: 2 GB of binary PLY is ~100
-#: million faces, far more than a design's occlusion tests can hold.
-MAX_MESH_BYTES = 2 << 30
 #: Most bytes of arrays one .npz may declare (uncompressed): ten times the grooves
 #: of a 10^6-stipple design (5.7 GB). The memory available is the tighter bound
 #: on most machines; this one holds where it cannot be found out.
 MAX_ARRAY_BYTES = 64 << 30
-
-# Memory that reading needs per byte of file: the file's bytes themselves, and for
-# a parsed mesh trimesh's arrays beside them.
-_MESH_BYTES_PER_FILE_BYTE = 3
 
 
 def _kind(mode: int) -> str:
@@ -88,10 +80,8 @@ def _name(what: str, path: str | os.PathLike[str]) -> str:
     return f"{what} {os.fspath(path)}" if what else os.fspath(path)
 
 
-def _fits(path: str | os.PathLike[str], what: str, need: int) -> None:
+def check_fits(path: str | os.PathLike[str], what: str, need: int) -> None:
     """Refuse reading that would need more memory than is available."""
-    from specholo.scene.loading import available_memory, format_bytes
-
     room = available_memory()
     if room is not None and need > room:
         raise SpecholoError(f"{_name(what, path)}: reading it would need ~{format_bytes(need)} "
@@ -106,8 +96,6 @@ def open_regular(path: str | os.PathLike[str], what: str = "",
         SpecholoError: missing, a folder, FIFO, device or socket, unreadable, or
             larger than ``max_bytes``.
     """
-    from specholo.scene.loading import format_bytes
-
     name = _name(what, path)
     try:
         info = os.stat(path)
@@ -149,7 +137,7 @@ def read_bytes(path: str | os.PathLike[str], max_bytes: int, what: str = "") -> 
     """A regular file's bytes, at most ``max_bytes`` of them (else refused)."""
     fd, size = open_regular(path, what, max_bytes)
     with os.fdopen(fd, "rb") as fh:
-        _fits(path, what, size)
+        check_fits(path, what, size)
         try:
             # One byte more than the fstat found, to see a file that grew since
             # (asking for max_bytes would reserve that much memory up front).
@@ -336,8 +324,6 @@ def load_arrays(path: str | os.PathLike[str], spec: dict[str, ArraySpec],
     Raises:
         SpecholoError: anything unlike the spec, or an unreadable file.
     """
-    from specholo.scene.loading import format_bytes
-
     if max_bytes is None:
         max_bytes = MAX_ARRAY_BYTES
     name = os.fspath(path)
@@ -358,7 +344,7 @@ def load_arrays(path: str | os.PathLike[str], spec: dict[str, ArraySpec],
                 if total > max_bytes:
                     raise SpecholoError(f"{name} declares {format_bytes(total)} of arrays, "
                                         f"more than the {format_bytes(max_bytes)} it can hold")
-                _fits(path, "", total)
+                check_fits(path, "", total)
                 for key, member in found.items():
                     _check_member(zf, member, key, spec[key], name)
                 out = {}
@@ -419,40 +405,3 @@ def _convert(arr: np.ndarray, want: ArraySpec, key: str, name: str) -> np.ndarra
 # ---------------------------------------------------------------- meshes
 
 
-def read_mesh(path: str | os.PathLike[str], what: str = "model") -> Any:
-    """A placed model (a PLY a design wrote) as a trimesh, exactly as written.
-
-    Unlike :func:`specholo.scene.loading.load_model`, nothing is merged or
-    dropped: the occlusion tests then see the mesh the design saw.
-
-    Raises:
-        SpecholoError: unreadable, too large, or not a mesh of finite vertices
-            whose faces index them.
-    """
-    import trimesh
-
-    from specholo.scene.loading import _check_ply_header, _quiet
-
-    data = read_bytes(path, MAX_MESH_BYTES, what)
-    _fits(path, what, _MESH_BYTES_PER_FILE_BYTE * len(data))
-    p = Path(path)
-    with _quiet():
-        _check_ply_header(p, data)
-        try:
-            mesh = trimesh.load(io.BytesIO(data), file_type="ply", force="mesh",
-                                process=False)
-        except MemoryError as exc:
-            raise SpecholoError(f"{_name(what, path)}: out of memory reading it") from exc
-        except Exception as exc:  # trimesh raises anything from KeyError to struct.error
-            raise SpecholoError(f"{_name(what, path)} is not a readable PLY mesh: "
-                                f"{one_line(exc)}") from exc
-    if not isinstance(mesh, trimesh.Trimesh):
-        raise SpecholoError(f"{_name(what, path)} holds no triangle mesh")
-    v = np.asarray(mesh.vertices)
-    f = np.asarray(mesh.faces)
-    if v.ndim != 2 or v.shape[1] != 3 or not all_finite(v.astype(float, copy=False)):
-        raise SpecholoError(f"{_name(what, path)}: vertices are not finite 3D points")
-    if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer) \
-            or (f.size and not within(f, 0, len(v) - 1)):
-        raise SpecholoError(f"{_name(what, path)}: faces do not index its vertices")
-    return mesh

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -82,6 +81,32 @@ MAX_INDEX = 3.0
 
 
 @dataclass(frozen=True)
+class ClearPlate:
+    """A clear plate: engraved front face at z = 0, planar back face at z = -thickness.
+
+    Attributes:
+        thickness: plate thickness T, mm.
+        index: refractive index n of the plate (air is 1).
+    """
+
+    thickness: float = 3.0
+    index: float = ACRYLIC_INDEX
+
+    def __post_init__(self) -> None:
+        t = float(self.thickness)
+        if not (math.isfinite(t) and t > 0):
+            raise SpecholoError(f"plate thickness must be a positive number of mm, got {t:g}")
+        n = float(self.index)
+        if not (math.isfinite(n) and n > 1.0):
+            raise SpecholoError(f"plate index must be a finite number above 1, got {n:g}")
+
+    @property
+    def back_z(self) -> float:
+        """Height of the back face, mm."""
+        return -float(self.thickness)
+
+
+@dataclass(frozen=True)
 class BackLight(Light):
     """A light BEHIND a clear plate, shining through it (refraction holograms).
 
@@ -125,10 +150,8 @@ class BackLight(Light):
                     f"{d:g} mm and {math.degrees(a):g} degrees it is at z = {z:.3g} mm")
 
     @property
-    def plate(self) -> Any:
-        """The clear plate (:class:`~specholo.optics.refraction.ClearPlate`)."""
-        from specholo.optics.refraction import ClearPlate
-
+    def plate(self) -> ClearPlate:
+        """The clear plate the light shines through."""
         return ClearPlate(float(self.thickness), float(self.index))
 
 @dataclass(frozen=True)

@@ -376,11 +376,11 @@ def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:
         load_arrays,
         number,
         read_json,
-        read_mesh,
         settings_from,
         table,
         whole,
     )
+    from specholo.scene.loading import read_mesh
     from specholo.toolpaths.grooves import MAX_COORDINATE, Grooves
 
     folder = Path(folder)

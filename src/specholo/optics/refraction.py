@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.optics.stereo import triangulate
 from specholo.optics.surfaces import (
     ImplicitOptics,
     PointOptics,
@@ -45,7 +46,7 @@ from specholo.optics.surfaces import (
     sightline_on_level,
 )
 from specholo.setup import ACRYLIC_INDEX as ACRYLIC_INDEX
-from specholo.simulation.stereo import triangulate
+from specholo.setup import ClearPlate as ClearPlate
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -56,32 +57,6 @@ def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angles (k,) between vectors a and b (k, 3), accurate near 0."""
     a, b = _unit(a), _unit(b)
     return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
-
-
-@dataclass(frozen=True)
-class ClearPlate:
-    """A clear plate: engraved front face at z = 0, planar back face at z = -thickness.
-
-    Attributes:
-        thickness: plate thickness T, mm.
-        index: refractive index n of the plate (air is 1).
-    """
-
-    thickness: float = 3.0
-    index: float = ACRYLIC_INDEX
-
-    def __post_init__(self) -> None:
-        t = float(self.thickness)
-        if not (math.isfinite(t) and t > 0):
-            raise SpecholoError(f"plate thickness must be a positive number of mm, got {t:g}")
-        n = float(self.index)
-        if not (math.isfinite(n) and n > 1.0):
-            raise SpecholoError(f"plate index must be a finite number above 1, got {n:g}")
-
-    @property
-    def back_z(self) -> float:
-        """Height of the back face, mm."""
-        return -float(self.thickness)
 
 
 def check_back_light(source: Source, plate: ClearPlate) -> None:

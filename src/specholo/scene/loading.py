@@ -25,8 +25,10 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from specholo._memory import available_memory as available_memory
+from specholo._memory import format_bytes as format_bytes
 from specholo.errors import SpecholoError
-from specholo.readback import open_file, read_bytes
+from specholo.readback import all_finite, check_fits, one_line, open_file, read_bytes, within
 
 MESH_FORMATS = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")
 CLOUD_FORMATS = (".ply", ".xyz", ".csv")
@@ -88,63 +90,6 @@ def _one_line(exc: BaseException) -> str:
 
 
 # ---------------------------------------------------------------- memory
-
-
-def _read_int(path: str) -> int | None:
-    try:
-        with open(path, encoding="ascii") as fh:
-            text = fh.read().strip()
-    except (OSError, ValueError):
-        return None
-    return int(text) if text.isdigit() else None
-
-
-def available_memory() -> int | None:
-    """Bytes of memory this process can still allocate, or None when unknown.
-
-    The least of: the kernel's estimate of available memory (``MemAvailable``),
-    the room left under a cgroup memory limit (containers), and the address-space
-    limit (``ulimit -v``).
-    """
-    room: list[int] = []
-    try:
-        with open("/proc/meminfo", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    room.append(int(line.split()[1]) * 1024)
-                    break
-    except (OSError, ValueError, IndexError):
-        pass
-    if not room:
-        with contextlib.suppress(AttributeError, ValueError, OSError):
-            room.append(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    for limit_file, usage_file in (
-        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
-        ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
-         "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
-    ):
-        limit = _read_int(limit_file)
-        usage = _read_int(usage_file)
-        if limit is not None and usage is not None and limit < 1 << 60:
-            room.append(max(0, limit - usage))
-    with contextlib.suppress(ImportError, ValueError, OSError):
-        import resource
-
-        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
-        if soft != resource.RLIM_INFINITY:
-            with open("/proc/self/statm", encoding="ascii") as fh:
-                used = int(fh.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
-            room.append(max(0, soft - used))
-    return min(room) if room else None
-
-
-def format_bytes(n: float) -> str:
-    """A byte count for people: '640 MB', '5.8 GB', '60 PB'."""
-    for unit in ("B", "KB", "MB", "GB", "TB", "PB"):
-        if abs(n) < 999.5:
-            return f"{n:.3g} {unit}"
-        n /= 1000.0
-    return f"{n:.3g} EB"
 
 
 def mesh_memory(n_vertices: int, n_faces: int) -> int:
@@ -612,3 +557,48 @@ def _read_csv(p: Path, text: str) -> np.ndarray:
             raise SpecholoError(f"{p}: line {line_no}: expected {need} columns, got {len(row)}")
         rows.append((line_no, [row[c] for c in columns]))
     return _parse_rows(p, rows)
+
+
+# ---------------------------------------------------------------- placed models
+
+#: Largest placed model (model.ply) read, bytes: 2 GB of binary PLY is ~100
+#: million faces, far more than a design's occlusion tests can hold.
+MAX_MESH_BYTES = 2 << 30
+# Memory that reading needs per byte of file: the file's bytes themselves, and
+# trimesh's arrays beside them.
+_MESH_BYTES_PER_FILE_BYTE = 3
+
+
+def read_mesh(path: str | os.PathLike[str], what: str = "model") -> trimesh.Trimesh:
+    """A placed model (a PLY a design wrote) as a trimesh, exactly as written.
+
+    Unlike :func:`specholo.scene.loading.load_model`, nothing is merged or
+    dropped: the occlusion tests then see the mesh the design saw.
+
+    Raises:
+        SpecholoError: unreadable, too large, or not a mesh of finite vertices
+            whose faces index them.
+    """
+    data = read_bytes(path, MAX_MESH_BYTES, what)
+    check_fits(path, what, _MESH_BYTES_PER_FILE_BYTE * len(data))
+    p = Path(path)
+    with _quiet():
+        _check_ply_header(p, data)
+        try:
+            mesh = trimesh.load(io.BytesIO(data), file_type="ply", force="mesh",
+                                process=False)
+        except MemoryError as exc:
+            raise SpecholoError(f"{what} {os.fspath(path)}: out of memory reading it") from exc
+        except Exception as exc:  # trimesh raises anything from KeyError to struct.error
+            raise SpecholoError(f"{what} {os.fspath(path)} is not a readable PLY mesh: "
+                                f"{one_line(exc)}") from exc
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise SpecholoError(f"{what} {os.fspath(path)} holds no triangle mesh")
+    v = np.asarray(mesh.vertices)
+    f = np.asarray(mesh.faces)
+    if v.ndim != 2 or v.shape[1] != 3 or not all_finite(v.astype(float, copy=False)):
+        raise SpecholoError(f"{what} {os.fspath(path)}: vertices are not finite 3D points")
+    if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer) \
+            or (f.size and not within(f, 0, len(v) - 1)):
+        raise SpecholoError(f"{what} {os.fspath(path)}: faces do not index its vertices")
+    return mesh

@@ -45,7 +45,7 @@ from specholo.errors import SpecholoError
 from specholo.fabrication.heightmap import HeightMap
 from specholo.setup import BackLight
 from specholo.simulation.cut import MIN_COVERAGE
-from specholo.simulation.heightfield import (
+from specholo.simulation.field_glints import (
     CUTOFF,
     ESTIMATES,
     LOBE,

@@ -13,9 +13,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from specholo.optics.stereo import triangulate
 from specholo.setup import Setup
 from specholo.simulation.glints import Engraved, Glints, find_glints
-from specholo.simulation.stereo import triangulate
 from specholo.toolpaths.grooves import Grooves
 
 #: visible(points (n, 3), eyes (n, 3)) -> (n,) bool: is each point unoccluded from its eye.
