@@ -1,5 +1,7 @@
-"""The package's import graph has no circles: every module, counting the imports
-made inside functions, can be understood from the modules below it."""
+"""The package's import graph has no circles and no arrow from a lower layer up:
+data flows model -> stipples -> optics -> toolpaths -> files, the simulator
+reads the same toolpaths, and the jobs and the command line sit on top. Imports
+made inside functions count."""
 
 from __future__ import annotations
 
@@ -7,6 +9,26 @@ import ast
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src"
+#: The layers, lowest first: a module may import its own layer's and lower ones'.
+#: A package names every module under it; ``specholo`` is the package's front
+#: page (it re-exports the setup's dataclasses).
+LAYERS: list[set[str]] = [
+    {"specholo.errors", "specholo._memory", "specholo._threads", "specholo._pages"},
+    {"specholo.readback"},
+    {"specholo.setup", "specholo"},
+    {"specholo.optics"},
+    {"specholo.hosts"},
+    {"specholo.scene"},
+    {"specholo.visibility"},
+    {"specholo.toolpaths"},
+    {"specholo.fabrication"},
+    {"specholo.simulation"},
+    {"specholo.preview"},
+    {"specholo.folder", "specholo.folders"},
+    {"specholo.pipeline"},
+    {"specholo.density", "specholo.compose", "specholo.spin", "specholo.steady"},
+    {"specholo_cli"},
+]
 
 
 def import_graph() -> dict[str, set[str]]:
@@ -68,6 +90,22 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
+def layer_of(module: str) -> int:
+    """Index in :data:`LAYERS` of the longest name that is the module or holds it."""
+    best, found = -1, -1
+    for i, layer in enumerate(LAYERS):
+        for name in layer:
+            if (module == name or module.startswith(name + ".")) and len(name) > best:
+                best, found = len(name), i
+    return found
+
+
+def upward(graph: dict[str, set[str]]) -> list[str]:
+    """Every import of a higher layer's module, as "importer -> imported"."""
+    return [f"{a} -> {b}" for a in sorted(graph) for b in sorted(graph[a])
+            if layer_of(b) > layer_of(a)]
+
+
 def test_the_finder_sees_a_circle():
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert cycles({"a": {"b"}, "b": set()}) == []
@@ -77,3 +115,17 @@ def test_no_import_circles():
     graph = import_graph()
     assert "specholo.pipeline" in graph and graph["specholo.pipeline"], "graph not read"
     assert cycles(graph) == []
+
+
+def test_every_module_has_a_layer():
+    assert [m for m in import_graph() if layer_of(m) < 0] == []
+
+
+def test_the_layer_rule_sees_an_upward_arrow():
+    assert upward({"specholo.toolpaths.striped": {"specholo.pipeline"}}) == [
+        "specholo.toolpaths.striped -> specholo.pipeline"]
+    assert upward({"specholo.pipeline": {"specholo.toolpaths.striped"}}) == []
+
+
+def test_no_arrow_from_a_lower_layer_up():
+    assert upward(import_graph()) == []

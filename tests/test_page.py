@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from specholo.pipeline import load_design
-from specholo.preview.page import ANGLE_STEP, ANGLE_STEPS, CELL, PageArcs, build_page, write_page
+from specholo.pipeline import load_design, write_page
+from specholo.preview.page import ANGLE_STEP, ANGLE_STEPS, CELL, PageArcs, build_page
 from specholo.preview.render import Camera
 from specholo.setup import Light, Tool
 from specholo.simulation.glints import Engraved, find_glints

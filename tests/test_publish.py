@@ -53,8 +53,8 @@ def refused(code: int, err: str, *words: str) -> None:
 
 
 def test_every_file_a_job_writes_is_in_the_registry() -> None:
+    from specholo.fabrication.heightmap import PLATE_FILE, RIDGED_FILES
     from specholo.pipeline import FORMATS
-    from specholo.toolpaths.ridged import PLATE_FILE, RIDGED_FILES
 
     for name in (*FORMATS.values(), *RIDGED_FILES.values(), PLATE_FILE, "scene_0.ply",
                  "scene_12.ply", *folders.VERIFY_FILES):

@@ -14,11 +14,10 @@ import pytest
 from scipy.spatial import cKDTree
 
 from specholo.fabrication.check import Stock, check_gcode
-from specholo.fabrication.heightmap import read_image
+from specholo.fabrication.heightmap import load_ridged, read_image
 from specholo.pipeline import load_ridged_design
 from specholo.preview.page import FieldViews
 from specholo.preview.render import Camera, field_glint_pixels, field_plate, plate_camera
-from specholo.toolpaths.ridged import load_ridged
 from specholo_cli.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -36,7 +36,7 @@ from specholo.fabrication.atomic import PART_FILE, pid_alive, scratch
 OUTPUT_NAMES = frozenset({
     # the design's data, which verify, render and the other commands read
     "hologram.json", "grooves.npz", "stipples.npz", "model.ply", "plate.npz", "run.json",
-    # fabrication files (pipeline.FORMATS, toolpaths.ridged.RIDGED_FILES, spin's relief)
+    # fabrication files (pipeline.FORMATS, fabrication.heightmap.RIDGED_FILES, spin's relief)
     "hologram.gcode", "hologram.svg", "hologram.dxf", "pattern.pdf", "relief.gcode",
     "hologram.stl", "heightmap.png", "heightmap.tif", "heightmap.json",
     # pictures written with the design

@@ -944,7 +944,7 @@ def check_written_gcode(path: str | os.PathLike[str], d: Design) -> Any:
 def check_formats(formats: tuple[str, ...], method: str) -> None:
     """Refuse unknown formats, and a compass pattern of grooves that are not arcs."""
     if method == "ridged":
-        from specholo.toolpaths.ridged import RIDGED_FILES
+        from specholo.fabrication.heightmap import RIDGED_FILES
 
         for f in formats:
             if f not in RIDGED_FILES:
@@ -1289,7 +1289,7 @@ def verify_cut_design(loaded: Loaded, max_step_deg: float = 5.0,
 
 
 #: A ridged design's fabrication files by default (see
-#: :data:`specholo.toolpaths.ridged.RIDGED_FILES`).
+#: :data:`specholo.fabrication.heightmap.RIDGED_FILES`).
 DEFAULT_RIDGED_FORMATS = ("png", "tiff", "stl", "gcode")
 #: Peak memory per raster cell of a ridged design and its files, bytes: heights
 #: and labels, the slope index, the ball's tip heights (float64) and the images.
@@ -1486,9 +1486,8 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
         Seconds spent per output (``timings``) and the G-code's figures
         (``machining``, empty without G-code).
     """
-    from specholo.fabrication.heightmap import write_raster_gcode
+    from specholo.fabrication.heightmap import RIDGED_FILES, write_raster_gcode, write_ridged_files
     from specholo.folders import publish
-    from specholo.toolpaths.ridged import RIDGED_FILES, write_ridged_files
 
     check_formats(formats, "ridged")
     setup = d.config.setup()
@@ -1569,9 +1568,9 @@ class LoadedRidged:
 
 def load_ridged_design(folder: str | os.PathLike[str]) -> LoadedRidged:
     """Read a ridged design folder written by :func:`write_ridged_design`."""
+    from specholo.fabrication.heightmap import load_ridged
     from specholo.readback import within
     from specholo.scene.loading import read_mesh
-    from specholo.toolpaths.ridged import load_ridged
 
     folder = Path(folder)
     config = _settings(folder, _design_json(folder))
@@ -1629,3 +1628,52 @@ def verify_ridged_design(loaded: LoadedRidged, max_step_deg: float = 5.0) -> lis
     return verify_field(loaded.heights, loaded.points, setup,
                         _occlusion(loaded.mesh, loaded.normals), az, el,
                         shell=float(loaded.config.shell))
+
+
+def write_page(folder: str | os.PathLike[str], out: str | os.PathLike[str] | None = None,
+               size: tuple[int, int] | None = None, step: float | None = None,
+               progress: Any = None) -> Path:
+    """Write the interactive page of the design in ``folder``.
+
+    Args:
+        folder: a design folder written by ``specholo design``.
+        out: the HTML file; default ``folder/view.html``.
+        size: fixed canvas (width, height) in CSS pixels, or None to fill the window.
+        step: for a ridged design (a height field), the spacing of the views whose
+            glints the page holds, degrees (default
+            :data:`specholo.preview.page.FIELD_VIEW_STEP`).
+        progress: for a ridged design, called with (views done, views), or None.
+
+    Returns:
+        The path written.
+    """
+    from specholo.fabrication.atomic import atomic_open
+    from specholo.preview.page import (
+        FIELD_VIEW_STEP,
+        FieldViews,
+        build_field_page,
+        build_page,
+        field_page_views,
+    )
+
+    step = FIELD_VIEW_STEP if step is None else step
+    path = Path(folder) / "view.html" if out is None else Path(out)
+    if path.suffix.lower() not in (".html", ".htm"):
+        raise SpecholoError(f"page must be an .html file, got {path.name!r}")
+    if not path.parent.is_dir():
+        raise SpecholoError(f"folder {path.parent} does not exist")
+    if size is not None and not all(0 < v <= 8192 for v in size):
+        raise SpecholoError(f"canvas size must be in [1, 8192] pixels, got {size}")
+    title = f"specholo: {Path(folder).resolve().name}"
+    if is_ridged_folder(folder):
+        ridged = load_ridged_design(folder)
+        setup = ridged.config.setup()
+        az, el = field_page_views(setup, float(ridged.config.elevation_range), step)
+        views = FieldViews.build(ridged.heights, setup, az, el, progress=progress)
+        text = build_field_page(views, ridged.heights, setup, title, size)
+    else:
+        loaded = load_design(folder)
+        text = build_page(loaded.grooves, loaded.config.setup(), title, size)
+    with atomic_open(path) as fh:
+        fh.write(text)
+    return path

@@ -835,7 +835,7 @@ def view(folder: Path, out: Path | None, width: int | None, height: int | None,
     found beforehand with the physics of `verify`, and the page shows the view
     nearest the pointer's.
     """
-    from specholo.preview.page import write_page
+    from specholo.pipeline import write_page
 
     _check_folder(folder)
     if (width is None) != (height is None):

@@ -1,16 +1,12 @@
-"""A plate surface given as a height field, and its fabrication files.
-
-:class:`HeightMap` is a plate sampled on a square grid (sample [j, i] at
-origin + (i, j) * resolution: rows run up the plate, columns to the right),
-heights in mm with 0 the uncut surface and cuts below it, and optionally the
-stipple each sample belongs to. From it:
+"""The fabrication files of a plate given as a height field
+(:class:`~specholo.toolpaths.heightmap.HeightMap`):
 
 - 16-bit greyscale PNG and TIFF images (white = the plate surface, black = the
   deepest cut; image row 0 is the plate's top edge, y max) whose scale (height
   range, mm per pixel, origin) is recorded in the PNG's text chunk, the TIFF's
   ImageDescription and a JSON sidecar, so :func:`read_image` gets millimetres
   back to within half a quantisation step;
-- a watertight STL solid (through :func:`specholo.simulation.cut.write_stl`);
+- a watertight STL solid (:func:`specholo.fabrication.stl.write_stl`);
 - G-code that finishes the surface with a ball-end mill: raster passes along x,
   one every ``stepover`` in y, alternating direction, the tool tip following the
   surface the ball can reach without gouging it (the height field dilated by
@@ -32,99 +28,17 @@ from typing import Any
 import numba as nb
 import numpy as np
 
-from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import DECIMALS, SCALE, TextRows, format_number
 from specholo.setup import Machining
+from specholo.toolpaths.heightmap import HeightMap as HeightMap
+from specholo.toolpaths.ridged import RidgedPlate
 
 #: Key of the scale record in the PNG text chunk.
 PNG_KEY = "specholo-heightmap"
-#: Largest value of a 16-bit sample.
-LEVELS = 65535
 #: Tool-tip heights above this (mm below the surface) leave the plate uncut.
 _UNCUT = 1e-6
-
-
-@dataclass(frozen=True, eq=False)
-class HeightMap:
-    """A plate sampled on a square grid.
-
-    Attributes:
-        z: (ny, nx) float32 heights, mm (0 the plate surface, < 0 cut).
-        origin: (2,) position of sample [0, 0], mm.
-        resolution: sample spacing, mm.
-        labels: (ny, nx) int32 stipple of each sample (-1 blank), or None.
-    """
-
-    z: np.ndarray
-    origin: np.ndarray
-    resolution: float
-    labels: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        z = np.asarray(self.z)
-        if z.ndim != 2 or min(z.shape) < 2:
-            raise SpecholoError(f"a height map needs at least 2 x 2 samples, got shape {z.shape}")
-        res = float(self.resolution)
-        if not (math.isfinite(res) and res > 0):
-            raise SpecholoError(f"resolution must be a positive number of mm, got {res:g}")
-        origin = np.asarray(self.origin, dtype=float)
-        if origin.shape != (2,) or not np.all(np.isfinite(origin)):
-            raise SpecholoError(f"origin must be 2 finite numbers, got {origin}")
-        if self.labels is not None and np.shape(self.labels) != z.shape:
-            raise SpecholoError(f"labels must have the heights' shape {z.shape}, got "
-                                f"{np.shape(self.labels)}")
-        object.__setattr__(self, "origin", origin)
-        object.__setattr__(self, "resolution", res)
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """(ny, nx)."""
-        return (int(self.z.shape[0]), int(self.z.shape[1]))
-
-    @property
-    def x(self) -> np.ndarray:
-        """(nx,) sample x positions, mm."""
-        return self.origin[0] + self.resolution * np.arange(self.z.shape[1])
-
-    @property
-    def y(self) -> np.ndarray:
-        """(ny,) sample y positions, mm."""
-        return self.origin[1] + self.resolution * np.arange(self.z.shape[0])
-
-    @property
-    def bounds(self) -> np.ndarray:
-        """(2, 2) first and last sample positions (x, y), mm."""
-        hi = self.origin + self.resolution * (np.array(self.z.shape[::-1]) - 1)
-        return np.stack([self.origin, hi])
-
-    def scale(self) -> dict[str, Any]:
-        """The record that maps image pixels back to millimetres."""
-        lo = float(np.min(self.z))
-        hi = float(np.max(self.z))
-        return {
-            "format": "specholo height map",
-            "specholo_version": __version__,
-            "frame": "plate mm: x right, y up, z toward the viewer, plate surface at z = 0",
-            "width_px": int(self.z.shape[1]), "height_px": int(self.z.shape[0]),
-            "mm_per_px": self.resolution,
-            "origin_mm": self.origin.tolist(),
-            "origin_is": "centre of the bottom-left pixel (image row height_px - 1, column 0)",
-            "rows": "image row 0 is the top edge (y max)",
-            "z_min_mm": lo, "z_max_mm": hi,
-            "levels": LEVELS,
-            "z_step_mm": (hi - lo) / LEVELS,
-            "value": "z = z_min_mm + pixel * (z_max_mm - z_min_mm) / levels",
-        }
-
-    def quantised(self) -> np.ndarray:
-        """(ny, nx) uint16 image, row 0 the top edge (y max)."""
-        lo, hi = float(np.min(self.z)), float(np.max(self.z))
-        if hi == lo:
-            return np.zeros(self.shape, np.uint16)
-        q = np.rint((self.z.astype(np.float64) - lo) * (LEVELS / (hi - lo)))
-        return np.ascontiguousarray(np.clip(q, 0, LEVELS).astype(np.uint16)[::-1])
 
 
 def _check_suffix(path: str | os.PathLike[str], suffixes: tuple[str, ...]) -> Path:
@@ -282,26 +196,17 @@ def load_npz(path: str | os.PathLike[str]) -> HeightMap:
 def write_stl(path: str | os.PathLike[str], hm: HeightMap, thickness: float,
               region: np.ndarray | None = None, step: int | None = None,
               max_faces: int | None = None) -> Any:
-    """Write the plate as a watertight solid (binary STL), atomically.
-
-    The top is the height field, the bottom a flat face at z = -thickness; see
-    :func:`specholo.simulation.cut.write_stl` (this adapts a height map to it).
+    """Write the plate as a watertight solid (binary STL), atomically: see
+    :func:`specholo.fabrication.stl.write_stl`.
 
     Returns:
         The ``trimesh.Trimesh`` written.
     """
-    from specholo.simulation.cut import STL_FACES, HeightField, Moves, ToolProfile
-    from specholo.simulation.cut import write_stl as cut_stl
-    from specholo.toolpaths.grooves import Grooves
+    from specholo.fabrication.stl import STL_FACES
+    from specholo.fabrication.stl import write_stl as grid_stl
 
-    # write_stl reads only the heights, origin and spacing of a cut field; the
-    # move bookkeeping is left empty.
-    blank = np.broadcast_to(np.int32(-1), hm.shape)
-    field = HeightField(hm.z, hm.origin, hm.resolution, blank, blank,
-                        Moves.from_grooves(Grooves.empty()), ToolProfile.ball(1.0, 8),
-                        max(float(-np.min(hm.z)), 1e-9))
-    return cut_stl(path, field, thickness, region, step,
-                   STL_FACES if max_faces is None else max_faces)
+    return grid_stl(path, hm, thickness, region, step,
+                    STL_FACES if max_faces is None else max_faces)
 
 
 # ---------------------------------------------------------------------------
@@ -615,3 +520,84 @@ def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: floa
     return RasterStats(lines=n_lines, passes=written, points=points,
                        cutting_length_mm=length, deepest_tip_mm=float(tip.min()),
                        minutes=length / machining.feed)
+
+
+# ---------------------------------------------------------------------------
+# A ridged design's files
+
+#: Files :func:`write_ridged_files` can write, by format name.
+RIDGED_FILES = {"png": "heightmap.png", "tiff": "heightmap.tif", "stl": "hologram.stl",
+                "gcode": "hologram.gcode"}
+#: The exact heights and labels, for verification.
+PLATE_FILE = "plate.npz"
+
+
+def write_ridged_files(plate: RidgedPlate, folder: Any, machining: Any, ball_radius: float,
+                       stock_thickness: float,
+                       formats: tuple[str, ...] = ("png", "tiff", "gcode"),
+                       stepover: float | None = None) -> dict[str, float]:
+    """Write a ridged plate's files into a folder (each atomically).
+
+    Always ``plate.npz`` (exact heights and labels) and, for ``png`` or
+    ``tiff``, the sidecar ``heightmap.json``; then the formats asked for
+    (:data:`RIDGED_FILES`).
+
+    Args:
+        plate: the design.
+        folder: output folder (must exist).
+        machining: feeds, safe height and spindle (:class:`~specholo.setup.Machining`).
+        ball_radius: ball-end mill radius for the G-code, mm.
+        stock_thickness: plate thickness for the STL, mm.
+        formats: from :data:`RIDGED_FILES`.
+        stepover: G-code pass spacing, mm (default one sample).
+
+    Returns:
+        Seconds spent per file.
+    """
+    import time
+    from pathlib import Path
+
+    for f in formats:
+        if f not in RIDGED_FILES:
+            raise SpecholoError(f"ridged formats must be among {', '.join(RIDGED_FILES)}, "
+                                f"got {f!r}")
+    folder = Path(folder)
+    hm = plate.heights
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    save_npz(folder / PLATE_FILE, hm)
+    timings["plate"] = time.perf_counter() - t0
+    images = []
+    scale = hm.scale()
+    if "png" in formats:
+        t0 = time.perf_counter()
+        write_png(folder / RIDGED_FILES["png"], hm)
+        images.append(RIDGED_FILES["png"])
+        timings["png"] = time.perf_counter() - t0
+    if "tiff" in formats:
+        t0 = time.perf_counter()
+        write_tiff(folder / RIDGED_FILES["tiff"], hm)
+        images.append(RIDGED_FILES["tiff"])
+        timings["tiff"] = time.perf_counter() - t0
+    if images:
+        write_sidecar(folder / "heightmap.json", scale, tuple(images))
+    if "stl" in formats:
+        t0 = time.perf_counter()
+        write_stl(folder / RIDGED_FILES["stl"], hm, stock_thickness)
+        timings["stl"] = time.perf_counter() - t0
+    if "gcode" in formats:
+        t0 = time.perf_counter()
+        write_raster_gcode(folder / RIDGED_FILES["gcode"], hm, ball_radius, machining, stepover,
+                           header={"design": "ridged", "stipples": str(len(plate.points))})
+        timings["gcode"] = time.perf_counter() - t0
+    return timings
+
+
+def load_ridged(folder: Any) -> HeightMap:
+    """The exact height map of a ridged design folder (``plate.npz``)."""
+    from pathlib import Path
+
+    path = Path(folder) / PLATE_FILE
+    if not path.exists():  # anything else in its place is refused by its reader
+        raise SpecholoError(f"{folder} holds no {PLATE_FILE}: not a ridged design folder")
+    return load_npz(path)

@@ -48,7 +48,6 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.atomic import atomic_open
 from specholo.setup import Setup
 from specholo.toolpaths.grooves import Grooves, Segments
 
@@ -554,46 +553,6 @@ _CSS = (
     "#message{position:absolute;top:40px;left:10px;right:10px;padding:1em;"
     "background:#3a1010;color:#fff;border-radius:4px}"
 )
-
-
-def write_page(folder: str | os.PathLike[str], out: str | os.PathLike[str] | None = None,
-               size: tuple[int, int] | None = None, step: float = FIELD_VIEW_STEP,
-               progress: Any = None) -> Path:
-    """Write the interactive page of the design in ``folder``.
-
-    Args:
-        folder: a design folder written by ``specholo design``.
-        out: the HTML file; default ``folder/view.html``.
-        size: fixed canvas (width, height) in CSS pixels, or None to fill the window.
-        step: for a ridged design (a height field), the spacing of the views whose
-            glints the page holds, degrees.
-        progress: for a ridged design, called with (views done, views), or None.
-
-    Returns:
-        The path written.
-    """
-    from specholo.pipeline import is_ridged_folder, load_design, load_ridged_design
-
-    path = Path(folder) / "view.html" if out is None else Path(out)
-    if path.suffix.lower() not in (".html", ".htm"):
-        raise SpecholoError(f"page must be an .html file, got {path.name!r}")
-    if not path.parent.is_dir():
-        raise SpecholoError(f"folder {path.parent} does not exist")
-    if size is not None and not all(0 < v <= 8192 for v in size):
-        raise SpecholoError(f"canvas size must be in [1, 8192] pixels, got {size}")
-    title = f"specholo: {Path(folder).resolve().name}"
-    if is_ridged_folder(folder):
-        ridged = load_ridged_design(folder)
-        setup = ridged.config.setup()
-        az, el = field_page_views(setup, float(ridged.config.elevation_range), step)
-        views = FieldViews.build(ridged.heights, setup, az, el, progress=progress)
-        text = build_field_page(views, ridged.heights, setup, title, size)
-    else:
-        loaded = load_design(folder)
-        text = build_page(loaded.grooves, loaded.config.setup(), title, size)
-    with atomic_open(path) as fh:
-        fh.write(text)
-    return path
 
 
 # ---------------------------------------------------------------------------

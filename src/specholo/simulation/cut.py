@@ -41,14 +41,14 @@ import inspect
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from os import PathLike
 from typing import Any
 
 import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.errors import positive as _positive
-from specholo.fabrication.atomic import atomic_open
+from specholo.fabrication.stl import STL_FACES as STL_FACES
+from specholo.fabrication.stl import write_stl as write_stl
 from specholo.setup import Light, Setup, Tool
 from specholo.simulation import _cut_kernel as _k
 from specholo.simulation.glints import Glints
@@ -68,8 +68,6 @@ CORNER = 1e-3
 BAND_ROWS = 16
 #: Largest height field :func:`cut_surface` builds (samples).
 MAX_SAMPLES = 600_000_000
-#: Default triangle budget of :func:`write_stl`.
-STL_FACES = 4_000_000
 #: Groove vertices swept at a time once a program has more than CHUNK_FROM: it
 #: is built and cut a run of paths at a time, and only the moves that cut some
 #: sample deepest are kept, so memory follows the field, not the program. A
@@ -790,91 +788,3 @@ def agreement(ideal: list[ViewReport], cut: list[ViewReport]) -> list[dict[str, 
 # STL
 
 
-def write_stl(path: str | PathLike[str], field: HeightField, thickness: float,
-              region: np.ndarray | None = None, step: int | None = None,
-              max_faces: int = STL_FACES) -> Any:
-    """Write the cut plate as a watertight solid, atomically (binary STL).
-
-    The top is the height field (two triangles per grid square), the bottom a
-    flat face at z = -thickness, and four side walls join them.
-
-    Args:
-        path: destination ``.stl`` file.
-        field: the cut plate.
-        thickness: plate thickness, mm (more than the deepest cut).
-        region: (2, 2) lower-left and upper-right corners to export, mm (snapped
-            to samples); default the whole field.
-        step: keep every step-th sample in x and y (the last row and column
-            always, so the solid keeps its extent); default the smallest step
-            that stays within ``max_faces``.
-        max_faces: triangle budget used to choose ``step``.
-
-    Returns:
-        The ``trimesh.Trimesh`` written.
-
-    Raises:
-        SpecholoError: on a bad thickness, region or step.
-    """
-    import trimesh
-
-    thickness = _positive("plate thickness", thickness)
-    z = field.z
-    if region is not None:
-        region = np.asarray(region, dtype=float)
-        if region.shape != (2, 2) or not np.all(np.isfinite(region)) or np.any(
-                region[1] <= region[0]):
-            raise SpecholoError(f"region must be [[x0, y0], [x1, y1]] with x1 > x0 and "
-                                f"y1 > y0, got {region.tolist()}")
-        lo = np.clip(np.rint((region[0] - field.origin) / field.resolution), 0,
-                     np.array(z.shape[::-1]) - 1).astype(np.int64)
-        hi = np.clip(np.rint((region[1] - field.origin) / field.resolution), 0,
-                     np.array(z.shape[::-1]) - 1).astype(np.int64)
-        if np.any(hi <= lo):
-            raise SpecholoError(f"region {region.tolist()} holds less than one grid square "
-                                f"of the field (bounds {field.bounds.tolist()})")
-    else:
-        lo, hi = np.zeros(2, np.int64), np.array(z.shape[::-1], np.int64) - 1
-    n = hi - lo + 1
-    if step is None:
-        step = 1
-        while 2 * (math.ceil((n[0] - 1) / step)) * math.ceil((n[1] - 1) / step) > max_faces:
-            step += 1
-    elif int(step) != step or step < 1:
-        raise SpecholoError(f"step must be a positive integer, got {step}")
-    step = int(step)
-    ii = np.unique(np.append(np.arange(lo[0], hi[0] + 1, step), hi[0]))
-    jj = np.unique(np.append(np.arange(lo[1], hi[1] + 1, step), hi[1]))
-    top = z[np.ix_(jj, ii)].astype(float)
-    if -top.min() >= thickness:
-        raise SpecholoError(f"plate thickness {thickness:g} mm does not exceed the deepest "
-                            f"cut {-top.min():g} mm")
-    x = field.origin[0] + field.resolution * ii
-    y = field.origin[1] + field.resolution * jj
-    mesh = trimesh.Trimesh(*_solid(x, y, top, thickness), process=False)
-    if not mesh.is_watertight:
-        raise SpecholoError("the plate's mesh is not watertight")  # a bug, not bad input
-    with atomic_open(path, "wb", encoding=None) as fh:
-        fh.write(mesh.export(file_type="stl"))
-    return mesh
-
-
-def _solid(x: np.ndarray, y: np.ndarray, top: np.ndarray,
-           thickness: float) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (v, 3) and outward-wound faces (f, 3) of a plate with a height-field top."""
-    my, mx = top.shape
-    gx, gy = np.meshgrid(x, y)
-    bottom = np.array([[x[0], y[0]], [x[-1], y[0]], [x[-1], y[-1]], [x[0], y[-1]]])
-    verts = np.concatenate([np.stack([gx.ravel(), gy.ravel(), top.ravel()], axis=1),
-                            np.column_stack([bottom, np.full(4, -thickness)])])
-    v = np.arange(my * mx).reshape(my, mx)
-    a, b, c, d = v[:-1, :-1].ravel(), v[:-1, 1:].ravel(), v[1:, 1:].ravel(), v[1:, :-1].ravel()
-    faces = [np.stack([a, b, c], 1), np.stack([a, c, d], 1)]  # counter-clockwise from above
-    b0 = my * mx
-    # Each wall follows the rim counter-clockwise seen from above, from the bottom
-    # corner below its first top vertex: a fan from that corner.
-    for rim, start, end in ((v[0, :], b0, b0 + 1), (v[:, -1], b0 + 1, b0 + 2),
-                            (v[-1, ::-1], b0 + 2, b0 + 3), (v[::-1, 0], b0 + 3, b0)):
-        fan = np.stack([np.full(len(rim) - 1, start), rim[1:], rim[:-1]], 1)
-        faces += [fan, np.array([[start, end, rim[-1]]])]
-    faces.append(np.array([[b0, b0 + 2, b0 + 1], [b0, b0 + 3, b0 + 2]]))
-    return verts, np.concatenate(faces)

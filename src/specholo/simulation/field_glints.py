@@ -37,10 +37,10 @@ import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.heightmap import HeightMap
 from specholo.setup import Light
 from specholo.simulation.cut import MIN_COVERAGE
 from specholo.simulation.glints import Glints
+from specholo.toolpaths.heightmap import HeightMap
 
 #: Angular sigma of the specular lobe, radians.
 LOBE = 4e-4

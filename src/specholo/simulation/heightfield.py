@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from specholo.fabrication.heightmap import HeightMap
 from specholo.setup import BackLight, Light, Setup, Viewer
 from specholo.simulation.cut import MIN_COVERAGE
 from specholo.simulation.field_glints import LOBE, FieldGlints, find_reflected_glints
@@ -26,6 +25,7 @@ from specholo.simulation.glints import Glints
 from specholo.simulation.transmission import find_transmitted_glints
 from specholo.simulation.verify import ViewReport, VisibilityFn
 from specholo.simulation.verify import view_report as verify_view_report
+from specholo.toolpaths.heightmap import HeightMap
 
 
 def find_field_glints(field: HeightMap | SlopeIndex, eye: np.ndarray, light: Light,

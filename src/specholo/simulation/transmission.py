@@ -42,7 +42,6 @@ import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.heightmap import HeightMap
 from specholo.setup import BackLight
 from specholo.simulation.cut import MIN_COVERAGE
 from specholo.simulation.field_glints import (
@@ -56,6 +55,7 @@ from specholo.simulation.field_glints import (
     _height_at,
     _normal,
 )
+from specholo.toolpaths.heightmap import HeightMap
 
 #: Angular sigma of the exit ray's lobe, in units of a mirror plate's lobe (whose
 #: reflected ray spreads twice as much as its normals).

@@ -45,10 +45,10 @@ import numba as nb
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.heightmap import HeightMap
 from specholo.hosts.flat import sightline_crossing
 from specholo.optics.surfaces import ImplicitOptics, Kind, PointOptics, Source
 from specholo.setup import BackLight, Setup, Viewer
+from specholo.toolpaths.heightmap import HeightMap
 
 #: Facet depth used, as a share of the shell (the rest absorbs the cone sectors).
 DEPTH_MARGIN = 0.95
@@ -883,92 +883,3 @@ def _assign(cells: np.ndarray, owner: np.ndarray, seed: np.ndarray, nbx: int, nb
     first = order[np.r_[True, cells[order][1:] != cells[order][:-1]]]
     labels[cells[first]] = owner[first]
     return labels.reshape(nby, nbx)
-
-
-#: Files :func:`write_ridged_files` can write, by format name.
-RIDGED_FILES = {"png": "heightmap.png", "tiff": "heightmap.tif", "stl": "hologram.stl",
-                "gcode": "hologram.gcode"}
-#: The exact heights and labels, for verification.
-PLATE_FILE = "plate.npz"
-
-
-def write_ridged_files(plate: RidgedPlate, folder: Any, machining: Any, ball_radius: float,
-                       stock_thickness: float,
-                       formats: tuple[str, ...] = ("png", "tiff", "gcode"),
-                       stepover: float | None = None) -> dict[str, float]:
-    """Write a ridged plate's files into a folder (each atomically).
-
-    Always ``plate.npz`` (exact heights and labels) and, for ``png`` or
-    ``tiff``, the sidecar ``heightmap.json``; then the formats asked for
-    (:data:`RIDGED_FILES`).
-
-    Args:
-        plate: the design.
-        folder: output folder (must exist).
-        machining: feeds, safe height and spindle (:class:`~specholo.setup.Machining`).
-        ball_radius: ball-end mill radius for the G-code, mm.
-        stock_thickness: plate thickness for the STL, mm.
-        formats: from :data:`RIDGED_FILES`.
-        stepover: G-code pass spacing, mm (default one sample).
-
-    Returns:
-        Seconds spent per file.
-    """
-    import time
-    from pathlib import Path
-
-    from specholo.fabrication.heightmap import (
-        save_npz,
-        write_png,
-        write_raster_gcode,
-        write_sidecar,
-        write_stl,
-        write_tiff,
-    )
-
-    for f in formats:
-        if f not in RIDGED_FILES:
-            raise SpecholoError(f"ridged formats must be among {', '.join(RIDGED_FILES)}, "
-                                f"got {f!r}")
-    folder = Path(folder)
-    hm = plate.heights
-    timings: dict[str, float] = {}
-    t0 = time.perf_counter()
-    save_npz(folder / PLATE_FILE, hm)
-    timings["plate"] = time.perf_counter() - t0
-    images = []
-    scale = hm.scale()
-    if "png" in formats:
-        t0 = time.perf_counter()
-        write_png(folder / RIDGED_FILES["png"], hm)
-        images.append(RIDGED_FILES["png"])
-        timings["png"] = time.perf_counter() - t0
-    if "tiff" in formats:
-        t0 = time.perf_counter()
-        write_tiff(folder / RIDGED_FILES["tiff"], hm)
-        images.append(RIDGED_FILES["tiff"])
-        timings["tiff"] = time.perf_counter() - t0
-    if images:
-        write_sidecar(folder / "heightmap.json", scale, tuple(images))
-    if "stl" in formats:
-        t0 = time.perf_counter()
-        write_stl(folder / RIDGED_FILES["stl"], hm, stock_thickness)
-        timings["stl"] = time.perf_counter() - t0
-    if "gcode" in formats:
-        t0 = time.perf_counter()
-        write_raster_gcode(folder / RIDGED_FILES["gcode"], hm, ball_radius, machining, stepover,
-                           header={"design": "ridged", "stipples": str(len(plate.points))})
-        timings["gcode"] = time.perf_counter() - t0
-    return timings
-
-
-def load_ridged(folder: Any) -> HeightMap:
-    """The exact height map of a ridged design folder (``plate.npz``)."""
-    from pathlib import Path
-
-    from specholo.fabrication.heightmap import load_npz
-
-    path = Path(folder) / PLATE_FILE
-    if not path.exists():  # anything else in its place is refused by its reader
-        raise SpecholoError(f"{folder} holds no {PLATE_FILE}: not a ridged design folder")
-    return load_npz(path)
