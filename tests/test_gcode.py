@@ -31,11 +31,11 @@ from specholo.fabrication.gcode import (
     format_number,
     is_straight,
     path_chunks,
-    read_gcode,
     split_wide_arcs,
     wide_arcs,
     write_gcode,
 )
+from specholo.fabrication.gcode_reader import read_gcode
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -121,8 +121,11 @@ def check_canon(canon: list[tuple[str, str]], grooves: Grooves, tool: Tool,
             assert abs(end[2] - depth) < tol, "bad plunge"
             assert abs(pos[2] - safe) < tol or abs(pos[2] - hop) < tol, "bad plunge"
             assert abs(ev[2] - machining.plunge) < tol * max(1.0, machining.plunge / 1000)
-        elif ev[0] == "line" and pos is not None and abs(pos[2] - hop) < tol:
-            # a hop: never below the hop height, never longer than the longest hop
+        elif ev[0] == "line" and pos is not None and abs(pos[2] - hop) < tol \
+                and abs(pos[2] - hop) < abs(pos[2] - depth):
+            # a hop: never below the hop height, never longer than the longest hop (a
+            # shallow groove and a low hop may both lie within rs274's printed
+            # precision of inches: the nearer level says which the move is)
             assert abs(end[2] - hop) < tol, "hop leaves the hop height"
             assert np.hypot(*(end[:2] - pos[:2])) <= machining.hop_max + tol, "hop too long"
             assert abs(ev[2] - machining.feed) < tol * max(1.0, machining.feed / 1000)

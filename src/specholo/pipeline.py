@@ -1143,7 +1143,7 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
                             "grooves): render, verify and view read it")
     points, normals = load_stipples(folder / "stipples.npz")
     if from_gcode:
-        from specholo.fabrication.gcode import read_gcode
+        from specholo.fabrication.gcode_reader import read_gcode
 
         grooves = read_gcode(folder / "hologram.gcode")
         grooves.validate(len(points), str(folder / "hologram.gcode"))

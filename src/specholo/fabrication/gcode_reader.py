@@ -1,0 +1,308 @@
+"""Reading G-code back into grooves: what a program will cut, for verification.
+
+:func:`read_gcode` reads the programs :mod:`specholo.fabrication.gcode` writes
+(and other plain 3-axis programs of G0-G3 moves): every cutting move below the
+surface becomes a groove's arc, with the stipple named in its ``(stipple N)``
+comment, so the simulator can verify the file that will be cut.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import re
+from operator import itemgetter
+
+import numpy as np
+
+from specholo.errors import SpecholoError
+from specholo.toolpaths.grooves import Grooves
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
+_WORD = re.compile(rf"([A-Z])\s*({_NUMBER})", re.ASCII)
+_COMMENT = re.compile(r"\(([^()]*)\)")
+_STIPPLE = re.compile(r"\s*stipple\s+([-+]?\d+)\s*", re.IGNORECASE)
+# write_gcode's own move lines, read without the general tokenizer
+_FAST_MOVE = re.compile(
+    rf"G([0-3])(?= [XYZ])(?: X({_NUMBER}))?(?: Y({_NUMBER}))?(?: Z({_NUMBER}))?"
+    rf"(?: I({_NUMBER}) J({_NUMBER}))?(?: F{_NUMBER})?\s*",
+    re.ASCII,
+)
+_IGNORED_WORDS = frozenset("FSPTNHDQ")
+# G codes (times 10) that change nothing read_gcode models: plane XY, absolute
+# distances, cutter compensation and tool length offsets off, work offset 1, path
+# blending, feed modes, dwell, incremental arc centres, spindle and canned-cycle modes.
+_IGNORED_G = frozenset({40, 170, 400, 490, 540, 610, 611, 640, 900, 911,
+                        930, 940, 950, 960, 970, 980, 990})
+_NAN = math.nan
+# Largest number read_gcode accepts in a word, and largest stipple id: a metre
+# of travel is 1e3 mm, so 1e9 leaves every sum and square finite.
+_MAX_WORD = 1e9
+_MAX_STIPPLE = 2**63 - 1
+
+
+def _line_error(number: int, raw: str, why: str) -> SpecholoError:
+    return SpecholoError(f"G-code line {number}: {why}: {raw.strip()!r}")
+
+
+class _Moves:
+    """The motion blocks of a program, as columns (NaN where a word is absent).
+
+    Lines are only tokenised here; modal positions, units, paths and arcs are
+    resolved afterwards on whole arrays, which keeps the per-line work small.
+    Lines in write_gcode's own move format skip the general tokenizer: they are
+    kept as matched text (``fast``) and converted in bulk.
+    """
+
+    def __init__(self) -> None:
+        self.motion: int | None = None
+        self.synced = 0  # line of the last fast move already folded into ``motion``
+        self.ended = False
+        self.fast_number: list[int] = []
+        self.fast_words: list[tuple[str | None, ...]] = []  # G, X, Y, Z, I, J texts
+        self.kind: list[int] = []
+        self.x: list[float] = []
+        self.y: list[float] = []
+        self.z: list[float] = []
+        self.i: list[float] = []
+        self.j: list[float] = []
+        self.number: list[int] = []
+        self.units: list[tuple[int, float]] = []  # (line, mm per unit) from G20/G21
+        self.stipple: list[tuple[int, int]] = []  # (line, id) from (stipple N)
+
+    def line(self, number: int, raw: str) -> None:
+        if self.fast_number and self.fast_number[-1] > self.synced:
+            # a fast move set the modal motion since the last general line
+            self.synced = self.fast_number[-1]
+            self.motion = int(self.fast_words[-1][0] or 0)
+        text = raw.strip()
+        if not text or text == "%":
+            return
+        semi = text.find(";")
+        if semi >= 0 and not 0 <= text.find("(") < semi:
+            text = text[:semi]
+        if "(" in text:
+            for comment in _COMMENT.findall(text):
+                found = _STIPPLE.fullmatch(comment)
+                if found:
+                    sid = int(found.group(1))
+                    if abs(sid) > _MAX_STIPPLE:
+                        raise _line_error(number, raw, "stipple id out of range")
+                    self.stipple.append((number, sid))
+            text = _COMMENT.sub(" ", text)
+            semi = text.find(";")
+            if semi >= 0:
+                text = text[:semi]
+        if "(" in text or ")" in text:
+            raise _line_error(number, raw, "unbalanced parentheses")
+        code = text.upper().lstrip()
+        if code.startswith("/"):
+            code = code[1:]
+        words = _WORD.findall(code)
+        if _WORD.sub("", code).strip():
+            raise _line_error(number, raw, "cannot parse")
+        if words:
+            self.block(number, words, raw)
+
+    def block(self, number: int, words: list[tuple[str, str]], raw: str) -> None:
+        values: dict[str, float] = {}
+        motion = self.motion
+        for letter, text in words:
+            value = float(text)
+            if not abs(value) <= _MAX_WORD:
+                raise _line_error(number, raw, f"{letter} word out of range (beyond "
+                                  f"{_MAX_WORD:g})")
+            if letter == "G":
+                g = round(value * 10)
+                if g in (0, 10, 20, 30):
+                    motion = g // 10
+                elif g == 800:
+                    motion = None
+                elif g in (200, 210):
+                    self.units.append((number, 25.4 if g == 200 else 1.0))
+                elif g not in _IGNORED_G:
+                    raise _line_error(number, raw, f"unsupported G{value:g}")
+            elif letter == "M":
+                if round(value) in (2, 30):
+                    self.ended = True
+            elif letter in "XYZIJ":
+                if letter in values:
+                    raise _line_error(number, raw, f"{letter} given twice")
+                values[letter] = value
+            elif letter not in _IGNORED_WORDS:
+                raise _line_error(number, raw, f"unsupported word {letter}")
+        self.motion = motion
+        get = values.get
+        has_ij = "I" in values or "J" in values
+        if not any(k in values for k in "XYZ"):
+            if has_ij:
+                raise _line_error(number, raw, "I/J without an end point (full circles are "
+                                  "not supported)")
+            return
+        if motion is None:
+            raise _line_error(number, raw, "axis words without a motion mode")
+        if motion >= 2 and not has_ij:
+            raise _line_error(number, raw, "arc without I/J (R-format arcs are not supported)")
+        if motion < 2 and has_ij:
+            raise _line_error(number, raw, "I/J outside an arc move")
+        self.kind.append(motion)
+        self.x.append(get("X", _NAN))
+        self.y.append(get("Y", _NAN))
+        self.z.append(get("Z", _NAN))
+        self.i.append(get("I", 0.0) if has_ij else _NAN)
+        self.j.append(get("J", 0.0) if has_ij else _NAN)
+        self.number.append(number)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """All moves in line order: kind, number (int) and x, y, z, i, j in mm."""
+        cols = {
+            "kind": np.asarray(self.kind, dtype=np.int64),
+            "number": np.asarray(self.number, dtype=np.int64),
+            **{k: np.asarray(getattr(self, k), dtype=float) for k in "xyzij"},
+        }
+        if self.fast_number:
+            n = len(self.fast_number)
+            words = self.fast_words
+
+            def floats(k: int) -> np.ndarray:
+                return np.fromiter((float(t) if t else _NAN for t in map(itemgetter(k), words)),
+                                   float, n)
+
+            fast = {"kind": np.fromiter(map(int, map(itemgetter(0), words)), np.int64, n),
+                    "number": np.asarray(self.fast_number, dtype=np.int64),
+                    "x": floats(1), "y": floats(2), "z": floats(3), "i": floats(4),
+                    "j": floats(5)}
+            huge = np.zeros(n, dtype=bool)
+            for axis in "xyzij":
+                huge |= np.abs(fast[axis]) > _MAX_WORD
+            if huge.any():
+                first = int(np.argmax(huge))
+                raise SpecholoError(f"G-code line {fast['number'][first]}: number out of range "
+                                    f"(beyond {_MAX_WORD:g})")
+            order = np.argsort(np.concatenate([cols["number"], fast["number"]]), kind="stable")
+            cols = {k: np.concatenate([cols[k], fast[k]])[order] for k in cols}
+            arc = cols["kind"] >= 2
+            bad = arc == np.isnan(cols["i"])
+            if bad.any():
+                first = int(np.argmax(bad))
+                why = "arc without I/J" if arc[first] else "I/J outside an arc move"
+                raise SpecholoError(f"G-code line {cols['number'][first]}: {why}")
+        if self.units:
+            at, factor = (np.asarray(v) for v in zip(*self.units, strict=True))
+            idx = np.searchsorted(at, cols["number"], side="right") - 1
+            scale = np.where(idx >= 0, factor[np.maximum(idx, 0)], 1.0)
+            for axis in "xyzij":
+                cols[axis] = cols[axis] * scale
+        return cols
+
+    def stipple_at(self, numbers: np.ndarray) -> np.ndarray:
+        """The stipple id in force on the given lines (-1 before any)."""
+        if not self.stipple:
+            return np.full(len(numbers), -1, dtype=np.int64)
+        at, ids = (np.asarray(v, dtype=np.int64) for v in zip(*self.stipple, strict=True))
+        idx = np.searchsorted(at, numbers, side="right") - 1
+        return np.where(idx >= 0, ids[np.maximum(idx, 0)], -1)
+
+
+def _fill_forward(values: np.ndarray, initial: float) -> np.ndarray:
+    """Modal coordinates: each NaN takes the last given value before it."""
+    full = np.concatenate([[initial], values])
+    idx = np.where(np.isnan(full), 0, np.arange(len(full)))
+    return full[np.maximum.accumulate(idx)]
+
+
+def _assemble(moves: _Moves) -> Grooves:
+    cols = moves.columns()
+    kind = cols["kind"]
+    number = cols["number"]
+    ex, ey = cols["x"], cols["y"]
+    has_xy = ~(np.isnan(ex) & np.isnan(ey))
+    # positions before and after each move; the machine starts at the origin
+    x = _fill_forward(ex, 0.0)
+    y = _fill_forward(ey, 0.0)
+    z = _fill_forward(cols["z"], 0.0)
+    start = np.stack([x[:-1], y[:-1]], axis=1)
+    end = np.stack([x[1:], y[1:]], axis=1)
+
+    arc = kind >= 2
+    centre = start + np.stack([cols["i"], cols["j"]], axis=1)
+    r1 = np.linalg.norm(start - centre, axis=1)
+    r2 = np.linalg.norm(end - centre, axis=1)
+    circle = arc & np.all(start == end, axis=1)
+    # LinuxCNC accepts radii differing by up to about 0.025 mm and cuts a spiral;
+    # a bulge cannot hold a spiral, so only near-exact arcs are read
+    skew = arc & ~(np.abs(r1 - r2) <= np.maximum(5e-3, 1e-3 * r1))
+    for bad, why in ((circle, "full circles are not supported"),
+                     (skew, "arc radii to start and end differ")):
+        if bad.any():
+            e = int(np.argmax(bad))
+            raise SpecholoError(f"G-code line {number[e]}: {why} (start {start[e].round(5)}, "
+                                f"centre {centre[e].round(5)}, end {end[e].round(5)})")
+
+    below = z[1:] < 0.0
+    begins = below & ~(z[:-1] < 0.0)  # a groove starts where the tool goes below the plate
+    vertex = below & (begins | has_xy)
+    verts = end[vertex]
+    path_start = begins[vertex]
+    offsets = np.append(np.flatnonzero(path_start), len(verts)).astype(np.int64)
+    stipple = moves.stipple_at(number[begins])
+
+    bulges = np.zeros(len(verts))
+    cut_arc = (arc & vertex)[vertex] & ~path_start  # arcs between two groove vertices
+    k = np.flatnonzero(cut_arc)
+    if len(k):
+        c = centre[vertex][k]
+        u = verts[k - 1] - c
+        v = verts[k] - c
+        ang = np.arctan2(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0], np.sum(u * v, axis=1))
+        ccw = kind[vertex][k] == 3
+        # the direction word decides which way round the circle the arc goes
+        sweep = np.where(ccw, np.where(ang <= 0, ang + 2 * np.pi, ang),
+                         np.where(ang >= 0, ang - 2 * np.pi, ang))
+        bulges[k - 1] = np.tan(sweep / 4.0)
+    return Grooves(verts.reshape(-1, 2), bulges, offsets, stipple)
+
+
+def read_gcode(path: str | os.PathLike[str]) -> Grooves:
+    """Read back the grooves a G-code program cuts.
+
+    Understands the subset :func:`write_gcode` writes and reasonably general
+    programs: modal ``G0/G1/G2/G3`` with ``X Y Z I J F`` words (G2/G3 with
+    incremental ``I J`` in the XY plane), ``G20``/``G21``, comments in
+    parentheses or after ``;``. A groove is a run of moves below Z = 0 (a move
+    with X or Y words adds a vertex, a move along Z alone does not); its stipple
+    id is that of the last ``(stipple N)`` comment before it (-1 if none).
+
+    Args:
+        path: G-code file.
+
+    Returns:
+        The grooves, arcs as bulges.
+
+    Raises:
+        SpecholoError: on a line it cannot parse or a construct it does not support.
+    """
+    from specholo.readback import open_file
+
+    moves = _Moves()
+    fast = _FAST_MOVE.fullmatch
+    keep_number = moves.fast_number.append
+    keep_words = moves.fast_words.append
+    try:
+        # comments may hold any text; the words themselves must be ASCII. A
+        # regular file only: /dev/zero would be one endless line, a FIFO wait.
+        with open_file(path, "G-code file") as raw_fh, \
+                io.TextIOWrapper(raw_fh, encoding="utf-8", errors="replace") as fh:
+            for number, raw in enumerate(fh, 1):
+                found = fast(raw)
+                if found is not None:
+                    keep_number(number)
+                    keep_words(found.groups())
+                    continue
+                moves.line(number, raw)
+                if moves.ended:
+                    break
+    except OSError as exc:
+        raise SpecholoError(f"cannot read G-code file {os.fspath(path)!r}: {exc.strerror}") from exc
+    return _assemble(moves)
