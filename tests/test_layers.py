@@ -27,6 +27,7 @@ LAYERS: list[set[str]] = [
     {"specholo.folder", "specholo.folders"},
     {"specholo.pipeline"},
     {"specholo.density", "specholo.compose", "specholo.spin", "specholo.steady"},
+    {"specholo.jobs"},
     {"specholo_cli"},
 ]
 

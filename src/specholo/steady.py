@@ -181,7 +181,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
                                 offsets=design.offsets, stipple=design.stipple,
                                 eye=design.eye, radius=design.radius,
                                 dropped=np.array(design.dropped))
-        _write_verification(reports, tmp, step_deg)
+        write_verification(reports, tmp, step_deg)
         meta = {"design": "steady", "config": config.as_dict(), "cuts": design.n_cuts,
                 "stipples": len(design.points), "stipples_dropped": design.dropped,
                 "gcode_lines": lines, "verify": summary,
@@ -194,8 +194,9 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
     return summary
 
 
-def _write_verification(reports: list[SteadyReport], folder: Path, step_deg: float
-                        ) -> dict[str, Any]:
+def write_verification(reports: list[SteadyReport], folder: Path, step_deg: float
+                       ) -> dict[str, Any]:
+    """Write ``verify.json`` atomically into ``folder``; returns the summary."""
     from specholo.folder import write_verify_json
 
     summary = summarise(reports)
@@ -264,15 +265,3 @@ def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, St
     design = SteadyDesign(config.setup, a["points"], a["centres"], a["offsets"], a["stipple"],
                           a["eye"], a["radius"], config.shape, int(a["dropped"]))
     return design, config
-
-
-def verify_steady_folder(design: SteadyDesign, config: SteadyConfig,
-                         folder: str | os.PathLike[str], step_deg: float
-                         ) -> tuple[list[SteadyReport], dict[str, Any]]:
-    """Verify over the light's range every ``step_deg`` and rewrite verify.json
-    (published with the folder's other files, :func:`specholo.folders.publish`)."""
-    from specholo.folders import publish
-
-    reports = verify_steady(design, config.tool, light_steps(config.setup, step_deg))
-    with publish(folder, replaces={"verify.json"}) as stage:
-        return reports, _write_verification(reports, stage, step_deg)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import os
 import signal
@@ -333,21 +332,8 @@ def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...]
 def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: str | None,
            resolution: float | None, stl: Path | None) -> None:
     """Simulate stereo eye pairs along the arc and measure where each stipple appears."""
-    from rich.console import Console
-    from rich.table import Table
-
-    from specholo.fabrication.atomic import atomic_open
-    from specholo.folders import publish
-    from specholo.pipeline import (
-        DEFAULT_RESOLUTION,
-        is_ridged_folder,
-        load_design,
-        verify_cut_design,
-        verify_design,
-    )
+    from specholo.jobs import VerifyOptions, job_of, publish_verification
     from specholo.pipeline import cut_method as choose_cut_method
-    from specholo.preview.preview import plot_verification
-    from specholo.simulation.verify import reports_to_dicts, summarise
 
     if not (math.isfinite(step) and 0.01 <= step <= 5.0):
         raise SpecholoError(f"step must be in [0.01, 5] degrees, got {step}")
@@ -364,132 +350,30 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: s
         raise SpecholoError(f"--stl {stl} is a folder: name an .stl file")
     if resolution is not None and not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
         raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
-    method = choose_cut_method(cut_method, resolution, stl) if cut else None
-    if method == "field" and resolution is None:
-        resolution = DEFAULT_RESOLUTION
-    from specholo.compose import is_composed_folder
-    from specholo.spin import is_spin_folder
-    from specholo.steady import is_steady_folder
-
-    # designs that own their folders: each is verified on its own geometry
-    others = ((is_spin_folder, "a turning-plate design is verified on its grooves; "
-               "--from-gcode and --cut are for flat-plate designs", _verify_spin),
-              (is_steady_folder, "a steady-image design is verified on its cuts; "
-               "--from-gcode and --cut are for flat-plate designs", _verify_steady),
-              (is_composed_folder, "a composed design is verified on its grooves; --from-gcode "
-               "and --cut are for flat-plate designs", _verify_composed),
-              (is_ridged_folder, "a ridged design is verified on its height field (plate.npz); "
-               "--from-gcode and --cut are for grooves", _verify_ridged))
-    for holds, refusal, verify_other in others:
-        if holds(folder):
-            if from_gcode or cut:
-                raise SpecholoError(refusal)
-            verify_other(folder, step)
-            return
-    loaded = load_design(folder, from_gcode=from_gcode or cut)
-    with Console(stderr=True).status("simulating eye pairs..."):
-        reports = verify_design(loaded, step)
-    rows = reports_to_dicts(reports)
-    summary = summarise(reports)
-    cut_rows: list[dict[str, Any]] = []
+    options = VerifyOptions(step, from_gcode, cut, cut_method, resolution, stl)
     if cut:
-        status = ("finding which glints the other grooves' cuts leave..." if method == "survival"
-                  else "cutting the plate and simulating eye pairs...")
-        with Console(stderr=True).status(status):
-            cut_reports, _ = verify_cut_design(loaded, step, resolution, stl, method)
-        cut_rows = reports_to_dicts(cut_reports)
-    table = Table(title=f"{loaded.config.method} design, {len(loaded.points)} stipples")
-    for col in ("azimuth", "median mm", "p95 mm", "p95 depth mm", "max mm", "visibility",
-                "false"):
-        table.add_column(col, justify="right")
-    if cut:
-        table.add_column("cut p95 mm", justify="right")
-        table.add_column("cut visibility", justify="right")
-    for i, r in enumerate(rows):
-        extra = [] if not cut else [f"{cut_rows[i]['p95_error']:.3f}",
-                                    f"{cut_rows[i]['visibility']:.3f}"]
-        table.add_row(f"{r['azimuth']:+.1f}", f"{r['median_error']:.3f}",
-                      f"{r['p95_error']:.3f}", f"{r['p95_depth_error']:.3f}",
-                      f"{r['max_error']:.3f}",
-                      f"{r['visibility']:.3f}", f"{r['false_glints']:.3f}", *extra)
-    Console().print(table)
-    click.echo(f"worst p95 error {summary['worst_p95_error']:.3f} mm, "
-               f"min visibility {summary['min_visibility']:.3f}, "
-               f"max false glints {summary['max_false_glints']:.3f}")
-    source = "hologram.gcode" if from_gcode or cut else "grooves.npz"
-    if cut:
-        cut_summary = summarise(cut_reports)
-        how = ("the glints no other groove's cut removes" if method == "survival"
-               else f"height field at {resolution:g} mm")
-        click.echo(f"cut plate ({how}): worst p95 error {cut_summary['worst_p95_error']:.3f} "
-                   f"mm, min visibility {cut_summary['min_visibility']:.3f} "
-                   f"(other grooves cut away the rest)")
+        choose_cut_method(cut_method, resolution, stl)  # refused before the folder is read
+    with _stderr_console().status("verifying...") as status:
+        result = job_of(folder).verify(folder, options, status.update)
+    _print_verification(result)
     # The verification's files appear together or not at all.
-    names = {"verify.json", "verify.png", *(["verify_cut.json"] if cut else [])}
-    with publish(folder, replaces=names) as stage:
-        with atomic_open(stage / "verify.json") as fh:
-            json.dump({"method": loaded.config.method, "source": source,
-                       "summary": summary, "azimuths": rows}, fh, indent=1)
-        if cut:
-            with atomic_open(stage / "verify_cut.json") as fh:
-                json.dump({"method": loaded.config.method, "source": source,
-                           "cut_method": method,
-                           "resolution_mm": resolution if method == "field" else None,
-                           "summary": cut_summary, "azimuths": cut_rows}, fh, indent=1)
-        plot_verification(rows, stage / "verify.png",
-                          f"{loaded.config.method}: stereo verification")
+    publish_verification(folder, result)
 
 
-def _verify_ridged(folder: Path, step: float) -> None:
-    """The verify command for a ridged plate: heads over azimuth and elevation."""
-    from specholo.fabrication.atomic import atomic_open
-    from specholo.folders import publish
-    from specholo.pipeline import load_ridged_design, verify_ridged_design
-    from specholo.preview.preview import plot_field_verification
-    from specholo.simulation.heightfield import report_table
-    from specholo.simulation.verify import reports_to_dicts, summarise
+def _print_verification(result: Any) -> None:
+    """A verification's table (rich) and lines."""
+    from rich.console import Console
+    from rich.table import Table
 
-    loaded = load_ridged_design(folder)
-    with _stderr_console().status("simulating eye pairs over azimuth and elevation..."):
-        reports = verify_ridged_design(loaded, step)
-    rows = reports_to_dicts(reports)
-    summary: dict[str, Any] = dict(summarise(reports))
-
-    def mean(key: str) -> float:
-        vals = [getattr(r, key) for r in reports if not math.isnan(getattr(r, key))]
-        return float(sum(vals) / len(vals)) if vals else math.nan
-
-    summary["mean_visibility"] = mean("visibility")
-    summary["mean_served_visibility"] = mean("served_visibility")
-    summary["mean_glinting_per_head"] = float(sum(
-        r.visibility * r.stipples_seen for r in reports if not math.isnan(r.visibility))
-        / max(len(reports), 1))
-    summary["heads"] = len(reports)
-    summary["heads_with_glints"] = sum(not math.isnan(r.p95_error) for r in reports)
-    refract = loaded.config.optic == "refract"
-    kind = (f"ridged refraction design ({loaded.config.refraction}; light traced through the "
-            f"plate)" if refract else "ridged design")
-    click.echo(f"{kind}, {len(loaded.points)} stipples; heads every <= {step:g} deg "
-               "(rows: elevation, columns: azimuth; nan: no stipple glints for both eyes)")
-    for key, label in (("p95_error", "p95 error of the apparent point, mm"),
-                       ("visibility", "visibility: share of unoccluded stipples glinting for "
-                                      "both eyes"),
-                       ("served_visibility", "share of the stipples the plate serves to both "
-                                             "eyes that glint")):
-        click.echo(f"\n{label}:\n{report_table(reports, key)}")
-    click.echo(f"\nworst p95 error {summary['worst_p95_error']:.3f} mm over "
-               f"{summary['heads_with_glints']} of {len(reports)} heads with glints; "
-               f"mean visibility {summary['mean_visibility']:.3f} "
-               f"({summary['mean_glinting_per_head']:.1f} stipples per head), "
-               f"max false glints {summary['max_false_glints']:.3f}")
-    with publish(folder, replaces={"verify.json", "verify.png"}) as stage:
-        with atomic_open(stage / "verify.json") as fh:
-            json.dump({"method": "ridged", "optic": loaded.config.optic,
-                       **({"refraction": loaded.config.refraction} if refract else {}),
-                       "source": "plate.npz", "summary": summary,
-                       "views": rows}, fh, indent=1)
-        plot_field_verification(rows, stage / "verify.png",
-                                f"ridged{' refraction' if refract else ''}: stereo verification")
+    if result.table is not None:
+        table = Table(title=result.table.title)
+        for col in result.table.columns:
+            table.add_column(col, justify="right")
+        for row in result.table.rows:
+            table.add_row(*row)
+        Console().print(table)
+    for line in result.lines:
+        click.echo(line)
 
 
 @cli.command()
@@ -906,6 +790,8 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
         read_composition,
         write_composition,
     )
+    from specholo.jobs import VerifyOptions
+    from specholo.jobs.composed import ComposedJob
 
     if not (math.isfinite(step) and 0.1 <= step <= 30.0):
         raise SpecholoError(f"step must be in [0.1, 30] degrees, got {step}")
@@ -930,7 +816,10 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
                 click.echo(f"warning: of {sum(f['states_served'] for f in fams) + missed + tilt}"
                            f" stipple-views, {missed} miss the host and {tilt} need a wall "
                            "steeper than the tool's", err=True)
-            _verify_composed(stage, step, staged=True)
+            with Console(stderr=True).status("simulating eye pairs along the motion...") as s:
+                result = ComposedJob().verify(stage, VerifyOptions(step), s.update)
+            _print_verification(result)
+            result.write(stage)  # joins the new design's files, published with them
             _preview_composed(d, stage, frames)
 
         d = design_composition(comp)
@@ -1067,40 +956,6 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
                f"{s['lowest_visibility']:.3f}, stray glints {s['stray']}")
 
 
-def _verify_steady(folder: Path, step: float) -> None:
-    """Verify a steady-image folder over its light range, every ``step`` degrees."""
-    from specholo.steady import load_steady_folder, verify_steady_folder
-
-    design, config = load_steady_folder(folder)
-    reports, s = verify_steady_folder(design, config, folder, step)
-    for r in reports[::max(1, len(reports) // 8)]:
-        click.echo(f"light {r.elevation_deg:5.1f} deg: p95 {r.p95_mm:.3f} mm, drift "
-                   f"{r.drift_p95_mm:.3f} mm, visibility {r.visibility:.3f}, stray {r.stray}")
-    click.echo(f"worst p95 {s['worst_p95_mm']:.3f} mm, drift {s['worst_drift_p95_mm']:.3f} mm, "
-               f"lowest visibility {s['lowest_visibility']:.3f}, stray glints {s['stray']} "
-               f"-> {folder / 'verify.json'}")
-
-
-def _verify_spin(folder: Path, step: float) -> None:
-    """Verify a turning-plate folder over one turn, every ``step`` degrees."""
-    from rich.console import Console
-
-    from specholo.folders import publish
-    from specholo.spin import load_spin_folder, verify_spin, write_spin_verification
-
-    job = load_spin_folder(folder)
-    with Console(stderr=True).status("turning the plate..."):
-        reports = verify_spin(job, step)
-    with publish(folder, replaces={"verify.json"}) as stage:
-        s = write_spin_verification(reports, stage, step)
-    for r in reports[::max(1, len(reports) // 8)]:
-        click.echo(f"plate {r.angle_deg:6.1f} deg: p95 {r.p95_mm:.3f} mm (depth "
-                   f"{r.depth_p95_mm:.3f}), visibility {r.visibility:.3f}, stray {r.stray}")
-    click.echo(f"worst p95 {s['worst_p95_mm']:.3f} mm, depth {s['worst_depth_p95_mm']:.3f} mm, "
-               f"lowest visibility {s['lowest_visibility']:.3f}, stray glints {s['stray']} "
-               f"-> {folder / 'verify.json'}")
-
-
 def _preview_composed(d: Any, out: Path, frames: int) -> None:
     """preview.png (start, middle and end of the motion) and preview.gif."""
     from PIL import Image
@@ -1119,46 +974,6 @@ def _preview_composed(d: Any, out: Path, frames: int) -> None:
             shots = composed_frames(d, frames, (360, 360),
                                     progress=lambda: bar.advance(task))
         write_animation(shots, out / "preview.gif", fps=12)
-
-
-def _verify_composed(folder: Path, step: float, staged: bool = False) -> None:
-    """Verify a composed design; ``staged``: ``folder`` is a new design's folder
-    not yet published, which verify.json joins."""
-    from rich.console import Console
-    from rich.table import Table
-
-    from specholo.compose import load_composition_folder, verify_composition
-    from specholo.fabrication.atomic import atomic_open
-    from specholo.folders import publish
-    from specholo.simulation.conforming import reports_to_dicts, summarise
-
-    d = load_composition_folder(folder)
-    with Console(stderr=True).status("simulating eye pairs along the motion..."):
-        reports = verify_composition(d, math.radians(step))
-    label = "azimuth" if d.comp.motion.mode == "walk" else "light elev."
-    table = Table(title=f"verification ({d.comp.host.kind} host, {d.comp.motion.mode})")
-    for name in (label, "shown", "median mm", "p95 mm", "p95 depth mm", "visibility",
-                 "stray"):
-        table.add_column(name, justify="right")
-    for r in reports:
-        table.add_row(f"{r.position:+.1f}", str(r.shown), f"{r.median_error:.3f}",
-                      f"{r.p95_error:.3f}", f"{r.p95_depth_error:.3f}", f"{r.visibility:.3f}",
-                      f"{r.stray:.3f}")
-    Console().print(table)
-    summary = summarise(reports)
-
-    def write(into: Path) -> None:
-        with atomic_open(into / "verify.json") as fh:
-            json.dump({"positions": reports_to_dicts(reports), "summary": summary}, fh,
-                      indent=1, sort_keys=True)
-
-    if staged:
-        write(folder)
-    else:
-        with publish(folder, replaces={"verify.json"}) as stage:
-            write(stage)
-    click.echo(f"worst p95 error {summary['worst_p95_error']:.3f} mm, lowest visibility "
-               f"{summary['min_visibility']:.3f}, most stray glints {summary['max_stray']:.3f}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,35 @@
+"""Every kind of hologram as a job behind one interface (:class:`~.base.Job`).
+
+:data:`JOBS` is the registry: :func:`job_of` tells a folder's kind from its
+files, and each job verifies its own folders (:meth:`~.base.Job.verify`),
+returning what to print and the files to publish, so the command line only
+parses and prints. A new kind is one module here and a line in :data:`JOBS`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from specholo.jobs.base import Job, Table, Verification, VerifyOptions, publish_verification
+from specholo.jobs.composed import ComposedJob
+from specholo.jobs.flat import FlatJob
+from specholo.jobs.ridged import RidgedJob
+from specholo.jobs.spin import SpinJob
+from specholo.jobs.steady import SteadyJob
+
+#: The kinds of folder, in the order they are told apart: the first whose
+#: :meth:`~.base.Job.holds` is true owns the folder; a flat design is the rest.
+JOBS: tuple[Job, ...] = (SpinJob(), SteadyJob(), ComposedJob(), RidgedJob(), FlatJob())
+
+
+def job_of(folder: Path) -> Job:
+    """The job whose kind of design ``folder`` holds (the flat design's when no
+    other's: its loader then says what is missing)."""
+    for job in JOBS:
+        if job.holds(folder):
+            return job
+    return JOBS[-1]
+
+
+__all__ = ["JOBS", "Job", "Table", "Verification", "VerifyOptions", "job_of",
+           "publish_verification"]
