@@ -10,7 +10,8 @@ import pytest
 
 from specholo.errors import SpecholoError
 from specholo.jobs import JOBS, VerifyOptions, job_of
-from specholo.jobs.base import quiet, refuse_cut_options
+from specholo.jobs.base import PICTURE_COMMANDS, quiet, refuse_cut_options
+from specholo_cli.cli import main
 
 
 def folder_of(tmp_path: Path, design: str | None) -> Path:
@@ -51,3 +52,16 @@ def test_cut_options_are_the_flat_plates(tmp_path, job, options):
 def test_a_flat_folder_missing_its_files_says_so(tmp_path):
     with pytest.raises(SpecholoError):
         job_of(folder_of(tmp_path, None)).verify(tmp_path / "none", VerifyOptions(), quiet)
+
+
+@pytest.mark.parametrize("design", ["spinning", "steady", "conforming", "ridged"])
+@pytest.mark.parametrize("command", sorted(PICTURE_COMMANDS))
+def test_every_picture_command_serves_a_kind_or_says_why(tmp_path, capsys, design, command):
+    folder = folder_of(tmp_path, design)
+    job = job_of(folder)
+    code = main([command, str(folder)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code != 0 and len(err) == 1 and err[0].startswith("error: ")
+    if command not in job.pictures:
+        # refused before anything is read, naming the pictures the kind has
+        assert job.title in err[0] and job.own_pictures in err[0]

@@ -292,7 +292,7 @@ def test_a_steady_design_over_a_flat_ones_folder_keeps_none_of_its_files(
     assert code == 0, err
     names = {p.name for p in design_folder.iterdir()}
     assert names == {"hologram.gcode", "hologram.json", "stipples.npz", "verify.json",
-                     "notes.txt", "sub"}
+                     "preview.png", "notes.txt", "sub"}
     assert json.loads((design_folder / "hologram.json").read_text())["design"] == "steady"
     assert (design_folder / "sub" / "a.txt").read_bytes() == b"mine too"
     assert hidden(design_folder.parent) == []

@@ -113,9 +113,17 @@ def test_cli_writes_a_verified_folder(tmp_path: Path, capsys: pytest.CaptureFixt
     ver = json.loads((out / "verify.json").read_text())
     assert len(ver["elevations"]) == 7 and ver["summary"]["stray"] == 0
     assert ver["summary"]["worst_drift_p95_mm"] < 0.5
+    # the preview: three panels of the left eye's glints as the light moves
+    from PIL import Image
+
+    with Image.open(out / "preview.png") as im:
+        assert im.format == "PNG" and im.size[0] > 2 * im.size[1]
     assert main(["verify", str(out)]) == 0
     assert "drift" in capsys.readouterr().out
+    # a picture command that does not draw scoops says so in one line, naming the preview
     assert main(["render", str(out)]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "steady-image design" in err[0] and "preview.png" in err[0]
 
 
 @pytest.mark.parametrize("args, message", [

@@ -156,13 +156,14 @@ def steady_limits(design: SteadyDesign, config: SteadyConfig) -> Any:
 def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathLike[str],
                  step_deg: float = 1.0, inputs: Iterable[str | os.PathLike[str] | None] = ()
                  ) -> dict[str, Any]:
-    """Write the folder atomically: hologram.gcode, stipples.npz, verify.json and
-    hologram.json. Returns the verification summary. ``inputs`` are the model
+    """Write the folder atomically: hologram.gcode, stipples.npz, verify.json,
+    preview.png and hologram.json. Returns the verification summary. ``inputs`` are the model
     file, which ``out`` must not hold as a file a design writes. The G-code is
     read back by the safety check (:func:`steady_limits`) before anything is kept."""
     from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.check import check_program
     from specholo.folders import check_out, publish
+    from specholo.preview.steady import steady_preview
 
     inputs = list(inputs)
     check_out(out, inputs)  # before the verification
@@ -182,6 +183,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
                                 eye=design.eye, radius=design.radius,
                                 dropped=np.array(design.dropped))
         write_verification(reports, tmp, step_deg)
+        steady_preview(design, config.tool, tmp / "preview.png")
         meta = {"design": "steady", "config": config.as_dict(), "cuts": design.n_cuts,
                 "stipples": len(design.points), "stipples_dropped": design.dropped,
                 "gcode_lines": lines, "verify": summary,

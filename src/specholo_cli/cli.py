@@ -441,27 +441,22 @@ def check(gcode: Path, plate_width: float, plate_height: float, stock_thickness:
         sys.exit(1)
 
 
-def _check_folder(folder: Path) -> None:
+def _check_folder(folder: Path, command: str) -> None:
+    """Refuse a missing folder, and a kind of design ``command`` does not draw."""
+    from specholo.jobs import job_of
+    from specholo.jobs.base import refuse_picture
+
     if not folder.exists():
         raise SpecholoError(f"design folder {folder} does not exist")
     if not folder.is_dir():
         raise SpecholoError(f"{folder} is not a folder")
-    from specholo.spin import is_spin_folder
-
-    if is_spin_folder(folder):  # the commands that call this read flat-plate designs
-        raise SpecholoError(f"{folder} holds a turning-plate design: its pictures are "
-                            "preview.gif; `specholo verify` checks it")
-    from specholo.steady import is_steady_folder
-
-    if is_steady_folder(folder):
-        raise SpecholoError(f"{folder} holds a steady-image design (scoops); "
-                            "`specholo verify` checks it")
+    refuse_picture(job_of(folder), folder, command)
 
 
-def _design_folder(folder: Path) -> Any:
+def _design_folder(folder: Path, command: str) -> Any:
     from specholo.pipeline import load_design
 
-    _check_folder(folder)
+    _check_folder(folder, command)
     return load_design(folder)
 
 
@@ -485,8 +480,8 @@ def _fov(fov: float | None) -> float | None:
     return math.radians(fov)
 
 
-def _png_out(out: Path | None, folder: Path, default: str) -> Path:
-    _check_folder(folder)
+def _png_out(out: Path | None, folder: Path, default: str, command: str) -> Path:
+    _check_folder(folder, command)
     out = folder / default if out is None else out
     if out.suffix.lower() != ".png":
         raise SpecholoError(f"output must be a .png file, got {out.name!r}")
@@ -533,14 +528,14 @@ def render(folder: Path, azimuth: float, elevation: float, width: int, height: i
     from specholo.pipeline import is_ridged_folder
     from specholo.preview.render import design_camera, render_still, save_png
 
-    out = _png_out(out, folder, "render.png")
+    out = _png_out(out, folder, "render.png", "render")
     if is_ridged_folder(folder):
         if grooves:
             raise SpecholoError("a ridged plate has no grooves to draw: leave out --grooves")
         _render_ridged(folder, azimuth, elevation, width, height, distance, fov, roughness,
                        ghost, out)
         return
-    loaded = _design_folder(folder)
+    loaded = _design_folder(folder, "render")
     setup = loaded.config.setup()
     camera = design_camera(
         setup, loaded.grooves, math.radians(_finite_option("azimuth", azimuth)),
@@ -600,7 +595,7 @@ def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: 
 
     from specholo.preview.motion import FORMATS, light_sweep, turntable, write_animation
 
-    _check_folder(folder)
+    _check_folder(folder, "animate")
     out = folder / f"{kind}.gif" if out is None else out
     if out.suffix.lower() not in FORMATS:
         raise SpecholoError(f"animation file must end in .gif or .mp4, got {out.name!r}")
@@ -612,7 +607,7 @@ def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: 
         raise SpecholoError(f"--frames must be in [1, {MAX_FRAMES}], got {frames}")
     if not (math.isfinite(fps) and 0.01 <= fps <= 240):
         raise SpecholoError(f"--fps must be in [0.01, 240], got {fps:g}")
-    loaded = _design_folder(folder)
+    loaded = _design_folder(folder, "animate")
     rough = math.radians(_finite_option("roughness", roughness))
     console = _stderr_console()
     # Off a terminal the bar would only leave an empty line on stderr.
@@ -668,8 +663,8 @@ def stereo(folder: Path, azimuth: float, mode: str, width: int, height: int,
     from specholo.preview.render import save_png
     from specholo.preview.stereo import anaglyph, head_camera, side_by_side, stereo_pair
 
-    out = _png_out(out, folder, "stereo.png")
-    loaded = _design_folder(folder)
+    out = _png_out(out, folder, "stereo.png", "stereo")
+    loaded = _design_folder(folder, "stereo")
     setup = loaded.config.setup()
     head = head_camera(setup, loaded.grooves, math.radians(_finite_option("azimuth", azimuth)),
                        width, height, _fov(fov))
@@ -692,7 +687,7 @@ def report(folder: Path) -> None:
     from specholo.readback import read_json
 
     if Path(folder).is_dir():
-        _check_folder(folder)  # a turning-plate folder gets its own message
+        _check_folder(folder, "report")  # another kind of design gets its own message
     load_design(folder)  # a clear error if this is not a design folder
     verify_file = Path(folder) / "verify.json"
     verify = read_json(verify_file) if verify_file.exists() else None
@@ -721,7 +716,7 @@ def view(folder: Path, out: Path | None, width: int | None, height: int | None,
     """
     from specholo.pipeline import write_page
 
-    _check_folder(folder)
+    _check_folder(folder, "view")
     if (width is None) != (height is None):
         raise SpecholoError("give both --width and --height, or neither")
     size = None if width is None or height is None else (width, height)

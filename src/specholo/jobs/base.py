@@ -83,11 +83,16 @@ class Job(Protocol):
         title: the kind in a sentence ("a turning-plate design").
         verified_on: what its verification reads, for the refusal of options
             it has no use for ("its grooves").
+        pictures: the picture commands that draw it (of :data:`PICTURE_COMMANDS`).
+        own_pictures: what it draws itself when it is designed ("preview.gif"),
+            named when a picture command does not serve it.
     """
 
     kind: str
     title: str
     verified_on: str
+    pictures: frozenset[str]
+    own_pictures: str
 
     def holds(self, folder: Path) -> bool:
         """Whether ``folder`` holds a design of this kind."""
@@ -96,6 +101,20 @@ class Job(Protocol):
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         """Simulate the viewers of the design in ``folder``; nothing is written."""
         ...
+
+
+#: The commands that draw a designed folder.
+PICTURE_COMMANDS = frozenset({"render", "animate", "stereo", "report", "view"})
+
+
+def refuse_picture(job: Job, folder: Path, command: str) -> None:
+    """Refuse, in one line, a picture command that does not draw this kind."""
+    if command not in job.pictures:
+        served = ", ".join(sorted(job.pictures))
+        raise SpecholoError(
+            f"{folder} holds {job.title}: `specholo {command}` does not draw it; its pictures "
+            f"are {job.own_pictures}" + (f" and `specholo {served}`" if served else "")
+            + "; `specholo verify` checks it")
 
 
 def refuse_cut_options(job: Job, options: VerifyOptions) -> None:

@@ -16,6 +16,8 @@ class ComposedJob:
     kind = "composed"
     title = "a composed design"
     verified_on = "its grooves"
+    pictures: frozenset[str] = frozenset()
+    own_pictures = "preview.png and preview.gif"
 
     def holds(self, folder: Path) -> bool:
         from specholo.compose import is_composed_folder

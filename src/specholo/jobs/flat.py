@@ -17,6 +17,8 @@ class FlatJob:
     kind = "flat"
     title = "a flat-plate design"
     verified_on = "its grooves"
+    pictures = frozenset({"render", "animate", "stereo", "report", "view"})
+    own_pictures = "preview.png"
 
     def holds(self, folder: Path) -> bool:
         return True

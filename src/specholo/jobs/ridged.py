@@ -17,6 +17,8 @@ class RidgedJob:
     kind = "ridged"
     title = "a ridged design"
     verified_on = "its height field (plate.npz)"
+    pictures = frozenset({"render", "view"})
+    own_pictures = "preview.png"
 
     def holds(self, folder: Path) -> bool:
         from specholo.pipeline import is_ridged_folder

@@ -13,6 +13,8 @@ class SpinJob:
     kind = "spinning"
     title = "a turning-plate design"
     verified_on = "its grooves"
+    pictures: frozenset[str] = frozenset()
+    own_pictures = "preview.gif"
 
     def holds(self, folder: Path) -> bool:
         from specholo.spin import is_spin_folder

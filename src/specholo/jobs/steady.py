@@ -14,6 +14,8 @@ class SteadyJob:
     kind = "steady"
     title = "a steady-image design"
     verified_on = "its cuts"
+    pictures: frozenset[str] = frozenset()
+    own_pictures = "preview.png"
 
     def holds(self, folder: Path) -> bool:
         from specholo.steady import is_steady_folder
