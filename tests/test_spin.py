@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from test_gcode import check_canon, needs_rs274, run_rs274
 
+from specholo.optics.stereo import triangulate
 from specholo.setup import Machining, Tool
-from specholo.simulation.spinning import find_spin_glints, triangulate, verify_spinning
+from specholo.simulation.spinning import find_spin_glints, verify_spinning
 from specholo.spin import SpinConfig, design_spin, write_spin
 from specholo.toolpaths.spinning import (
     RELIEF_ANGLE,
@@ -115,7 +116,7 @@ def test_plain_grooves_show_the_mirror_twin() -> None:
         order = np.argsort(gl.stipple[~gl.serving])
         twins.append(gl.point[~gl.serving][order])
     p = triangulate(np.broadcast_to(eyes[0], twins[0].shape), twins[0],
-                    np.broadcast_to(eyes[1], twins[1].shape), twins[1])
+                    np.broadcast_to(eyes[1], twins[1].shape), twins[1])[0]
     mirror = pts * np.array([1.0, 1.0, -1.0])
     np.testing.assert_allclose(p, mirror, atol=0.05)
     reps = verify_spinning(d, TOOL, np.array([0.0, 90.0]))

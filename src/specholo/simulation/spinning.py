@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from specholo.optics.stereo import triangulate
 from specholo.setup import Tool
 from specholo.toolpaths.spinning import SpinDesign, max_wall_tilt
 
@@ -102,20 +103,6 @@ def _dimples(design: SpinDesign, eye: np.ndarray, tool: Tool) -> SpinGlints:
                                                                             dtype=bool))
 
 
-def triangulate(e1: np.ndarray, x1: np.ndarray, e2: np.ndarray, x2: np.ndarray) -> np.ndarray:
-    """Midpoints (n, 3) of closest approach of lines e1->x1 and e2->x2 (all (n, 3))."""
-    d1, d2, w = x1 - e1, x2 - e2, e1 - e2
-    a = (d1 * d1).sum(-1)
-    b = (d1 * d2).sum(-1)
-    c = (d2 * d2).sum(-1)
-    d = (d1 * w).sum(-1)
-    e = (d2 * w).sum(-1)
-    den = a * c - b * b
-    s = (b * e - c * d) / den
-    t = (a * e - b * d) / den
-    return 0.5 * (e1 + s[:, None] * d1 + e2 + t[:, None] * d2)
-
-
 @dataclass(frozen=True)
 class SpinReport:
     """Verification at one plate angle.
@@ -197,7 +184,7 @@ def verify_spinning(design: SpinDesign, tool: Tool, angles_deg: np.ndarray,
             x2 = hits[1][1][hits[1][0][sel]]
             e1 = np.broadcast_to(eyes[0, j], x1.shape)
             e2 = np.broadcast_to(eyes[1, j], x2.shape)
-            p = triangulate(e1, x1, e2, x2)
+            p = triangulate(e1, x1, e2, x2)[0]
             want = design.points[sel] if targets is None else targets[sel, j]
             err = np.linalg.norm(p - want, axis=1)
             dz = np.abs(p[:, 2] - want[:, 2])

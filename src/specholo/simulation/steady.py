@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from specholo.optics.stereo import triangulate
 from specholo.setup import Tool
-from specholo.simulation.spinning import triangulate
 from specholo.toolpaths.steady import SteadyDesign, unit_half
 
 
@@ -111,7 +111,7 @@ def _seen(design: SteadyDesign, tool: Tool, elevation: float
     sel = np.flatnonzero(both)
     if len(sel):
         p[sel] = triangulate(np.broadcast_to(eyes[0], (len(sel), 3)), glint[0, sel],
-                             np.broadcast_to(eyes[1], (len(sel), 3)), glint[1, sel])
+                             np.broadcast_to(eyes[1], (len(sel), 3)), glint[1, sel])[0]
     return p, both, stray
 
 
