@@ -268,7 +268,8 @@ def test_ctrl_c_as_a_finished_run_exits_is_never_silent(design_folder: Path,
         out = tmp_path / f"r{delay}.png"
         proc = subprocess.Popen([*_exe(), "render", str(design_folder), "--width", "32",
                                  "--height", "32", "--out", str(out)],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         assert proc.stdout is not None
         assert "render" in proc.stdout.readline()  # the run is done
         time.sleep(delay)

@@ -113,15 +113,8 @@ def programs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Program]:
     """Every job's kept programs, made once (each passed its job's check to be kept)."""
     from specholo.compose import design_composition, parse_composition, write_composition
     from specholo.fabrication.surface_gcode import host_top, surface_limits
-    from specholo.pipeline import (
-        DesignConfig,
-        design,
-        design_limits,
-        design_ridged_model,
-        ridged_limits,
-        write_design,
-        write_ridged_design,
-    )
+    from specholo.pipeline import DesignConfig, design, design_limits, write_design
+    from specholo.ridged import design_ridged_model, ridged_limits, write_ridged_design
     from specholo.spin import SpinConfig, design_spin, spin_limits, write_spin
     from specholo.steady import SteadyConfig, design_steady_job, steady_limits, write_steady
     from specholo.toolpaths.spinning import relief_grooves

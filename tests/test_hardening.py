@@ -318,9 +318,16 @@ def _exe() -> list[str]:
             "sys.exit(main())"]
 
 
+def _default_sigint() -> None:
+    """In the child: Ctrl-C as at a terminal, even when these tests run in a
+    background job (whose children inherit SIGINT ignored, and Python then leaves
+    it ignored)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _interrupt(argv: list[str], after: float) -> subprocess.CompletedProcess[str]:
     proc = subprocess.Popen([*_exe(), *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, cwd=ROOT)
+                            text=True, cwd=ROOT, preexec_fn=_default_sigint)
     time.sleep(after)
     assert proc.poll() is None, "finished before it could be interrupted"
     proc.send_signal(signal.SIGINT)
@@ -347,7 +354,8 @@ def test_ctrl_c_while_writing_removes_the_staged_files(tmp_path: Path) -> None:
     proc = subprocess.Popen([*_exe(), "design", str(BUNNY), "--out", str(out), "--stipples",
                              "3000", "--formats", "gcode,svg,dxf", "--placement", "phase"],
                             stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=ROOT)
+                            stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                            preexec_fn=_default_sigint)
     t0 = time.perf_counter()
     while not (out.parent.is_dir() and any(out.parent.iterdir())):
         assert proc.poll() is None and time.perf_counter() - t0 < 120
@@ -375,7 +383,8 @@ def test_ctrl_c_during_a_design_keeps_the_older_one(tmp_path: Path, capsys) -> N
     proc = subprocess.Popen([*_exe(), "design", str(BUNNY), "--out", str(out), "--stipples",
                              "3000", "--formats", "gcode,svg,dxf", "--placement", "phase"],
                             stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=ROOT)
+                            stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                            preexec_fn=_default_sigint)
     t0 = time.perf_counter()
     while len(list(tmp_path.iterdir())) < 2:
         assert proc.poll() is None and time.perf_counter() - t0 < 120

@@ -26,7 +26,8 @@ LAYERS: list[set[str]] = [
     {"specholo.preview"},
     {"specholo.folder", "specholo.folders"},
     {"specholo.pipeline"},
-    {"specholo.density", "specholo.compose", "specholo.spin", "specholo.steady"},
+    {"specholo.density", "specholo.ridged", "specholo.compose", "specholo.spin",
+     "specholo.steady"},
     {"specholo.jobs"},
     {"specholo_cli"},
 ]

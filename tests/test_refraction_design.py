@@ -19,7 +19,8 @@ import pytest
 from specholo.errors import SpecholoError
 from specholo.optics.refraction import back_entry
 from specholo.optics.surfaces import Kind, Source, refract
-from specholo.pipeline import DesignConfig, load_ridged_design
+from specholo.pipeline import DesignConfig
+from specholo.ridged import load_ridged_design
 from specholo.setup import BackLight, Light, Setup, Viewer
 from specholo.simulation.heightfield import (
     SlopeIndex,

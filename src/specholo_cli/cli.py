@@ -174,12 +174,12 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     from specholo.fabrication.timing import describe_machining
     from specholo.pipeline import (
         DEFAULT_FORMATS,
-        DEFAULT_RIDGED_FORMATS,
         DesignConfig,
         check_formats,
         write_design,
     )
     from specholo.pipeline import design as run_design
+    from specholo.ridged import DEFAULT_RIDGED_FORMATS
 
     _check_out(out, [model, config_path])
     values = _read_config(config_path)
@@ -281,7 +281,7 @@ def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...]
     """The design command for a ridged (full-parallax) plate."""
     from rich.console import Console
 
-    from specholo.pipeline import design_ridged_model, plate_edges, write_ridged_design
+    from specholo.ridged import design_ridged_model, plate_edges, write_ridged_design
 
     console = Console(stderr=True)
     with console.status("designing the ridged plate..."):
@@ -525,8 +525,8 @@ def render(folder: Path, azimuth: float, elevation: float, width: int, height: i
            distance: float | None, fov: float | None, roughness: float, grooves: bool,
            ghost: bool, out: Path | None) -> None:
     """Render the lit plate of the design in FOLDER as a camera sees it (glints only)."""
-    from specholo.pipeline import is_ridged_folder
     from specholo.preview.render import design_camera, render_still, save_png
+    from specholo.ridged import is_ridged_folder
 
     out = _png_out(out, folder, "render.png", "render")
     if is_ridged_folder(folder):
@@ -554,8 +554,8 @@ def _render_ridged(folder: Path, azimuth: float, elevation: float, width: int, h
                    distance: float | None, fov: float | None, roughness: float, ghost: bool,
                    out: Path) -> None:
     """The render command for a ridged plate: the glints on its height field."""
-    from specholo.pipeline import load_ridged_design
     from specholo.preview.render import field_plate, plate_camera, render_field_still, save_png
+    from specholo.ridged import load_ridged_design
 
     loaded = load_ridged_design(folder)
     setup = loaded.config.setup()
@@ -714,7 +714,7 @@ def view(folder: Path, out: Path | None, width: int | None, height: int | None,
     found beforehand with the physics of `verify`, and the page shows the view
     nearest the pointer's.
     """
-    from specholo.pipeline import write_page
+    from specholo.jobs.page import write_page
 
     _check_folder(folder, "view")
     if (width is None) != (height is None):

@@ -21,14 +21,14 @@ class RidgedJob:
     own_pictures = "preview.png"
 
     def holds(self, folder: Path) -> bool:
-        from specholo.pipeline import is_ridged_folder
+        from specholo.ridged import is_ridged_folder
 
         return is_ridged_folder(folder)
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.fabrication.atomic import atomic_open
-        from specholo.pipeline import load_ridged_design, verify_ridged_design
         from specholo.preview.preview import plot_field_verification
+        from specholo.ridged import load_ridged_design, verify_ridged_design
         from specholo.simulation.heightfield import report_table
         from specholo.simulation.verify import reports_to_dicts, summarise
 

@@ -12,6 +12,7 @@ from specholo.fabrication.atomic import atomic_open
 from specholo.preview.render import glints_seen
 from specholo.setup import Setup
 from specholo.toolpaths.grooves import Grooves
+from specholo.toolpaths.heightmap import HeightMap
 
 
 def project(points: np.ndarray, eye: np.ndarray) -> np.ndarray:
@@ -43,19 +44,49 @@ def render_preview(grooves: Grooves, setup: Setup, path: str | os.PathLike[str],
         path: PNG file to write (atomically).
         azimuths_deg: eye azimuths, clipped to the view range.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     limit = math.degrees(setup.viewer.half_range)
     az = sorted({max(-limit, min(limit, a)) for a in azimuths_deg})
     eyes = setup.viewer.eye(np.radians(az))
     # A large design is searched a run of paths at a time, each run for every eye.
     seen = glints_seen(grooves, setup.tool, eyes, setup.light)
+    lo, hi = grooves.bounds()
+    _draw_views(az, eyes, list(seen), lo, hi, path)
+
+
+def render_field_preview(heights: HeightMap, setup: Setup, path: str | os.PathLike[str],
+                         azimuths_deg: tuple[float, ...] = (-30.0, 0.0, 30.0)) -> None:
+    """:func:`render_preview` for a plate given as a height field (a ridged design):
+    the glints one eye sees on it from a few azimuths on the arc, found with the
+    physics of ``verify`` (:func:`~specholo.simulation.heightfield.find_field_glints`).
+
+    Args:
+        heights: the labelled plate (a ``HeightMap``).
+        setup: light and viewer.
+        path: PNG file to write (atomically).
+        azimuths_deg: eye azimuths, clipped to the view range.
+    """
+    from specholo.simulation.heightfield import SlopeIndex, find_field_glints
+
+    limit = math.degrees(setup.viewer.half_range)
+    az = sorted({max(-limit, min(limit, a)) for a in azimuths_deg})
+    eyes = setup.viewer.eye(np.radians(az))
+    index = SlopeIndex.build(heights)
+    seen = [find_field_glints(index, eye, setup.light).glints.point for eye in eyes]
+    lo, hi = np.asarray(heights.bounds, dtype=float)
+    _draw_views(az, eyes, seen, lo, hi, path)
+
+
+def _draw_views(az: list[float], eyes: np.ndarray, seen: list[np.ndarray],
+                lo: np.ndarray, hi: np.ndarray, path: str | os.PathLike[str]) -> None:
+    """One black panel per eye: the plate's outline and the glints it sees, in
+    that eye's perspective."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     fig, axes = plt.subplots(1, len(az), figsize=(4.2 * len(az), 4.4), facecolor="black")
     axes = np.atleast_1d(axes)
-    lo, hi = grooves.bounds()
     corners = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0],
                         [lo[0], hi[1], 0], [lo[0], lo[1], 0]])
     for ax, a, eye, points in zip(axes, az, eyes, seen, strict=True):
