@@ -171,7 +171,6 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     """Design a hologram of MODEL (OBJ, STL, PLY, OFF, GLB; PLY/XYZ/CSV point clouds)."""
     from rich.console import Console
 
-    from specholo.fabrication.timing import describe_machining
     from specholo.pipeline import (
         DEFAULT_FORMATS,
         DesignConfig,
@@ -217,63 +216,17 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     with console.status("writing..."):
         written = write_design(d, out, wanted, command=_command_line(),
                                inputs=[model, config_path])
-    stats = (f"{len(d.points)} stipples, {d.grooves.n_paths} paths, "
-             f"{d.grooves.total_length() / 1000:.2f} m of groove")
-    click.echo(f"{config.method}: {stats} -> {out}")
-    if d.placement and "fallback" in d.placement:
-        click.echo(f"placement: {d.placement['fallback']}; stripes placed by phase instead")
-    if d.views is not None:
-        lo, hi = (math.degrees(v) for v in d.views.needed)
-        click.echo(f"tool: {d.config.cutter().describe()}, {d.config.depth_mm:g} mm deep; "
-                   f"views need walls tilted {lo:.1f}-{hi:.1f} deg, groove offers up to "
-                   f"{math.degrees(d.views.offered.max_tilt):.1f} deg")
-        if d.views.lost > 0:
-            click.echo(f"warning: {100 * d.views.lost:.1f}% of views lost "
-                       f"({d.views.stipples_losing} stipples); {d.views.suggestion}", err=True)
-    if d.overlaps is not None:
-        o = d.overlaps
-        click.echo(f"grooves: {o.neighbours} overlapping stripe pairs within a stipple; "
-                   f"{o.crossings} crossings between stipples, "
-                   f"{o.crossed_length / max(o.total_length, 1e-9):.0%} of the groove length "
-                   "within a groove width of another stipple's")
-    # What survives the cutting: from the grooves themselves where the design
-    # found it, else the rough share from the grooves' coverage.
-    figures = d.as_cut.mean_and_lowest() if d.as_cut is not None else None
-    if figures is not None and d.as_cut is not None:
-        click.echo(d.as_cut.describe())
-        surviving = figures[0]
-    elif d.overlaps is not None:
-        from specholo.pipeline import AS_CUT_SKIPPED
+    from specholo.jobs.flat import design_summary
 
-        o = d.overlaps
-        click.echo(f"grooves cover {o.coverage:.2f}x their area (roughly {o.surviving:.0%} of "
-                   "each eye's glints survive the other grooves' cuts); " + AS_CUT_SKIPPED)
-        surviving = o.surviving
-    else:
-        surviving = math.nan
-    if surviving < 0.5:
-        click.echo("warning: most stipples will not show in both eyes on the cut plate; use "
-                   "fewer stipples, a finer tip or a larger model (check with `specholo "
-                   "verify --cut`)", err=True)
-    mach = written.machining
-    travel = (f", air travel {mach['travel_mm'] / 1000:.1f} m (unordered "
-              f"{mach['travel_unordered_mm'] / 1000:.1f} m)" if "travel_mm" in mach else "")
-    click.echo(describe_machining(mach, d.config.feed)
-               + f"; {mach['stipples_per_second']:.2f} stipples/s{travel}")
-    if len(d.dropped):
-        from collections import Counter
+    _print_summary(design_summary(d, written, out))
 
-        from specholo.pipeline import drop_reasons
 
-        why = Counter(r.split(":")[0] for r in
-                      drop_reasons(d.points, d.dropped, d.config.setup()).values())
-        click.echo(f"warning: {len(d.dropped)} stipples could not be designed ("
-                   + ", ".join(f"{n}: {r}" for r, n in sorted(why.items())) + ")", err=True)
-    if d.coverage is not None and d.coverage.mostly_ungrooved:
-        click.echo(f"warning: {d.coverage.describe()}", err=True)
-    elif d.coverage is not None:
-        click.echo(f"hidden: {d.coverage.hidden} of {d.coverage.stipples} stipples are hidden "
-                   "from every view (no groove)")
+def _print_summary(summary: Any) -> None:
+    """A design's lines on stdout and its warnings on stderr."""
+    for line in summary.lines:
+        click.echo(line)
+    for line in summary.warnings:
+        click.echo(f"warning: {line}", err=True)
 
 
 def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...],
@@ -281,35 +234,16 @@ def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...]
     """The design command for a ridged (full-parallax) plate."""
     from rich.console import Console
 
-    from specholo.ridged import design_ridged_model, plate_edges, write_ridged_design
+    from specholo.ridged import design_ridged_model, write_ridged_design
 
     console = Console(stderr=True)
     with console.status("designing the ridged plate..."):
         d = design_ridged_model(model, config)
     with console.status("writing..."):
         written = write_ridged_design(d, out, formats, inputs)
-    s = d.plate.summary()
-    hm = d.plate.heights
-    (x0, y0), (x1, y1) = plate_edges(hm)
-    click.echo(f"ridged: {len(d.points)} stipples, {s['kept_stipples']} kept, "
-               f"{len(s['dropped_stipples'])} dropped (no view within the ranges, or no plate "
-               f"area left); median kept share of views {s['median_kept_share']:.3f} -> {out}")
-    click.echo(f"plate {x1 - x0:.1f} x {y1 - y0:.1f} mm, raster {hm.resolution:g} mm "
-               f"({hm.shape[1]} x {hm.shape[0]} cells); shell {-2 * d.plate.delta:g} to 0 mm, "
-               f"deepest {s['deepest_mm']:.3f} mm")
-    if config.optic == "refract":
-        light = config.setup().light
-        where = ("a sun" if light.position is None else
-                 "a point light at (" + ", ".join(f"{v:.1f}" for v in light.position) + ") mm")
-        click.echo(f"refraction ({config.refraction}): clear plate of index {config.index:g}, "
-                   f"{config.stock_thickness:g} mm thick (back face z = "
-                   f"{-config.stock_thickness:g} mm), lit from behind by {where}")
-    mach = written["machining"]
-    if mach:
-        click.echo(f"machining: ball-end mill radius {mach['ball_radius_mm']:g} mm, "
-                   f"{mach['passes']} raster passes, about {mach['estimated_hours']:.1f} h at "
-                   f"the feed; safety check passed ({mach['lines']:,} lines)")
-    click.echo("files: " + ", ".join(written["files"]))
+    from specholo.jobs.ridged import design_summary
+
+    _print_summary(design_summary(d, written, out))
 
 
 @cli.command()

@@ -55,6 +55,15 @@ class Table:
     rows: list[list[str]]
 
 
+@dataclass(frozen=True)
+class Summary:
+    """What a design says once its folder is written: lines for the terminal and
+    warnings (each one line, for the error stream)."""
+
+    lines: list[str]
+    warnings: list[str]
+
+
 @dataclass
 class Verification:
     """What verifying a folder found.

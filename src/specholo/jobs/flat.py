@@ -4,11 +4,76 @@ method): verified by stereo eye pairs along the arc, ideally and as cut."""
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from specholo.jobs.base import Status, Table, Verification, VerifyOptions
+from specholo.jobs.base import Status, Summary, Table, Verification, VerifyOptions
+
+
+def design_summary(d: Any, written: Any, out: Path) -> Summary:
+    """What a grooved design (``pipeline.Design``) and its written folder
+    (``pipeline.Written``) say: the grooves, the tool, what survives the
+    cutting, the machining time in plain words and the stipples hidden."""
+    from collections import Counter
+
+    from specholo.fabrication.timing import describe_machining
+    from specholo.pipeline import AS_CUT_SKIPPED, drop_reasons
+
+    lines: list[str] = []
+    warnings: list[str] = []
+    lines.append(f"{d.config.method}: {len(d.points)} stipples, {d.grooves.n_paths} paths, "
+                 f"{d.grooves.total_length() / 1000:.2f} m of groove -> {out}")
+    if d.placement and "fallback" in d.placement:
+        lines.append(f"placement: {d.placement['fallback']}; stripes placed by phase instead")
+    if d.views is not None:
+        lo, hi = (math.degrees(v) for v in d.views.needed)
+        lines.append(f"tool: {d.config.cutter().describe()}, {d.config.depth_mm:g} mm deep; "
+                     f"views need walls tilted {lo:.1f}-{hi:.1f} deg, groove offers up to "
+                     f"{math.degrees(d.views.offered.max_tilt):.1f} deg")
+        if d.views.lost > 0:
+            warnings.append(f"{100 * d.views.lost:.1f}% of views lost "
+                            f"({d.views.stipples_losing} stipples); {d.views.suggestion}")
+    if d.overlaps is not None:
+        o = d.overlaps
+        lines.append(f"grooves: {o.neighbours} overlapping stripe pairs within a stipple; "
+                     f"{o.crossings} crossings between stipples, "
+                     f"{o.crossed_length / max(o.total_length, 1e-9):.0%} of the groove length "
+                     "within a groove width of another stipple's")
+    # What survives the cutting: from the grooves themselves where the design
+    # found it, else the rough share from the grooves' coverage.
+    figures = d.as_cut.mean_and_lowest() if d.as_cut is not None else None
+    if figures is not None:
+        lines.append(d.as_cut.describe())
+        surviving = figures[0]
+    elif d.overlaps is not None:
+        o = d.overlaps
+        lines.append(f"grooves cover {o.coverage:.2f}x their area (roughly {o.surviving:.0%} "
+                     "of each eye's glints survive the other grooves' cuts); " + AS_CUT_SKIPPED)
+        surviving = o.surviving
+    else:
+        surviving = math.nan
+    if surviving < 0.5:
+        warnings.append("most stipples will not show in both eyes on the cut plate; use "
+                        "fewer stipples, a finer tip or a larger model (check with `specholo "
+                        "verify --cut`)")
+    mach = written.machining
+    travel = (f", air travel {mach['travel_mm'] / 1000:.1f} m (unordered "
+              f"{mach['travel_unordered_mm'] / 1000:.1f} m)" if "travel_mm" in mach else "")
+    lines.append(describe_machining(mach, d.config.feed)
+                 + f"; {mach['stipples_per_second']:.2f} stipples/s{travel}")
+    if len(d.dropped):
+        why = Counter(r.split(":")[0] for r in
+                      drop_reasons(d.points, d.dropped, d.config.setup()).values())
+        warnings.append(f"{len(d.dropped)} stipples could not be designed ("
+                        + ", ".join(f"{n}: {r}" for r, n in sorted(why.items())) + ")")
+    if d.coverage is not None and d.coverage.mostly_ungrooved:
+        warnings.append(d.coverage.describe())
+    elif d.coverage is not None:
+        lines.append(f"hidden: {d.coverage.hidden} of {d.coverage.stipples} stipples are "
+                     "hidden from every view (no groove)")
+    return Summary(lines, warnings)
 
 
 class FlatJob:

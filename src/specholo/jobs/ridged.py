@@ -8,7 +8,46 @@ import math
 from pathlib import Path
 from typing import Any
 
-from specholo.jobs.base import Status, Verification, VerifyOptions, refuse_cut_options
+from specholo.jobs.base import (
+    Status,
+    Summary,
+    Verification,
+    VerifyOptions,
+    refuse_cut_options,
+)
+
+
+def design_summary(d: Any, written: dict[str, Any], out: Path) -> Summary:
+    """What a ridged design (``ridged.RidgedDesign``) and its written folder say."""
+    from specholo.ridged import plate_edges
+
+    config = d.config
+    s = d.plate.summary()
+    hm = d.plate.heights
+    (x0, y0), (x1, y1) = plate_edges(hm)
+    lines = [f"ridged: {len(d.points)} stipples, {s['kept_stipples']} kept, "
+             f"{len(s['dropped_stipples'])} dropped (no view within the ranges, or no plate "
+             f"area left); median kept share of views {s['median_kept_share']:.3f} -> {out}",
+             f"plate {x1 - x0:.1f} x {y1 - y0:.1f} mm, raster {hm.resolution:g} mm "
+             f"({hm.shape[1]} x {hm.shape[0]} cells); shell {-2 * d.plate.delta:g} to 0 mm, "
+             f"deepest {s['deepest_mm']:.3f} mm"]
+    if config.optic == "refract":
+        light = config.setup().light
+        where = ("a sun" if light.position is None else
+                 "a point light at (" + ", ".join(f"{v:.1f}" for v in light.position) + ") mm")
+        lines.append(f"refraction ({config.refraction}): clear plate of index "
+                     f"{config.index:g}, {config.stock_thickness:g} mm thick (back face z = "
+                     f"{-config.stock_thickness:g} mm), lit from behind by {where}")
+    mach = written["machining"]
+    if mach:
+        from specholo.fabrication.timing import plain_duration
+
+        lines.append(f"machining: ball-end mill radius {mach['ball_radius_mm']:g} mm, "
+                     f"{mach['passes']} raster passes, about "
+                     f"{plain_duration(3600.0 * mach['estimated_hours'])} at the feed; safety "
+                     f"check passed ({mach['lines']:,} lines)")
+    lines.append("files: " + ", ".join(written["files"]))
+    return Summary(lines, [])
 
 
 class RidgedJob:
