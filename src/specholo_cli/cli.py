@@ -720,7 +720,7 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
         write_composition,
     )
     from specholo.jobs import VerifyOptions
-    from specholo.jobs.composed import ComposedJob
+    from specholo.jobs.composed import ComposedJob, design_summary
 
     if not (math.isfinite(step) and 0.1 <= step <= 30.0):
         raise SpecholoError(f"step must be in [0.1, 30] degrees, got {step}")
@@ -734,17 +734,7 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
         def finish(stage: Path, check: dict[str, Any]) -> None:
             """The verification and previews, published with the design's files."""
             status.stop()
-            click.echo(f"{d.stats['stripes']} stripes, "
-                       f"{d.stats['groove_length_mm'] / 1000:.2f} m of groove; G-code "
-                       f"checked: {check['cutting_moves']} cutting moves, deepest "
-                       f"{check['deepest_cut_mm']:.4f} mm")
-            fams = d.stats["families"]
-            missed = sum(f["states_missing_the_host"] for f in fams)
-            tilt = sum(f["states_lost_to_tilt"] for f in fams)
-            if missed or tilt:
-                click.echo(f"warning: of {sum(f['states_served'] for f in fams) + missed + tilt}"
-                           f" stipple-views, {missed} miss the host and {tilt} need a wall "
-                           "steeper than the tool's", err=True)
+            _print_summary(design_summary(d, check))
             with Console(stderr=True).status("simulating eye pairs along the motion...") as s:
                 result = ComposedJob().verify(stage, VerifyOptions(step), s.update)
             _print_verification(result)
@@ -821,15 +811,9 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
     with Console(stderr=True).status(f"designing {what} and verifying the turn..."):
         job = design_spin(list(model), config)
         summary = write_spin(job, out, step, frames, inputs=list(model))
-    g = job.design.grooves
-    tracks = job.design.tracks
-    shown = "" if tracks is None else \
-        f" (about {tracks.shown.sum(axis=0).mean():.0f} shown at once)"
-    click.echo(f"{len(job.design.points)} stipples{shown}, {g.n_paths} paths, "
-               f"{g.total_length() / 1000:.2f} m of groove -> {out}")
-    click.echo(f"over the turn (every {step:g} deg): worst p95 {summary['worst_p95_mm']:.3f} mm, "
-               f"depth p95 {summary['worst_depth_p95_mm']:.3f} mm, lowest visibility "
-               f"{summary['lowest_visibility']:.3f}, stray glints {summary['stray']}")
+    from specholo.jobs.spin import design_summary
+
+    _print_summary(design_summary(job, summary, out, step))
 
 
 @cli.command()
@@ -878,31 +862,20 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
                           shape=shape, setup=setup, tool=Tool(tool_radius, depth))
     design = design_steady_job(model, config)
     s = write_steady(design, config, out, step, inputs=[model])
-    click.echo(f"{len(design.points)} stipples, {design.n_cuts} {shape}s -> {out}")
-    click.echo(f"light {light_elevation - light_range:g} to {light_elevation + light_range:g} "
-               f"deg: worst p95 {s['worst_p95_mm']:.3f} mm, image drift p95 "
-               f"{s['worst_drift_p95_mm']:.3f} mm, lowest visibility "
-               f"{s['lowest_visibility']:.3f}, stray glints {s['stray']}")
+    from specholo.jobs.steady import design_summary
+
+    _print_summary(design_summary(design, config, s, out))
 
 
 def _preview_composed(d: Any, out: Path, frames: int) -> None:
-    """preview.png (start, middle and end of the motion) and preview.gif."""
-    from PIL import Image
+    """preview.png and preview.gif, with a progress bar over the animation's frames."""
     from rich.progress import Progress
 
-    from specholo.fabrication.atomic import atomic_open
-    from specholo.preview.composed import composed_frames, contact_sheet
-    from specholo.preview.motion import write_animation
+    from specholo.preview.composed import write_previews
 
-    still = composed_frames(d, 3, (480, 480), loop=False)
-    with atomic_open(out / "preview.png", "wb", encoding=None) as fh:
-        Image.fromarray(contact_sheet(still)).save(fh, format="PNG")
-    if frames:
-        with Progress(transient=True, console=None) as bar:
-            task = bar.add_task("rendering preview.gif", total=frames)
-            shots = composed_frames(d, frames, (360, 360),
-                                    progress=lambda: bar.advance(task))
-        write_animation(shots, out / "preview.gif", fps=12)
+    with Progress(transient=True, console=None) as bar:
+        task = bar.add_task("rendering preview.gif", total=frames)
+        write_previews(d, out, frames, progress=lambda: bar.advance(task))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -6,8 +6,33 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
-from specholo.jobs.base import Status, Table, Verification, VerifyOptions, refuse_cut_options
+from specholo.jobs.base import (
+    Status,
+    Summary,
+    Table,
+    Verification,
+    VerifyOptions,
+    refuse_cut_options,
+)
+
+
+def design_summary(d: Any, check: dict[str, Any]) -> Summary:
+    """What a composed design (``compose.ComposedDesign``) says once its G-code is
+    checked: its stripes and groove, and the stipple-views it could not serve."""
+    lines = [f"{d.stats['stripes']} stripes, {d.stats['groove_length_mm'] / 1000:.2f} m of "
+             f"groove; G-code checked: {check['cutting_moves']} cutting moves, deepest "
+             f"{check['deepest_cut_mm']:.4f} mm"]
+    fams = d.stats["families"]
+    missed = sum(f["states_missing_the_host"] for f in fams)
+    tilt = sum(f["states_lost_to_tilt"] for f in fams)
+    warnings = []
+    if missed or tilt:
+        warnings.append(f"of {sum(f['states_served'] for f in fams) + missed + tilt} "
+                        f"stipple-views, {missed} miss the host and {tilt} need a wall steeper "
+                        "than the tool's")
+    return Summary(lines, warnings)
 
 
 class ComposedJob:

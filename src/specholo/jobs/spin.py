@@ -3,8 +3,30 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
-from specholo.jobs.base import Status, Verification, VerifyOptions, refuse_cut_options
+from specholo.jobs.base import (
+    Status,
+    Summary,
+    Verification,
+    VerifyOptions,
+    refuse_cut_options,
+)
+
+
+def design_summary(job: Any, summary: dict[str, Any], out: Path, step_deg: float) -> Summary:
+    """What a turning-plate design (``spin.SpinJob``) and its verification over the
+    turn say."""
+    g = job.design.grooves
+    tracks = job.design.tracks
+    shown = "" if tracks is None else \
+        f" (about {tracks.shown.sum(axis=0).mean():.0f} shown at once)"
+    return Summary([
+        f"{len(job.design.points)} stipples{shown}, {g.n_paths} paths, "
+        f"{g.total_length() / 1000:.2f} m of groove -> {out}",
+        f"over the turn (every {step_deg:g} deg): worst p95 {summary['worst_p95_mm']:.3f} mm, "
+        f"depth p95 {summary['worst_depth_p95_mm']:.3f} mm, lowest visibility "
+        f"{summary['lowest_visibility']:.3f}, stray glints {summary['stray']}"], [])
 
 
 class SpinJob:

@@ -3,9 +3,29 @@ light's range."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+from typing import Any
 
-from specholo.jobs.base import Status, Verification, VerifyOptions, refuse_cut_options
+from specholo.jobs.base import (
+    Status,
+    Summary,
+    Verification,
+    VerifyOptions,
+    refuse_cut_options,
+)
+
+
+def design_summary(design: Any, config: Any, s: dict[str, Any], out: Path) -> Summary:
+    """What a steady image (``toolpaths.steady.SteadyDesign`` with its
+    ``steady.SteadyConfig``) and its verification over the light's range say."""
+    mid = math.degrees(config.setup.elevation)
+    half = math.degrees(config.setup.half_range)
+    return Summary([
+        f"{len(design.points)} stipples, {design.n_cuts} {config.shape}s -> {out}",
+        f"light {mid - half:g} to {mid + half:g} deg: worst p95 {s['worst_p95_mm']:.3f} mm, "
+        f"image drift p95 {s['worst_drift_p95_mm']:.3f} mm, lowest visibility "
+        f"{s['lowest_visibility']:.3f}, stray glints {s['stray']}"], [])
 
 
 class SteadyJob:

@@ -100,3 +100,24 @@ def contact_sheet(frames: list[np.ndarray]) -> np.ndarray:
             parts.append(gap)
         parts.append(f)
     return np.concatenate(parts, axis=1)
+
+
+def write_previews(d: Any, out: Any, frames: int,
+                   progress: Callable[[], None] | None = None) -> None:
+    """Write a composed design's preview.png (start, middle and end of the motion)
+    and, with ``frames`` > 0, preview.gif, into the folder ``out``; ``progress`` is
+    called once per animation frame."""
+    from pathlib import Path
+
+    from PIL import Image
+
+    from specholo.fabrication.atomic import atomic_open
+    from specholo.preview.motion import write_animation
+
+    out = Path(out)
+    still = composed_frames(d, 3, (480, 480), loop=False)
+    with atomic_open(out / "preview.png", "wb", encoding=None) as fh:
+        Image.fromarray(contact_sheet(still)).save(fh, format="PNG")
+    if frames:
+        shots = composed_frames(d, frames, (360, 360), progress=progress)
+        write_animation(shots, out / "preview.gif", fps=12)
