@@ -1,0 +1,243 @@
+"""What the commands share: the command group, option tables, folder and
+output checks, and printing a library result."""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import tomllib
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import click
+
+from specholo import __version__
+from specholo.errors import SpecholoError
+
+_DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
+    ("size", float, "Largest side of the model's bounding box, mm [60]."),
+    ("center-z", float, "Depth of the model's box centre, mm; negative is behind the plate [-40]."),
+    ("light-elevation", float, "Light elevation a in degrees: direction (0, cos a, sin a) [45]; "
+     "behind the plate, in (-180, 0), for --optic refract [-90: straight behind]."),
+    ("light-distance", float, "Point light this far from the plate centre, mm [sun]."),
+    ("view-distance", float, "Radius of the viewing arc, mm [600]."),
+    ("view-range", float, "Eyes' azimuth within +- this many degrees [45]."),
+    ("eye-height", float, "Eye height above the plate centre, mm [0]."),
+    ("ipd", float, "Interocular distance, mm [64]."),
+    ("stipples", int, "Number of stipples [2000]."),
+    ("spacing", float, "Minimum stipple spacing in mm (instead of --stipples)."),
+    ("visibility", float, "Design with the most stipples that show in both eyes at every "
+     "view on the plate as cut at least this share of the time (e.g. 0.8): several designs "
+     "are tried, from --stipples [off]."),
+    ("seed", int, "Random seed for stippling [0]."),
+    ("band", float, "Striped design: half-height of the band, bounds vertical error, mm [0.2]."),
+    ("placement", click.Choice(["auto", "avoid", "phase"]),
+     "Striped design: avoid places each stipple's stripes in turn out of the grooves placed "
+     "before (jumping between the band's paths where a crossing would cut glints away); "
+     "phase designs each stipple alone, one stripe family; auto is avoid where its plan fits "
+     "in memory and time, else phase [auto]."),
+    ("tool", click.Choice(["ball", "vbit", "drag", "scriber", "laser"]),
+     "Cutting tool: ball-end mill, V-bit, diamond drag tip, hand scriber or laser [drag]."),
+    ("tool-radius", float, "Ball or tip radius, mm [ball 0.25, drag 0.05, scriber 0.05]."),
+    ("tool-angle", float, "Included angle of a V-bit or tip cone, degrees "
+     "[vbit 60, drag 90, scriber 60]."),
+    ("tip-flat", float, "Width of a V-bit's tip flat, mm [0]."),
+    ("spot", float, "Laser spot diameter (1/e^2), mm [0.1]."),
+    ("depth", float, "Groove depth, mm [ball 0.08, vbit 0.05, laser 0.04, else 0.012]."),
+    ("dialect", click.Choice(["grbl", "linuxcnc", "marlin"]),
+     "G-code for GRBL, LinuxCNC, or Marlin driving a laser [grbl]."),
+    ("units", click.Choice(["mm", "inch"]), "G-code units [mm]."),
+    ("plate-width", float, "Plate width, mm [the grooves' extent plus 5 mm each side]."),
+    ("plate-height", float, "Plate height, mm [the grooves' extent plus 5 mm each side]."),
+    ("stock-thickness", float, "Plate thickness, mm [3]."),
+    ("feed", float, "Cutting feed, mm/min [300]."),
+    ("plunge", float, "Plunge feed, mm/min [100]."),
+    ("safe-z", float, "Rapid (safe) height, mm [1]."),
+    ("hop", float, "Hop height: between grooves at most --hop-max apart the tool lifts only "
+     "this far above the surface and moves over at the cutting feed, mm [0.03]."),
+    ("hop-max", float, "Longest hop, mm; 0 retracts to --safe-z between all grooves [3]."),
+    ("spindle", float, "Spindle speed, rpm; 0 for none [12000 for ball and vbit, else 0]."),
+    ("elevation-range", float, "Ridged design: heads' elevation within +- this many degrees "
+     "[15]."),
+    ("shell", float, "Ridged design: half-thickness Delta of the shell; the facets lie within "
+     "2 Delta of the surface, mm [0.1]."),
+    ("raster", float, "Ridged design: height-field sample spacing, mm [0.02]."),
+    ("optic", click.Choice(["reflect", "refract"]),
+     "Ridged design: a mirror lit from the front [reflect], or a clear plate "
+     "--stock-thickness thick lit from behind, its front face ridged (refract)."),
+    ("refraction", click.Choice(["exact", "approx", "single"]),
+     "--optic refract: the front optic: exact (through the planar back face) [exact], "
+     "approx (the paper's centre of divergence) or single (the back face ignored)."),
+    ("index", float, "--optic refract: the plate's refractive index [1.49, acrylic]."),
+]
+
+
+#: Largest config file read, bytes (a config is a few lines; /dev/zero never ends).
+MAX_CONFIG_BYTES = 1 << 20
+
+
+def _read_config(path: Path | None) -> dict[str, Any]:
+    from specholo.readback import read_bytes
+
+    if path is None:
+        return {}
+    # A regular file only: a FIFO would wait for a writer, /dev/zero never end.
+    raw = read_bytes(path, MAX_CONFIG_BYTES, "config file")
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SpecholoError(f"config file {path} is not valid TOML: {exc}") from exc
+    except RecursionError as exc:
+        raise SpecholoError(f"config file {path} is not valid TOML: nested too deeply") from exc
+    return data
+
+
+def _command_line() -> list[str]:
+    """The command line this run was given (recorded in the design's run.json)."""
+    obj = click.get_current_context().find_root().obj
+    argv = obj.get("argv") if isinstance(obj, dict) else None
+    return [str(a) for a in (argv if argv is not None else sys.argv)]
+
+
+class _Folder(click.Path):
+    """An output folder's path: an empty one is refused, where pathlib would
+    read it as the current folder."""
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> Any:
+        if isinstance(value, str | bytes) and not value:
+            raise SpecholoError("--out is empty: name a folder (. for the current one)")
+        return super().convert(value, param, ctx)
+
+
+def _check_out(out: Path, inputs: Sequence[Path | None] = ()) -> None:
+    """Refuse an output folder that cannot be made or is not specholo's to
+    replace, or that holds an input where the job writes, before the (long)
+    design runs."""
+    from specholo.folders import check_out
+
+    check_out(out, inputs)
+    try:
+        above = out.resolve().parent
+        while not above.exists() and above != above.parent:
+            above = above.parent
+        if not above.is_dir():
+            raise SpecholoError(f"cannot create output folder {out}: {above} is not a folder")
+        if not os.access(above, os.W_OK | os.X_OK):
+            raise SpecholoError(f"cannot create output folder {out}: {above} is not writable")
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        if isinstance(exc, SpecholoError):
+            raise
+        raise SpecholoError(f"bad output folder {str(out)!r}: {exc}") from exc
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="specholo")
+def cli() -> None:
+    """Exact specular holograms: design grooves from a 3D model and verify them."""
+
+
+def _design_options(fn: Any) -> Any:
+    for name, kind, text in reversed(_DESIGN_OPTIONS):
+        fn = click.option(f"--{name}", type=kind, default=None, help=text)(fn)
+    return fn
+
+
+def _print_summary(summary: Any) -> None:
+    """A design's lines on stdout and its warnings on stderr."""
+    for line in summary.lines:
+        click.echo(line)
+    for line in summary.warnings:
+        click.echo(f"warning: {line}", err=True)
+
+
+def _print_verification(result: Any) -> None:
+    """A verification's table (rich) and lines."""
+    from rich.console import Console
+    from rich.table import Table
+
+    if result.table is not None:
+        table = Table(title=result.table.title)
+        for col in result.table.columns:
+            table.add_column(col, justify="right")
+        for row in result.table.rows:
+            table.add_row(*row)
+        Console().print(table)
+    for line in result.lines:
+        click.echo(line)
+
+
+def _check_folder(folder: Path, command: str) -> None:
+    """Refuse a missing folder, and a kind of design ``command`` does not draw."""
+    from specholo.jobs import job_of
+    from specholo.jobs.base import refuse_picture
+
+    if not folder.exists():
+        raise SpecholoError(f"design folder {folder} does not exist")
+    if not folder.is_dir():
+        raise SpecholoError(f"{folder} is not a folder")
+    refuse_picture(job_of(folder), folder, command)
+
+
+def _design_folder(folder: Path, command: str) -> Any:
+    from specholo.pipeline import load_design
+
+    _check_folder(folder, command)
+    return load_design(folder)
+
+
+def _finite_option(name: str, value: float) -> float:
+    if not math.isfinite(value):
+        raise SpecholoError(f"--{name} must be a finite number, got {value}")
+    return value
+
+
+def _distance(distance: float) -> float:
+    if not (math.isfinite(distance) and 1.0 <= distance <= 1e6):
+        raise SpecholoError(f"--distance must be in [1, 1e6] mm, got {distance:g}")
+    return distance
+
+
+def _fov(fov: float | None) -> float | None:
+    if fov is None:
+        return None
+    if not (math.isfinite(fov) and 0.1 <= fov <= 170):
+        raise SpecholoError(f"--fov must be in [0.1, 170] degrees, got {fov:g}")
+    return math.radians(fov)
+
+
+def _png_out(out: Path | None, folder: Path, default: str, command: str) -> Path:
+    _check_folder(folder, command)
+    out = folder / default if out is None else out
+    if out.suffix.lower() != ".png":
+        raise SpecholoError(f"output must be a .png file, got {out.name!r}")
+    if not out.parent.is_dir():
+        raise SpecholoError(f"folder {out.parent} does not exist")
+    if out.is_dir():  # found now, not once the picture is made
+        raise SpecholoError(f"{out} is a folder: name a .png file")
+    return out
+
+
+_SIZE_HELP = "Image {} in pixels [{}]."
+
+
+def _look_options(fn: Any) -> Any:
+    """The options every picture shares: surface roughness and faint overlays."""
+    fn = click.option("--ghost/--no-ghost", default=False, show_default=True,
+                      help="Draw the model faintly where it is in space.")(fn)
+    fn = click.option("--grooves/--no-grooves", default=False, show_default=True,
+                      help="Draw the grooves faintly.")(fn)
+    return click.option("--roughness", type=float, default=1.0, show_default=True,
+                        help="Width of the plate's specular lobe, degrees: rougher, "
+                             "bigger dimmer glints.")(fn)
+
+
+#: Most frames of an animation (an hour at 30 fps); every frame is held in memory.
+MAX_FRAMES = 108_000
+
+
+def _stderr_console() -> Any:
+    from rich.console import Console
+
+    return Console(stderr=True)

@@ -1,0 +1,130 @@
+"""``specholo verify`` (any kind of folder, through the job registry) and
+``specholo check`` (any G-code program against a plate)."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import click
+
+from specholo.errors import SpecholoError
+from specholo_cli.app import (
+    _print_verification,
+    _stderr_console,
+    cli,
+)
+
+
+@cli.command()
+@click.argument("folder", type=click.Path(path_type=Path))
+@click.option("--step", type=float, default=5.0, show_default=True,
+              help="Largest azimuth step between simulated eye pairs, degrees.")
+@click.option("--from-gcode", is_flag=True,
+              help="Verify the grooves parsed from hologram.gcode, the file that will be cut.")
+@click.option("--cut", is_flag=True,
+              help="Also verify the plate as hologram.gcode cuts it: each eye's glints that "
+                   "no other groove's cut removes (writes verify_cut.json).")
+@click.option("--cut-method", type=click.Choice(["survival", "field"]), default=None,
+              help="How --cut finds what the cutting leaves: survival, exact from the "
+                   "grooves [default], or field, a simulated height field of the plate "
+                   "[the default with --resolution or --stl].")
+@click.option("--resolution", type=float, default=None,
+              help="Height-field cut: sample spacing, mm [0.02].")
+@click.option("--stl", type=click.Path(path_type=Path), default=None,
+              help="Height-field cut: write the cut plate as a watertight STL here.")
+def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: str | None,
+           resolution: float | None, stl: Path | None) -> None:
+    """Simulate stereo eye pairs along the arc and measure where each stipple appears."""
+    from specholo.jobs import VerifyOptions, job_of, publish_verification
+    from specholo.pipeline import cut_method as choose_cut_method
+
+    if not (math.isfinite(step) and 0.01 <= step <= 5.0):
+        raise SpecholoError(f"step must be in [0.01, 5] degrees, got {step}")
+    if stl is not None and not cut:
+        raise SpecholoError("--stl needs --cut")
+    if cut_method is not None and not cut:
+        raise SpecholoError("--cut-method needs --cut")
+    if stl is not None and stl.suffix.lower() != ".stl":
+        raise SpecholoError(f"--stl must name an .stl file, got {stl.name!r}")
+    # Checked before the cut is simulated (minutes), not when the file is written.
+    if stl is not None and not stl.parent.is_dir():
+        raise SpecholoError(f"--stl {stl}: folder {stl.parent} does not exist")
+    if stl is not None and stl.is_dir():
+        raise SpecholoError(f"--stl {stl} is a folder: name an .stl file")
+    if resolution is not None and not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
+        raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
+    options = VerifyOptions(step, from_gcode, cut, cut_method, resolution, stl)
+    if cut:
+        choose_cut_method(cut_method, resolution, stl)  # refused before the folder is read
+    with _stderr_console().status("verifying...") as status:
+        result = job_of(folder).verify(folder, options, status.update)
+    _print_verification(result)
+    # The verification's files appear together or not at all.
+    publish_verification(folder, result)
+
+
+@cli.command()
+@click.argument("gcode", type=click.Path(path_type=Path))
+@click.option("--plate-width", type=float, required=True, help="Plate width, mm.")
+@click.option("--plate-height", type=float, required=True, help="Plate height, mm.")
+@click.option("--stock-thickness", type=float, default=3.0, show_default=True,
+              help="Plate thickness, mm.")
+@click.option("--max-depth", type=float, required=True,
+              help="Deepest cut allowed below the surface, mm (any tool).")
+@click.option("--safe-z", type=float, default=1.0, show_default=True,
+              help="Lowest height for X/Y rapids, mm.")
+@click.option("--feed", type=(float, float), default=(1.0, 5000.0), show_default=True,
+              help="Lowest and highest feed allowed, mm/min.")
+@click.option("--spindle", type=(float, float), default=(0.0, 30000.0), show_default=True,
+              help="Lowest and highest spindle speed (or laser power) allowed.")
+@click.option("--tool", type=click.Choice(["ball", "vbit", "drag", "scriber", "laser"]),
+              default=None,
+              help="The tool: a ball or V-bit spins to cut, a drag tip or scriber cuts with "
+                   "the spindle off, a laser cuts where it is on and never goes below the "
+                   "surface [ball].")
+@click.option("--laser", is_flag=True, help="As --tool laser.")
+@click.option("--no-spindle", is_flag=True, help="As --tool drag.")
+@click.option("--hop-max", type=float, default=None,
+              help="Longest feed move in X/Y between the surface and --safe-z (a hop between "
+                   "grooves), mm; 0 allows none [not checked].")
+@click.option("--hop", type=float, default=0.0, show_default=True,
+              help="Lowest height of those moves above the surface, mm.")
+def check(gcode: Path, plate_width: float, plate_height: float, stock_thickness: float,
+          max_depth: float, safe_z: float, feed: tuple[float, float],
+          spindle: tuple[float, float], tool: str | None, laser: bool,
+          no_spindle: bool, hop_max: float | None, hop: float) -> None:
+    """Check any G-code file (G20 programs are read in mm) against limits in mm.
+
+    Every cut stays inside the plate (origin at its centre, Z = 0 on its surface),
+    arcs over their whole sweep, and no deeper than --max-depth (or the stock)
+    below the surface, whatever the tool; a laser never goes below the surface.
+    Rapids move in X/Y only at --safe-z or above and never plunge below it (a
+    laser's only with the beam off); with --hop-max, feed moves in X/Y above
+    the surface and below --safe-z run no further than that, no lower than
+    --hop and over the plate. Feed moves run within --feed, the spindle
+    (laser power) within --spindle when on, and a ball or V-bit only cuts while
+    it spins. Unknown words, moves from unknown positions, arcs off their circle
+    and moves after the program's end are reported. Exits with status 1 if
+    anything is wrong."""
+    from specholo.fabrication.check import CUTTER_KINDS, Limits, Stock, check_limits
+
+    aliases = {name for name, given in (("laser", laser), ("drag", no_spindle)) if given}
+    if len(aliases) > 1 or (tool is not None and aliases
+                            and {CUTTER_KINDS[tool]} != {CUTTER_KINDS[a] for a in aliases}):
+        raise SpecholoError("give one tool: --tool, --laser (as --tool laser) or --no-spindle "
+                            "(as --tool drag)")
+    kind = CUTTER_KINDS[tool or (aliases.pop() if aliases else "ball")]
+    for name, v in (("plate width", plate_width), ("plate height", plate_height),
+                    ("stock thickness", stock_thickness)):
+        if not (math.isfinite(v) and v > 0):
+            raise SpecholoError(f"{name} must be a positive number of mm, got {v}")
+    if not gcode.is_file():
+        raise SpecholoError(f"G-code file {gcode} not found")
+    limits = Limits(Stock.centred(plate_width, plate_height, stock_thickness), max_depth,
+                    safe_z, feed, spindle, kind, hop_max=hop_max, hop=hop)
+    report = check_limits(gcode, limits)
+    click.echo(report.summary())
+    if not report.ok:
+        sys.exit(1)
