@@ -14,7 +14,7 @@ from scipy.spatial import cKDTree
 
 from specholo.errors import SpecholoError
 from specholo.scene.loading import Model, load_model
-from specholo.scene.placement import place
+from specholo.scene.placement import UP_AXES, orientation, place
 from specholo.scene.stippling import Stipples, stipple
 
 BUNNY = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
@@ -442,3 +442,79 @@ def test_disk_sets_are_the_greedy_pass_in_priority_order(grid: bool) -> None:
         if not kept or np.sqrt(((pts[kept] - pts[i]) ** 2).sum(axis=1)).min() > r:
             kept.append(int(i))
     np.testing.assert_array_equal(got, np.sort(kept))
+
+
+# ---------------------------------------------------------------- orientation
+
+
+def _column() -> Model:
+    """A CAD-style z-up column: 10 x 4 x 40 model units, its front face at -y."""
+    mesh = trimesh.creation.box(extents=(10.0, 4.0, 40.0))
+    return Model(mesh=mesh, points=np.asarray(mesh.vertices, dtype=float))
+
+
+@pytest.mark.parametrize("up", sorted(UP_AXES))
+def test_up_axis_goes_to_the_plate_s_up(up: str) -> None:
+    r = orientation(up)
+    assert np.allclose(r @ r.T, np.eye(3)) and np.linalg.det(r) == pytest.approx(1.0)
+    axis = np.zeros(3)
+    axis["xyz".index(up[-1])] = -1.0 if up.startswith("-") else 1.0
+    assert np.allclose(axis @ r, [0.0, 1.0, 0.0])
+
+
+def test_a_z_up_model_stands_up_facing_the_viewer() -> None:
+    placed = place(_column(), 60.0, -40.0, orientation("z"))
+    ext = np.ptp(placed.points, axis=0)
+    # its 40 units of height run up the plate, scaled to 60 mm; its 4-unit depth
+    # runs toward the viewer
+    assert ext == pytest.approx([15.0, 60.0, 6.0])
+    # the model's front (-y) face now faces the viewer (+z), and every face still
+    # points out of the solid (a proper rotation keeps the winding)
+    mesh = placed.mesh
+    front = mesh.face_normals[:, 2] > 0.99
+    assert np.allclose(mesh.triangles_center[front, 2], -40.0 + 3.0)
+    assert mesh.is_winding_consistent and mesh.volume > 0
+
+
+def test_rotations_and_offset_on_the_plate() -> None:
+    # a quarter turn about the viewer's axis lays the standing column on its side
+    placed = place(_column(), 60.0, -40.0, orientation("z", (0.0, 0.0, math.pi / 2)),
+                   offset=(12.0, -7.0))
+    assert np.ptp(placed.points, axis=0) == pytest.approx([60.0, 15.0, 6.0])
+    lo, hi = placed.points.min(axis=0), placed.points.max(axis=0)
+    assert 0.5 * (lo + hi) == pytest.approx([12.0, -7.0, -40.0])
+
+
+def test_bad_orientations_are_refused() -> None:
+    with pytest.raises(SpecholoError, match="up must be one of"):
+        orientation("w")
+    with pytest.raises(SpecholoError, match="finite"):
+        orientation("y", (0.0, math.nan, 0.0))
+
+
+def test_the_axes_offered_agree() -> None:
+    from specholo.pipeline import UP_AXES as CONFIG_AXES
+    from specholo_cli.app import _DESIGN_OPTIONS
+
+    choice = next(kind for name, kind, _ in _DESIGN_OPTIONS if name == "up")
+    assert set(CONFIG_AXES) == set(UP_AXES) == set(choice.choices)
+
+
+def test_a_z_up_file_with_up_z_designs_the_y_up_model_s_plate(tmp_path: Path) -> None:
+    """The bunny (y-up) written as a CAD file would hold it (z-up, front at -y) and
+    designed with --up z gives the bunny's own grooves."""
+    from specholo.pipeline import DesignConfig, design
+
+    bunny = trimesh.load(BUNNY, force="mesh")
+    v = np.asarray(bunny.vertices)
+    cad = trimesh.Trimesh(np.column_stack([v[:, 0], -v[:, 2], v[:, 1]]), bunny.faces,
+                          process=False)
+    path = tmp_path / "bunny_zup.obj"
+    cad.export(path, digits=17)  # every digit of the bunny's own coordinates
+    plain = design(BUNNY, DesignConfig(stipples=60, placement="phase"), check_overlaps=False,
+                   expect_as_cut=False)
+    turned = design(path, DesignConfig(stipples=60, placement="phase", up="z"),
+                    check_overlaps=False, expect_as_cut=False)
+    np.testing.assert_allclose(turned.points, plain.points, atol=1e-9)
+    np.testing.assert_array_equal(turned.grooves.offsets, plain.grooves.offsets)
+    np.testing.assert_allclose(turned.grooves.vertices, plain.grooves.vertices, atol=1e-6)

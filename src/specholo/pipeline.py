@@ -71,6 +71,10 @@ RIDGED_BALL_RADIUS = 0.05
 MAX_ELEVATION_RANGE = 80.0
 #: Smallest and largest raster spacing of a ridged plate, mm.
 RASTER_RANGE = (0.002, 1.0)
+#: The model axes that may point up on the plate (as
+#: :data:`specholo.scene.placement.UP_AXES`, which loads trimesh: checked here
+#: without it).
+UP_AXES = ("y", "-y", "z", "-z", "x", "-x")
 #: Side of the blocks a ridged plate is shared out by, mm (a whole number of raster cells).
 RIDGED_BLOCK = 0.2
 #: What a ridged plate does with the light: a mirror lit from the front, or a clear
@@ -92,6 +96,11 @@ MAX_SETTING = 1e12
 SETTING_BOUNDS: dict[str, tuple[float, float, str]] = {
     "size": (0.01, 10_000.0, "mm"),
     "center_z": (-10_000.0, 10_000.0, "mm"),
+    "rotate_x": (-360.0, 360.0, "degrees"),
+    "rotate_y": (-360.0, 360.0, "degrees"),
+    "rotate_z": (-360.0, 360.0, "degrees"),
+    "offset_x": (-10_000.0, 10_000.0, "mm"),
+    "offset_y": (-10_000.0, 10_000.0, "mm"),
     "light_distance": (1.0, 1e7, "mm"),
     "view_distance": (10.0, 1e7, "mm"),
     "view_range": (0.0, 89.0, "degrees"),
@@ -179,6 +188,12 @@ class DesignConfig:
 
     size: float = 60.0
     center_z: float = -40.0
+    up: str = "y"
+    rotate_x: float = 0.0
+    rotate_y: float = 0.0
+    rotate_z: float = 0.0
+    offset_x: float = 0.0
+    offset_y: float = 0.0
     light_elevation: float = 45.0
     light_distance: float | None = None
     view_distance: float = 600.0
@@ -239,6 +254,8 @@ class DesignConfig:
                 "linuxcnc"
                 if self.dialect == "marlin" else
                 f"a laser is driven by --dialect marlin ({self.dialect} programs plunge a cutter)")
+        if self.up not in UP_AXES:
+            raise SpecholoError(f"up must be one of {', '.join(UP_AXES)}, got {self.up!r}")
         if self.units not in ("mm", "inch"):
             raise SpecholoError(f"units must be mm or inch, got {self.units!r}")
         if self.placement not in PLACEMENTS:
@@ -396,6 +413,14 @@ class DesignConfig:
             if isinstance(exc, SpecholoError):
                 raise
             raise SpecholoError(f"bad setting: {exc}") from exc
+
+    def orientation(self) -> np.ndarray:
+        """The model's rotation onto the plate (:func:`~specholo.scene.placement.orientation`),
+        the angles converted from degrees here, once."""
+        from specholo.scene.placement import orientation
+
+        return orientation(self.up, (math.radians(self.rotate_x), math.radians(self.rotate_y),
+                                     math.radians(self.rotate_z)))
 
     def setup(self) -> Setup:
         """The physical setup in library units (radians)."""
@@ -614,7 +639,8 @@ def stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
     if count is not None:
         check_memory(count)  # stipples = 10**9 is refused before any work
     t0 = time.perf_counter()
-    model = place(load_model(model_path), config.size, config.center_z)
+    model = place(load_model(model_path), config.size, config.center_z,
+                  config.orientation(), (config.offset_x, config.offset_y))
     st = stipple(model, rng, count=count, spacing=config.spacing)
     check_points(st.points, setup)
     mesh = model.mesh

@@ -19,6 +19,14 @@ from specholo.errors import SpecholoError
 _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("size", float, "Largest side of the model's bounding box, mm [60]."),
     ("center-z", float, "Depth of the model's box centre, mm; negative is behind the plate [-40]."),
+    ("up", click.Choice(["y", "-y", "z", "-z", "x", "-x"]),
+     "The model's axis that points up on the plate [y]; z for most CAD and slicer files "
+     "(z-up, front facing -y)."),
+    ("rotate-x", float, "Turn the model about the plate's x axis (right), degrees [0]."),
+    ("rotate-y", float, "Turn the model about the plate's y axis (up), degrees [0]."),
+    ("rotate-z", float, "Turn the model about the plate's z axis (toward you), degrees [0]."),
+    ("offset-x", float, "Move the model's box centre right on the plate, mm [0]."),
+    ("offset-y", float, "Move the model's box centre up on the plate, mm [0]."),
     ("light-elevation", float, "Light elevation a in degrees: direction (0, cos a, sin a) [45]; "
      "behind the plate, in (-180, 0), for --optic refract [-90: straight behind]."),
     ("light-distance", float, "Point light this far from the plate centre, mm [sun]."),

@@ -1,4 +1,10 @@
-"""Placing a model behind, in or in front of the plate."""
+"""Placing a model behind, in or in front of the plate, turned the way the maker wants.
+
+Models are taken y-up, facing +z (toward the viewer), as most mesh formats for
+3D graphics are. A CAD or slicer file is usually z-up, its front facing -y:
+``up="z"`` stands it up (model +z to the plate's +y, model -y toward the
+viewer). Rotations about the plate's x, y and z axes follow, then the model is
+scaled and centred, and moved by an offset on the plate."""
 
 from __future__ import annotations
 
@@ -12,18 +18,58 @@ from specholo.scene.loading import Model
 
 # Largest relative error of the placed model's size.
 _SIZE_TOLERANCE = 1e-9
+#: The model axis that points up on the plate, and the quarter turn (about the
+#: plate's x or z axis) that takes it there: rows are where the model's x, y, z go.
+UP_AXES: dict[str, tuple[tuple[int, int, int], ...]] = {
+    "y": ((1, 0, 0), (0, 1, 0), (0, 0, 1)),
+    "-y": ((1, 0, 0), (0, -1, 0), (0, 0, -1)),
+    "z": ((1, 0, 0), (0, 0, -1), (0, 1, 0)),
+    "-z": ((1, 0, 0), (0, 0, 1), (0, -1, 0)),
+    "x": ((0, 1, 0), (-1, 0, 0), (0, 0, 1)),
+    "-x": ((0, -1, 0), (1, 0, 0), (0, 0, 1)),
+}
 
 
-def place(model: Model, size: float, center_z: float) -> Model:
-    """Scale a model uniformly and centre it on the plate axis.
+def orientation(up: str = "y", rotate: tuple[float, float, float] = (0.0, 0.0, 0.0)
+                ) -> np.ndarray:
+    """The rotation (3, 3) from model to plate axes: the model's ``up`` axis to the
+    plate's +y, then ``rotate`` radians about the plate's x, y and z axes in turn.
+    Applied to row vectors: ``plate = model @ R``.
 
-    The largest side of the model's axis-aligned bounding box becomes ``size``
-    and the box centre moves to (0, 0, center_z).
+    Raises:
+        SpecholoError: an unknown axis or a rotation that is not finite.
+    """
+    if up not in UP_AXES:
+        raise SpecholoError(f"up must be one of {', '.join(UP_AXES)}, got {up!r}")
+    angles = [float(a) for a in rotate]
+    if len(angles) != 3 or not all(math.isfinite(a) for a in angles):
+        raise SpecholoError(f"rotations must be three finite angles, got {rotate!r}")
+    r = np.array(UP_AXES[up], dtype=float)
+    for axis, a in enumerate(angles):
+        if a == 0.0:
+            continue
+        c, s = math.cos(a), math.sin(a)
+        i, j = [(1, 2), (2, 0), (0, 1)][axis]
+        turn = np.eye(3)
+        turn[i, i], turn[i, j], turn[j, i], turn[j, j] = c, s, -s, c
+        r = r @ turn
+    return r
+
+
+def place(model: Model, size: float, center_z: float, rotation: np.ndarray | None = None,
+          offset: tuple[float, float] = (0.0, 0.0)) -> Model:
+    """Turn a model, scale it uniformly and centre it on the plate.
+
+    The model is turned by ``rotation`` (see :func:`orientation`); the largest
+    side of its axis-aligned bounding box then becomes ``size`` and the box
+    centre moves to (offset x, offset y, center_z).
 
     Args:
         model: the model, in any units.
         size: largest side of the placed bounding box, mm (> 0).
         center_z: z of the box centre, mm (negative = behind the plate).
+        rotation: (3, 3) proper rotation from model to plate axes, or None.
+        offset: the box centre's x and y on the plate, mm.
 
     Returns:
         A new model in mm; a mesh keeps its faces and winding.
@@ -45,11 +91,20 @@ def place(model: Model, size: float, center_z: float) -> Model:
     if not math.isfinite(center_z):
         raise SpecholoError(f"model centre z must be a finite number of mm, got {center_z:g}")
 
+    ox, oy = (float(v) for v in offset)
+    if not (math.isfinite(ox) and math.isfinite(oy)):
+        raise SpecholoError(f"model offset must be finite mm, got {offset!r}")
     points = np.asarray(model.points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3 or len(points) == 0:
         raise SpecholoError(f"model has no points to place (points of shape {points.shape})")
     if not np.isfinite(points).all():
         raise SpecholoError("model has NaN or infinite coordinates; cannot place it")
+    if rotation is not None:
+        # A proper rotation keeps a mesh's winding, so its normals stay outward.
+        with np.errstate(over="ignore", invalid="ignore"):
+            points = points @ np.asarray(rotation, dtype=np.float64)
+        if not np.isfinite(points).all():
+            raise SpecholoError("model coordinates are beyond floating-point range once turned")
     # Bring the coordinates below 1 by a power of two (exact) first, so that
     # the extent of a model spanning +-1e308 does not overflow and one of 1e-320
     # does not lose its digits.
@@ -63,7 +118,7 @@ def place(model: Model, size: float, center_z: float) -> Model:
 
     scale = size / extent
     with np.errstate(over="ignore", invalid="ignore"):
-        placed = (unit - 0.5 * (lo + hi)) * scale + np.array([0.0, 0.0, center_z])
+        placed = (unit - 0.5 * (lo + hi)) * scale + np.array([ox, oy, center_z])
     if not np.isfinite(placed).all():
         raise SpecholoError(f"model size {size:g} mm at centre z {center_z:g} mm is beyond "
                             "floating-point range")
