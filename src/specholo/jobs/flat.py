@@ -56,8 +56,8 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
         surviving = math.nan
     if surviving < 0.5:
         warnings.append("most stipples will not show in both eyes on the cut plate; use "
-                        "fewer stipples, a finer tip or a larger model (check with `specholo "
-                        "verify --cut`)")
+                        "fewer stipples (`--visibility 0.6` finds how many), a finer tip or a "
+                        "larger model (check with `specholo verify --cut`)")
     mach = written.machining
     travel = (f", air travel {mach['travel_mm'] / 1000:.1f} m (unordered "
               f"{mach['travel_unordered_mm'] / 1000:.1f} m)" if "travel_mm" in mach else "")
