@@ -31,6 +31,7 @@ from specholo.fabrication.tools import (
     make_cutter,
     needed_tilts,
 )
+from specholo.scene.pose import UP_AXES, Pose
 from specholo.setup import (
     ACRYLIC_INDEX,
     MAX_FEED,
@@ -71,10 +72,6 @@ RIDGED_BALL_RADIUS = 0.05
 MAX_ELEVATION_RANGE = 80.0
 #: Smallest and largest raster spacing of a ridged plate, mm.
 RASTER_RANGE = (0.002, 1.0)
-#: The model axes that may point up on the plate (as
-#: :data:`specholo.scene.placement.UP_AXES`, which loads trimesh: checked here
-#: without it).
-UP_AXES = ("y", "-y", "z", "-z", "x", "-x")
 #: Side of the blocks a ridged plate is shared out by, mm (a whole number of raster cells).
 RIDGED_BLOCK = 0.2
 #: What a ridged plate does with the light: a mirror lit from the front, or a clear
@@ -414,13 +411,12 @@ class DesignConfig:
                 raise
             raise SpecholoError(f"bad setting: {exc}") from exc
 
-    def orientation(self) -> np.ndarray:
-        """The model's rotation onto the plate (:func:`~specholo.scene.placement.orientation`),
-        the angles converted from degrees here, once."""
-        from specholo.scene.placement import orientation
+    def pose(self) -> Pose:
+        """How the model is turned and moved onto the plate (not the stripes'
+        ``placement``)."""
 
-        return orientation(self.up, (math.radians(self.rotate_x), math.radians(self.rotate_y),
-                                     math.radians(self.rotate_z)))
+        return Pose(self.up, (self.rotate_x, self.rotate_y, self.rotate_z),
+                         (self.offset_x, self.offset_y))
 
     def setup(self) -> Setup:
         """The physical setup in library units (radians)."""
@@ -639,8 +635,9 @@ def stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
     if count is not None:
         check_memory(count)  # stipples = 10**9 is refused before any work
     t0 = time.perf_counter()
-    model = place(load_model(model_path), config.size, config.center_z,
-                  config.orientation(), (config.offset_x, config.offset_y))
+    pose = config.pose()
+    model = place(load_model(model_path), config.size, config.center_z, pose.rotation(),
+                  pose.offset)
     st = stipple(model, rng, count=count, spacing=config.spacing)
     check_points(st.points, setup)
     mesh = model.mesh

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.spinning import SpinReport, find_spin_glints, verify_spinning
 from specholo.toolpaths.spinning import (
@@ -41,6 +42,7 @@ class SpinConfig:
         center_z: depth of the box centre, mm (0 straddles the plate).
         stipples: number of stipples.
         seed: stippling seed.
+        pose: how the model is turned and moved onto the plate.
         occlusion: crop each groove to the plate angles where its point is not
             hidden by the model.
         turns: circuits of the view about the scene per plate turn. 1: the
@@ -59,6 +61,7 @@ class SpinConfig:
     seed: int = 0
     occlusion: bool = True
     turns: int = 1
+    pose: Pose = field(default_factory=Pose)
     setup: SpinSetup = field(default_factory=SpinSetup)
     tool: Tool = field(default_factory=Tool)
     machining: Machining = field(default_factory=Machining)
@@ -131,7 +134,8 @@ def design_spin(model_path: str | os.PathLike[str] | list[str | os.PathLike[str]
                             "several models need --turns equal to their number")
     if config.turns > 1:
         return _design_sliding(paths, config, rng)
-    model = place(load_model(paths[0]), config.size, config.center_z)
+    model = place(load_model(paths[0]), config.size, config.center_z,
+                  config.pose.rotation(), config.pose.offset)
     st = stipple(model, rng, count=config.stipples)
     setup = config.setup
     fitted = fit_grooves(st.points, setup)
@@ -158,7 +162,8 @@ def _design_sliding(paths: list[str | os.PathLike[str]], config: SpinConfig,
     if len(paths) not in (1, config.turns):
         raise SpecholoError(f"give one model, or one per turn of the view ({config.turns}); "
                             f"got {len(paths)}")
-    meshes = [place(load_model(p), config.size, config.center_z).mesh for p in paths]
+    meshes = [place(load_model(p), config.size, config.center_z, config.pose.rotation(),
+                    config.pose.offset).mesh for p in paths]
     tracks = slide_tracks(meshes, config.setup, config.turns, config.stipples, rng,
                           occlusion=config.occlusion)
     if not len(tracks):
@@ -389,6 +394,10 @@ def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:
     with settings_from(path):
         c = dict(table(meta["config"], "config"))
         st = dict(table(c.pop("setup"), "config.setup"))
+        pose = table(c.pop("pose", {}), "config.pose")  # none before poses
+        c["pose"] = Pose(str(pose.get("up", "y")),
+                         tuple(pose.get("rotate_deg", (0.0, 0.0, 0.0))),
+                         tuple(pose.get("offset", (0.0, 0.0))))
         st["elevation"] = math.radians(number(st.pop("elevation_deg"), "elevation_deg"))
         # Counts must be whole: the turns and samples size arrays.
         for values, keys in ((c, ("stipples", "seed", "turns")),

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.steady import SteadyReport, verify_steady
 from specholo.toolpaths.steady import SteadyDesign, SteadySetup, design_steady, tool_tips
@@ -32,6 +33,7 @@ class SteadyConfig:
         center_z: depth of the box centre, mm (negative: behind the plate).
         stipples: number of stipples (those hidden from either eye are dropped).
         seed: stippling seed.
+        pose: how the model is turned and moved onto the plate.
         shape: "scoop" (steady) or "flat" (plain grooves, for comparison).
         setup: the viewer and the light's range.
         tool: the ball-end cutter.
@@ -43,6 +45,7 @@ class SteadyConfig:
     stipples: int = 300
     seed: int = 0
     shape: str = "scoop"
+    pose: Pose = field(default_factory=Pose)
     setup: SteadySetup = field(default_factory=SteadySetup)
     tool: Tool = field(default_factory=lambda: Tool(0.05, 0.02))
     machining: Machining = field(default_factory=Machining)
@@ -71,7 +74,8 @@ def design_steady_job(model_path: str | os.PathLike[str], config: SteadyConfig,
     from specholo.scene.stippling import stipple
     from specholo.visibility.occlusion import visible
 
-    model = place(load_model(model_path), config.size, config.center_z)
+    model = place(load_model(model_path), config.size, config.center_z,
+                  config.pose.rotation(), config.pose.offset)
     rng = rng if rng is not None else np.random.default_rng(config.seed)
     st = stipple(model, rng, count=config.stipples)
     keep = np.ones(len(st.points), dtype=bool)
@@ -239,6 +243,10 @@ def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, St
     with settings_from(path):
         c = dict(table(meta["config"], "config"))
         st = dict(table(c.pop("setup"), "config.setup"))
+        pose = table(c.pop("pose", {}), "config.pose")  # none before poses
+        c["pose"] = Pose(str(pose.get("up", "y")),
+                         tuple(pose.get("rotate_deg", (0.0, 0.0, 0.0))),
+                         tuple(pose.get("offset", (0.0, 0.0))))
         st["elevation"] = math.radians(number(st.pop("elevation_deg"), "elevation_deg"))
         st["half_range"] = math.radians(number(st.pop("half_range_deg"), "half_range_deg"))
         for values, key in ((c, "stipples"), (c, "seed"), (st, "samples")):

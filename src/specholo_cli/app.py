@@ -249,3 +249,23 @@ def _stderr_console() -> Any:
     from rich.console import Console
 
     return Console(stderr=True)
+
+
+def _pose_options(fn: Any) -> Any:
+    """--up, --rotate-x/-y/-z and --offset-x/-y, as for ``design``."""
+    for name, kind, text in reversed([row for row in _DESIGN_OPTIONS if row[0] in _POSE]):
+        fn = click.option(f"--{name}", type=kind, default=None, help=text)(fn)
+    return fn
+
+
+#: The options that turn and move the model onto the plate.
+_POSE = ("up", "rotate-x", "rotate-y", "rotate-z", "offset-x", "offset-y")
+
+
+def _pose(up: str | None, rotate_x: float | None, rotate_y: float | None,
+          rotate_z: float | None, offset_x: float | None, offset_y: float | None) -> Any:
+    """The :class:`~specholo.scene.pose.Pose` those options ask for."""
+    from specholo.scene.pose import Pose
+
+    return Pose(up or "y", (rotate_x or 0.0, rotate_y or 0.0, rotate_z or 0.0),
+                (offset_x or 0.0, offset_y or 0.0))

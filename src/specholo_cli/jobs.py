@@ -12,6 +12,8 @@ from specholo.errors import SpecholoError
 from specholo_cli.app import (
     _check_out,
     _Folder,
+    _pose,
+    _pose_options,
     _print_summary,
     _print_verification,
     cli,
@@ -97,11 +99,12 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
               help="Step between verified plate angles, degrees.")
 @click.option("--frames", type=int, default=48, show_default=True,
               help="Frames of preview.gif over one turn (0 for none).")
+@_pose_options
 def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns: int | None,
          stipples: int, seed: int,
          view_distance: float, view_elevation: float, ipd: float, light_height: float | None,
          walls: str, no_occlusion: bool, tool_radius: float, depth: float, step: float,
-         frames: int) -> None:
+         frames: int, **pose: Any) -> None:
     """Design a hologram of MODEL for a plate turning about its normal (a turntable or
     wall spinner) under a light on the axis, then verify it over the turn.
 
@@ -124,6 +127,7 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
                       light_height=light_height, walls=walls)
     turns = len(model) if turns is None else turns
     config = SpinConfig(size=size, center_z=center_z, stipples=stipples, seed=seed,
+                        pose=_pose(**pose),
                         occlusion=not no_occlusion, turns=turns, setup=setup,
                         tool=Tool(tool_radius, depth))
     what = "closed grooves" if turns == 1 else "stipples sliding over the turning scene"
@@ -161,9 +165,10 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
 @click.option("--depth", type=float, default=0.02, show_default=True, help="Cut depth, mm.")
 @click.option("--step", type=float, default=1.0, show_default=True,
               help="Step between verified light elevations, degrees.")
+@_pose_options
 def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, seed: int,
            view_distance: float, ipd: float, light_elevation: float, light_range: float,
-           shape: str, tool_radius: float, depth: float, step: float) -> None:
+           shape: str, tool_radius: float, depth: float, step: float, **pose: Any) -> None:
     """Design a hologram of MODEL for a viewer standing still whose image stays put
     while the sun moves a little in elevation: for each stipple and eye, a scoop
     whose glint does not move with the light. Then verify it over the range."""
@@ -178,6 +183,7 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
                         elevation=math.radians(light_elevation),
                         half_range=math.radians(light_range))
     config = SteadyConfig(size=size, center_z=center_z, stipples=stipples, seed=seed,
+                          pose=_pose(**pose),
                           shape=shape, setup=setup, tool=Tool(tool_radius, depth))
     design = design_steady_job(model, config)
     s = write_steady(design, config, out, step, inputs=[model])

@@ -15,47 +15,12 @@ import trimesh
 
 from specholo.errors import SpecholoError
 from specholo.scene.loading import Model
+from specholo.scene.pose import UP_AXES as UP_AXES
+from specholo.scene.pose import Pose as Pose
+from specholo.scene.pose import orientation as orientation
 
 # Largest relative error of the placed model's size.
 _SIZE_TOLERANCE = 1e-9
-#: The model axis that points up on the plate, and the quarter turn (about the
-#: plate's x or z axis) that takes it there: rows are where the model's x, y, z go.
-UP_AXES: dict[str, tuple[tuple[int, int, int], ...]] = {
-    "y": ((1, 0, 0), (0, 1, 0), (0, 0, 1)),
-    "-y": ((1, 0, 0), (0, -1, 0), (0, 0, -1)),
-    "z": ((1, 0, 0), (0, 0, -1), (0, 1, 0)),
-    "-z": ((1, 0, 0), (0, 0, 1), (0, -1, 0)),
-    "x": ((0, 1, 0), (-1, 0, 0), (0, 0, 1)),
-    "-x": ((0, -1, 0), (1, 0, 0), (0, 0, 1)),
-}
-
-
-def orientation(up: str = "y", rotate: tuple[float, float, float] = (0.0, 0.0, 0.0)
-                ) -> np.ndarray:
-    """The rotation (3, 3) from model to plate axes: the model's ``up`` axis to the
-    plate's +y, then ``rotate`` radians about the plate's x, y and z axes in turn.
-    Applied to row vectors: ``plate = model @ R``.
-
-    Raises:
-        SpecholoError: an unknown axis or a rotation that is not finite.
-    """
-    if up not in UP_AXES:
-        raise SpecholoError(f"up must be one of {', '.join(UP_AXES)}, got {up!r}")
-    angles = [float(a) for a in rotate]
-    if len(angles) != 3 or not all(math.isfinite(a) for a in angles):
-        raise SpecholoError(f"rotations must be three finite angles, got {rotate!r}")
-    r = np.array(UP_AXES[up], dtype=float)
-    for axis, a in enumerate(angles):
-        if a == 0.0:
-            continue
-        c, s = math.cos(a), math.sin(a)
-        i, j = [(1, 2), (2, 0), (0, 1)][axis]
-        turn = np.eye(3)
-        turn[i, i], turn[i, j], turn[j, i], turn[j, j] = c, s, -s, c
-        r = r @ turn
-    return r
-
-
 def place(model: Model, size: float, center_z: float, rotation: np.ndarray | None = None,
           offset: tuple[float, float] = (0.0, 0.0)) -> Model:
     """Turn a model, scale it uniformly and centre it on the plate.

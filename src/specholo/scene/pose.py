@@ -1,0 +1,90 @@
+"""How a model is turned and moved onto the plate (no mesh library needed).
+
+Models are taken y-up, facing +z (toward the viewer). :data:`UP_AXES` names the
+quarter turn that brings another axis up; rotations about the plate's x, y and z
+axes follow (:func:`orientation`); :class:`Pose` holds them in the user's units
+with the offset on the plate, for :func:`specholo.scene.placement.place`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from specholo.errors import SpecholoError
+
+#: The model axis that points up on the plate, and the quarter turn (about the
+#: plate's x or z axis) that takes it there: rows are where the model's x, y, z go.
+UP_AXES: dict[str, tuple[tuple[int, int, int], ...]] = {
+    "y": ((1, 0, 0), (0, 1, 0), (0, 0, 1)),
+    "-y": ((1, 0, 0), (0, -1, 0), (0, 0, -1)),
+    "z": ((1, 0, 0), (0, 0, -1), (0, 1, 0)),
+    "-z": ((1, 0, 0), (0, 0, 1), (0, -1, 0)),
+    "x": ((0, 1, 0), (-1, 0, 0), (0, 0, 1)),
+    "-x": ((0, -1, 0), (1, 0, 0), (0, 0, 1)),
+}
+
+
+def orientation(up: str = "y", rotate: tuple[float, float, float] = (0.0, 0.0, 0.0)
+                ) -> np.ndarray:
+    """The rotation (3, 3) from model to plate axes: the model's ``up`` axis to the
+    plate's +y, then ``rotate`` radians about the plate's x, y and z axes in turn.
+    Applied to row vectors: ``plate = model @ R``.
+
+    Raises:
+        SpecholoError: an unknown axis or a rotation that is not finite.
+    """
+    if up not in UP_AXES:
+        raise SpecholoError(f"up must be one of {', '.join(UP_AXES)}, got {up!r}")
+    angles = [float(a) for a in rotate]
+    if len(angles) != 3 or not all(math.isfinite(a) for a in angles):
+        raise SpecholoError(f"rotations must be three finite angles, got {rotate!r}")
+    r = np.array(UP_AXES[up], dtype=float)
+    for axis, a in enumerate(angles):
+        if a == 0.0:
+            continue
+        c, s = math.cos(a), math.sin(a)
+        i, j = [(1, 2), (2, 0), (0, 1)][axis]
+        turn = np.eye(3)
+        turn[i, i], turn[i, j], turn[j, i], turn[j, j] = c, s, -s, c
+        r = r @ turn
+    return r
+
+
+@dataclass(frozen=True)
+class Pose:
+    """How a model is turned and moved onto the plate, in the user's units.
+
+    Attributes:
+        up: the model's axis that points up on the plate (see :data:`UP_AXES`).
+        rotate_deg: turns about the plate's x, y and z axes after that, degrees.
+        offset: the model's box centre on the plate (x, y), mm.
+    """
+
+    up: str = "y"
+    rotate_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    offset: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        try:
+            rot = tuple(float(a) for a in self.rotate_deg)
+            off = tuple(float(v) for v in self.offset)
+        except (TypeError, ValueError) as exc:
+            raise SpecholoError(f"placement angles and offset must be numbers: {exc}") from exc
+        if len(rot) != 3 or not all(math.isfinite(a) and abs(a) <= 360.0 for a in rot):
+            raise SpecholoError(f"rotations must be three angles in [-360, 360] degrees, "
+                                f"got {self.rotate_deg!r}")
+        if len(off) != 2 or not all(math.isfinite(v) and abs(v) <= 1e4 for v in off):
+            raise SpecholoError(f"offset must be two numbers of mm within +-10000, got "
+                                f"{self.offset!r}")
+        if self.up not in UP_AXES:
+            raise SpecholoError(f"up must be one of {', '.join(UP_AXES)}, got {self.up!r}")
+        object.__setattr__(self, "rotate_deg", rot)
+        object.__setattr__(self, "offset", off)
+
+    def rotation(self) -> np.ndarray:
+        """(3, 3) model-to-plate rotation (:func:`orientation`; degrees to radians here)."""
+        rx, ry, rz = (math.radians(a) for a in self.rotate_deg)
+        return orientation(self.up, (rx, ry, rz))
