@@ -296,3 +296,19 @@ def test_any_host_and_light_put_a_point_where_it_belongs(kind: str, radius: floa
         assert len(gl.stipple) >= 1 and len(gr.stipple) >= 1
         err, depth = stereo_errors(p, gl, gr, pos.eyes[0], pos.eyes[1], np.array([0]))
         assert err[0] < 2 * 0.2 and abs(depth[0]) < 0.1
+
+
+def test_a_scene_s_pose_turns_and_moves_it_on_the_plate(tmp_path: Path) -> None:
+    from specholo.compose import prepare_scenes
+
+    def points(extra: str) -> np.ndarray:
+        text = (f'stipples = 30\n[[scene]]\nmodel = "{BUNNY}"\nsize = 30\ncenter_z = -25\n'
+                + extra)
+        return prepare_scenes(parse_composition(text, tmp_path))[0].points
+
+    plain = points("")
+    # up z then a quarter turn about x is the identity; the offset moves every point
+    moved = points('up = "z"\nrotate_x = 90\noffset_x = 4\noffset_y = -3\n')
+    np.testing.assert_allclose(moved - plain - [4.0, -3.0, 0.0], 0.0, atol=1e-9)
+    with pytest.raises(SpecholoError, match="up must be one of"):
+        points('up = "w"\n')

@@ -33,6 +33,7 @@ from specholo.hosts.surfaces import (
     Sphere,
 )
 from specholo.scene.motion import MODES, Family, MotionSpec, Position, SceneKey, rot_z
+from specholo.scene.pose import UP_AXES, Pose
 from specholo.setup import Machining, Tool
 
 #: Keys each table of a composition may hold (anything else is refused).
@@ -45,7 +46,7 @@ _KEYS: dict[str, set[str]] = {
     "tool": {"radius", "depth"},
     "machining": {"feed", "plunge", "safe_z", "spindle", "axes"},
     "scene": {"model", "frames", "size", "center_z", "from", "to", "turn", "shift", "yaw",
-              "stipples"},
+              "stipples", "up", "rotate_x", "rotate_y", "rotate_z", "offset_x", "offset_y"},
 }
 
 
@@ -159,6 +160,7 @@ class SceneSpec:
     shift: tuple[float, float, float]
     stipples: int
     yaw: float = 0.0
+    pose: Pose = field(default_factory=Pose)
 
 
 @dataclass
@@ -368,6 +370,14 @@ def parse_composition(text: str, base: Path) -> Composition:
         turn = _num(s, "turn", 0.0, where, -100, 100)
         stipples = _int(s, "stipples", count, where, 1, 1_000_000)
         yaw = deg(_num(s, "yaw", 0.0, where, -360, 360))
+        up = s.get("up", "y")
+        if up not in UP_AXES:
+            raise SpecholoError(f"composition: {where}: up must be one of {', '.join(UP_AXES)}, "
+                                f"got {str(up)[:40]!r}")
+        rx, ry, rz = (_num(s, f"rotate_{a}", 0.0, where, -360, 360) for a in "xyz")
+        pose = Pose(up, (rx, ry, rz),
+                    (_num(s, "offset_x", 0.0, where, -1e4, 1e4),
+                     _num(s, "offset_y", 0.0, where, -1e4, 1e4)))
         # A numbered sequence shares the scene's interval out evenly, in name order.
         edges = np.linspace(first, last, len(files) + 1)
         for i, f in enumerate(files):
@@ -379,7 +389,7 @@ def parse_composition(text: str, base: Path) -> Composition:
                 start=start_r, stop=stop_r, turn=turn,
                 shift=(shift[0] * 180.0 / math.pi, shift[1] * 180.0 / math.pi,
                        shift[2] * 180.0 / math.pi),
-                stipples=stipples, yaw=yaw))
+                stipples=stipples, yaw=yaw, pose=pose))
     settings = {"text": text, "base": str(base)}
     return Composition(motion, host, tool, machining, axes, band, seed, scenes, settings)
 
@@ -411,11 +421,13 @@ def prepare_scenes(comp: Composition) -> list[ComposedScene]:
     rng = np.random.default_rng(comp.seed)
     out = []
     for s in comp.scenes:
-        model = place(load_model(s.model), s.size, s.center_z)
+        model = place(load_model(s.model), s.size, s.center_z, s.pose.rotation(), s.pose.offset)
         st = stipple(model, rng, count=s.stipples)
         origin = 0.5 * (max(s.start, comp.motion.driver()[0])
                         + min(s.stop, comp.motion.driver()[1]))
-        key = SceneKey(s.start, s.stop, s.turn, s.shift, (0.0, 0.0, s.center_z), origin, s.yaw)
+        # the scene turns about its own box centre, wherever it was moved
+        pivot = (*s.pose.offset, s.center_z)
+        key = SceneKey(s.start, s.stop, s.turn, s.shift, pivot, origin, s.yaw)
         out.append(ComposedScene(key, model.mesh, st.points, st.normals))
     return out
 
