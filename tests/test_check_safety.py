@@ -203,6 +203,51 @@ def test_each_jobs_own_programs_pass(programs: dict[str, Program], scratch: Path
             assert 0 < report.deepest <= p.limits.max_depth + p.limits.tolerance, name
 
 
+def test_each_flat_program_names_its_own_limits(programs: dict[str, Program],
+                                                scratch: Path) -> None:
+    """`specholo check FILE` with no options: a program on a flat plate carries the
+    limits its job checked it against in its header, read back to the same
+    limits (corners rounded outward by at most 0.1 um); curved hosts name none."""
+    from specholo.fabrication.check import limits_from_header
+
+    for name, p in programs.items():
+        path = scratch / "own.ngc"
+        path.write_text("\n".join(p.lines) + "\n")
+        own = limits_from_header(path)
+        if p.limits.surface is not None or p.limits.rotary:
+            assert own is None, name
+            continue
+        assert own is not None, name
+        a, b = own.stock, p.limits.stock
+        assert 0 <= b.x0 - a.x0 < 1e-4 and 0 <= a.x1 - b.x1 < 1e-4, name
+        assert 0 <= b.y0 - a.y0 < 1e-4 and 0 <= a.y1 - b.y1 < 1e-4, name
+        assert (own.tool, own.hop_max, own.groove_depth) == (
+            p.limits.tool, p.limits.hop_max, p.limits.groove_depth), name
+        assert own.max_depth == pytest.approx(p.limits.max_depth, abs=1e-4), name
+        assert check_limits(path, own).ok, name
+        # cut deeper than the header allows: refused by the header alone
+        i = p.cuts[len(p.cuts) // 2]
+        lines, _ = _deeper(p, i, 0.01)
+        path.write_text("\n".join(lines) + "\n")
+        assert not check_limits(path, own).ok, name
+
+
+def test_check_with_no_options_reads_the_header(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = _design(tmp_path, capsys)
+    assert code == 0, err
+    program = out / "hologram.gcode"
+    assert _run(["check", str(program)]) == 0
+    assert "against the limits in its header" in capsys.readouterr().out
+    # the same program without its check lines: one line naming the options
+    bare = tmp_path / "bare.ngc"
+    bare.write_text("".join(ln for ln in program.read_text().splitlines(keepends=True)
+                            if not ln.startswith("(check")))
+    assert _run(["check", str(bare)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "names no limits" in err[0]
+
+
 def _number(value: float) -> str:
     return f"{value:.6f}"
 

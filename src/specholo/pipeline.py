@@ -1092,7 +1092,9 @@ def write_design(d: Design, out: str | os.PathLike[str],
             path = tmp / "hologram.gcode"
             write_gcode(path, grooves, setup.tool, setup.machining,
                         header={"design": d.config.method, "stipples": str(len(d.points)),
-                                "cutter": d.config.cutter().describe()},
+                                "cutter": d.config.cutter().describe(),
+                                # the limits `specholo check FILE` checks it against, mm
+                                **design_limits(d).header()},
                         options=options, depth=d.config.depth_mm)
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()

@@ -255,7 +255,7 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
             stats = write_raster_gcode(
                 path, d.plate.heights, d.config.ball_radius, setup.machining,
                 header={"design": "ridged", "stipples": str(len(d.points)),
-                        "cutter": info["tool"]["description"]})
+                        "cutter": info["tool"]["description"], **ridged_limits(d).header()})
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = check_ridged_gcode(path, d)

@@ -311,10 +311,10 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
         header = {"design": "turning plate, closed grooves" if d.tracks is None else
                   f"turning plate, open grooves: the view circles the scene {cfg.turns} "
                   "times per turn", "walls": cfg.setup.walls}
+        limits = spin_limits(d.grooves, cfg.tool.depth, cfg.machining)
         gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
-                             header=header)
-        safety = check_program(tmp / "hologram.gcode",
-                               spin_limits(d.grooves, cfg.tool.depth, cfg.machining))
+                             header={**header, **limits.header()})
+        safety = check_program(tmp / "hologram.gcode", limits)
         meta: dict[str, Any] = {
             "design": "spinning", "config": cfg.as_dict(),
             "tilts_deg": [math.degrees(t) for t in d.tilts],
@@ -337,9 +337,10 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
             if relief.n_paths:
                 rhead = {"design": "relief cut: takes away each groove's other wall",
                          "tool": "V-bit, 30 deg included angle, tip on the groove's edge"}
+                rlimits = spin_limits(relief, depth, cfg.machining)
                 write_gcode(tmp / "relief.gcode", relief, cfg.tool, cfg.machining,
-                            header=rhead, depth=depth)
-                check_program(tmp / "relief.gcode", spin_limits(relief, depth, cfg.machining))
+                            header={**rhead, **rlimits.header()}, depth=depth)
+                check_program(tmp / "relief.gcode", rlimits)
             meta["relief"] = {"depth_mm": depth, "v_bit_included_deg": 30.0,
                               "other_wall_keeps_tilts_below_deg":
                                   math.degrees(d.relief_tilt)}

@@ -177,10 +177,12 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
         raise SpecholoError("no stipple can be given a scoop: nothing to cut")
     with publish(out, inputs) as tmp:
         tmp = Path(tmp)
+        limits = steady_limits(design, config)
         lines = write_path_gcode(tmp / "hologram.gcode", design, config.tool, config.machining,
                                  {"design": f"{design.shape}s, one per stipple and eye",
-                                  "tool": f"ball end, radius {config.tool.radius:g} mm"})
-        safety = check_program(tmp / "hologram.gcode", steady_limits(design, config))
+                                  "tool": f"ball end, radius {config.tool.radius:g} mm",
+                                  **limits.header()})
+        safety = check_program(tmp / "hologram.gcode", limits)
         with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
             np.savez_compressed(fh, points=design.points, centres=design.centres,
                                 offsets=design.offsets, stipple=design.stipple,

@@ -67,11 +67,12 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: s
 
 @cli.command()
 @click.argument("gcode", type=click.Path(path_type=Path))
-@click.option("--plate-width", type=float, required=True, help="Plate width, mm.")
-@click.option("--plate-height", type=float, required=True, help="Plate height, mm.")
+@click.option("--plate-width", type=float, default=None,
+              help="Plate width, mm [with no limits given: the program's own check lines].")
+@click.option("--plate-height", type=float, default=None, help="Plate height, mm.")
 @click.option("--stock-thickness", type=float, default=3.0, show_default=True,
               help="Plate thickness, mm.")
-@click.option("--max-depth", type=float, required=True,
+@click.option("--max-depth", type=float, default=None,
               help="Deepest cut allowed below the surface, mm (any tool).")
 @click.option("--safe-z", type=float, default=1.0, show_default=True,
               help="Lowest height for X/Y rapids, mm.")
@@ -91,8 +92,8 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: s
                    "grooves), mm; 0 allows none [not checked].")
 @click.option("--hop", type=float, default=0.0, show_default=True,
               help="Lowest height of those moves above the surface, mm.")
-def check(gcode: Path, plate_width: float, plate_height: float, stock_thickness: float,
-          max_depth: float, safe_z: float, feed: tuple[float, float],
+def check(gcode: Path, plate_width: float | None, plate_height: float | None,
+          stock_thickness: float, max_depth: float | None, safe_z: float, feed: tuple[float, float],
           spindle: tuple[float, float], tool: str | None, laser: bool,
           no_spindle: bool, hop_max: float | None, hop: float) -> None:
     """Check any G-code file (G20 programs are read in mm) against limits in mm.
@@ -108,7 +109,32 @@ def check(gcode: Path, plate_width: float, plate_height: float, stock_thickness:
     it spins. Unknown words, moves from unknown positions, arcs off their circle
     and moves after the program's end are reported. Exits with status 1 if
     anything is wrong."""
-    from specholo.fabrication.check import CUTTER_KINDS, Limits, Stock, check_limits
+    from specholo.fabrication.check import (
+        CUTTER_KINDS,
+        Limits,
+        Stock,
+        check_limits,
+        limits_from_header,
+    )
+
+    given = [v is not None for v in (plate_width, plate_height, max_depth)]
+    if not any(given):
+        # a specholo program names the limits it was checked against
+        if not gcode.is_file():
+            raise SpecholoError(f"G-code file {gcode} not found")
+        own = limits_from_header(gcode)
+        if own is None:
+            raise SpecholoError(f"{gcode} names no limits (no check lines in its header): give "
+                                "--plate-width, --plate-height and --max-depth")
+        report = check_limits(gcode, own)
+        click.echo(report.summary() + " (against the limits in its header)")
+        if not report.ok:
+            sys.exit(1)
+        return
+    if not all(given):
+        raise SpecholoError("give --plate-width, --plate-height and --max-depth together, or "
+                            "none to use the program's own check lines")
+    assert plate_width is not None and plate_height is not None and max_depth is not None
 
     aliases = {name for name, given in (("laser", laser), ("drag", no_spindle)) if given}
     if len(aliases) > 1 or (tool is not None and aliases

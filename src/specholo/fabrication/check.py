@@ -197,6 +197,37 @@ class Limits:
     def laser(self) -> bool:
         return self.tool == "laser"
 
+    def header(self) -> dict[str, str]:
+        """The limits as ``key=value`` header lines (``check``, ``check feeds``) that
+        ``specholo check FILE`` reads back (:func:`limits_from_header`); none for a
+        curved host or a rotary program, whose limits are not numbers alone. The
+        plate's corners are rounded outward and the depths down to 0.1 um, so the
+        program passes the limits as read back as it passes these."""
+        if self.surface is not None or self.rotary:
+            return {}
+        s = self.stock
+
+        def num(v: float, up: bool | None = None) -> str:
+            k = 1e4
+            v = float(v) * k
+            v = math.ceil(v) if up else math.floor(v) if up is False else round(v)
+            return f"{v / k:.4f}".rstrip("0").rstrip(".")
+
+        plate = [("x0", num(s.x0, False)), ("y0", num(s.y0, False)), ("x1", num(s.x1, True)),
+                 ("y1", num(s.y1, True)), ("thickness", num(s.thickness)),
+                 ("max_depth", num(self.max_depth, True)), ("safe_z", num(self.safe_z, False))]
+        if self.groove_depth is not None:
+            plate.append(("groove_depth", repr(float(self.groove_depth))))
+        rest = [("feed", f"{num(self.feed_range[0], False)},{num(self.feed_range[1], True)}"),
+                ("spindle", f"{num(self.spindle_range[0], False)},"
+                            f"{num(self.spindle_range[1], True)}"),
+                ("tool", self.tool), ("tolerance", repr(float(self.tolerance))),
+                ("hop", num(self.hop, False))]
+        if self.hop_max is not None:
+            rest.append(("hop_max", num(self.hop_max, True)))
+        return {HEADER_KEY: " ".join(f"{k}={v}" for k, v in plate),
+                f"{HEADER_KEY} feeds": " ".join(f"{k}={v}" for k, v in rest)}
+
 
 @dataclass(frozen=True)
 class Violation:
@@ -1006,3 +1037,46 @@ def check_program(path: str | os.PathLike[str], limits: Limits) -> CheckReport:
                             f"{v.line}: {v.what} [{v.text}]"
                             + (f" (and {more} more)" if more else ""))
     return report
+
+
+#: The header comment that holds a program's own limits (see :meth:`Limits.header`).
+HEADER_KEY = "check"
+#: Lines of a program's head searched for it.
+_HEADER_LINES = 60
+
+
+def limits_from_header(path: str | os.PathLike[str]) -> Limits | None:
+    """The limits a specholo program names in its header (``(check: ...)`` or
+    ``; check: ...``), or None when it names none.
+
+    Raises:
+        SpecholoError: the line is there but unreadable (a changed or damaged header).
+    """
+    from specholo.readback import open_regular
+
+    fd, _ = open_regular(path, "G-code file")
+    with os.fdopen(fd, "r", encoding="ascii", errors="replace") as fh:
+        head = [fh.readline() for _ in range(_HEADER_LINES)]
+    v: dict[str, str] = {}
+    for raw in head:
+        line = raw.strip()
+        text = line[1:-1] if line.startswith("(") and line.endswith(")") else \
+            line[1:].strip() if line.startswith(";") else ""
+        key, _, rest = text.partition(":")
+        if key.strip().split(" ")[0] == HEADER_KEY:
+            v.update(item.partition("=")[::2] for item in rest.split() if "=" in item)
+    if not v:
+        return None
+    try:
+        stock = Stock(float(v["x0"]), float(v["y0"]), float(v["x1"]), float(v["y1"]),
+                      float(v["thickness"]))
+        feed, spindle = (tuple(float(x) for x in v[k].split(",")) for k in ("feed", "spindle"))
+        return Limits(stock, float(v["max_depth"]), float(v["safe_z"]), (feed[0], feed[1]),
+                      (spindle[0], spindle[1]), v["tool"], tolerance=float(v["tolerance"]),
+                      hop=float(v["hop"]),
+                      hop_max=float(v["hop_max"]) if "hop_max" in v else None,
+                      groove_depth=float(v["groove_depth"]) if "groove_depth" in v else None)
+    except (KeyError, ValueError, IndexError) as exc:
+        raise SpecholoError(f"{os.fspath(path)}: its check lines are unreadable "
+                            f"({type(exc).__name__}: {exc}); give the limits as options"
+                            ) from exc
