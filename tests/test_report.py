@@ -35,6 +35,14 @@ def test_report_is_self_contained_and_matches_the_files(verified: Path):
         assert f"<td>{row['azimuth']:+.1f}°</td><td>{row['median_error']:.3f}</td>" in page
     assert f"{info['stats']['groove_length_mm'] / 1000:.2f} m" in page
     assert f"{info['stats']['paths']:,}" in page
+    # the machining time is the design's own estimate, as hologram.json holds it
+    from specholo.fabrication.timing import plain_duration
+
+    hours = info["machining"]["estimated_hours"]
+    assert f"<th>machining</th><td>about {plain_duration(3600 * hours)} at" in page
+    assert f"{info['stats']['hidden_stipples']:,} stipples (no groove)" in page
+    mean = info["expected"]["as_cut_stereo_visibility"]["mean"]
+    assert f"about {mean:.0%} of the stipples" in page
 
 
 def test_report_before_verification_says_so(tmp_path: Path):

@@ -38,15 +38,29 @@ def fabrication_figures(info: dict[str, Any]) -> list[tuple[str, str]]:
     (x0, y0), (x1, y1) = info["plate"]["groove_extent_mm"]
     length = float(stats["groove_length_mm"])
     paths = int(stats["paths"])
-    # Cutting at feed plus plunging each path at the plunge rate; rapids excluded.
-    minutes = length / settings["feed"] + paths * settings["depth"] / settings["plunge"]
     rows = [
         ("grooves (paths)", f"{paths:,}"),
         ("dimples", f"{int(stats['dots']):,}"),
         ("groove length", f"{length / 1000:.2f} m"),
         ("groove extent", f"{x1 - x0:.1f} × {y1 - y0:.1f} mm"),
-        ("cutting time, feeds only", f"{minutes / 60:.1f} h"),
     ]
+    mach = info.get("machining")
+    if isinstance(mach, dict) and "estimated_hours" in mach:
+        # the design's own estimate, as its summary and hologram.json give it
+        from specholo.fabrication.timing import describe_machining
+
+        rows.append(("machining", describe_machining(mach, settings["feed"])
+                     .removeprefix("machining: ")))
+    else:  # a folder written before the estimate was recorded: a floor
+        minutes = length / settings["feed"] + paths * settings["depth"] / settings["plunge"]
+        rows.append(("cutting time, feeds only", f"{minutes / 60:.1f} h"))
+    expected = (info.get("expected") or {}).get("as_cut_stereo_visibility")
+    if isinstance(expected, dict) and "mean" in expected:
+        rows.append(("in both eyes as cut", f"about {expected['mean']:.0%} of the stipples "
+                     f"(lowest {expected['lowest']:.0%})"))
+    if "hidden_stipples" in stats:
+        rows.append(("hidden from every view", f"{int(stats['hidden_stipples']):,} stipples "
+                     "(no groove)"))
     plate = info["plate"].get("plate_mm")
     if plate:
         (px0, py0), (px1, py1) = plate
