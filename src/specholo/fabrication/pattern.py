@@ -37,6 +37,7 @@ import numpy as np
 from matplotlib import patheffects, rc_context
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties
 from matplotlib.patches import PathPatch, Rectangle
@@ -83,8 +84,95 @@ _TABLE_LINE = 1.4  # table line spacing, in font sizes
 _TARGET_MM = 5.0  # diameter of a registration target
 
 
+class Tiling:
+    """The pages a pattern is tiled over, shared by the patterns' plans.
+
+    A plan has ``paper``, ``page``, ``frame``, ``overlap``, ``origin``,
+    ``columns``, ``rows`` and ``sheets`` (see :class:`PatternPlan`) and says how
+    many ``tiles`` one sheet has.
+    """
+
+    paper: str
+    page: np.ndarray
+    frame: np.ndarray
+    overlap: float
+    origin: np.ndarray
+    columns: int
+    rows: int
+    sheets: int
+
+    @property
+    def tiles(self) -> int:
+        """Number of tiles (pages) of one sheet; 0 when there is nothing to draw."""
+        raise NotImplementedError
+
+    @property
+    def tile_pages(self) -> int:
+        """Number of pattern pages, all sheets."""
+        return self.tiles * self.sheets
+
+    @property
+    def step(self) -> np.ndarray:
+        """(2,) distance between neighbouring tiles across and down, mm."""
+        return self.frame - self.overlap
+
+    def tile_box(self, column: int, row: int) -> np.ndarray:
+        """(2, 2) lower-left and upper-right plate corners of a tile, mm."""
+        x0 = self.origin[0] + column * self.step[0]
+        y1 = self.origin[1] - row * self.step[1]
+        return np.array([[x0, y1 - self.frame[1]], [x0 + self.frame[0], y1]])
+
+    def tile_of(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Column and row (k,) of the tile whose own part (left of and above the
+        next tiles' overlap) holds each point (k, 2)."""
+        col = np.floor((points[:, 0] - self.origin[0]) / self.step[0])
+        row = np.floor((self.origin[1] - points[:, 1]) / self.step[1])
+        return (np.clip(col, 0, self.columns - 1).astype(np.int64),
+                np.clip(row, 0, self.rows - 1).astype(np.int64))
+
+    def tile_page(self, sheet: int, column: int, row: int) -> int:
+        """Page number (from 1) of a tile of a sheet."""
+        return 2 + sheet * self.tiles + row * self.columns + column
+
+    def page_name(self, sheet: int, column: int, row: int) -> str:
+        """How the pages call a tile: its name, after its sheet's number if there
+        are several, e.g. ``B3`` or ``2:B3``."""
+        name = tile_name(column, row)
+        return f"{sheet + 1}:{name}" if self.sheets > 1 else name
+
+
+def tiling(lo: np.ndarray, hi: np.ndarray, page: np.ndarray,
+           overlap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The fewest tiles that cover a drawing, centred on it.
+
+    Args:
+        lo, hi: (2,) lower-left and upper-right plate corners of the drawing, mm.
+        page: (2,) paper width and height, mm.
+        overlap: width of the strip neighbouring tiles share, mm.
+
+    Returns:
+        The tile frame (2,), the plate point at the top-left corner of tile A1
+        (2,), and the tiles across and down (2,).
+    """
+    frame = page - np.array([2 * _SIDE, _TOP + _BOTTOM])
+    step = frame - overlap
+    count = 1 + np.ceil(np.maximum(hi - lo - frame, 0.0) / step).astype(np.int64)
+    covered = frame + (count - 1) * step
+    mid = 0.5 * (lo + hi)
+    origin = np.array([mid[0] - 0.5 * covered[0], mid[1] + 0.5 * covered[1]])
+    return frame, origin, count
+
+
+def check_overlap(overlap: float) -> float:
+    """The page overlap as a float, refused outside 5 to 50 mm."""
+    overlap = float(overlap)
+    if not 5.0 <= overlap <= 50.0:  # also refuses NaN
+        raise SpecholoError(f"page overlap must be in [5, 50] mm, got {overlap}")
+    return overlap
+
+
 @dataclass(frozen=True)
-class PatternPlan:
+class PatternPlan(Tiling):
     """What a scratch pattern shows and where, before anything is drawn.
 
     Attributes:
@@ -147,11 +235,6 @@ class PatternPlan:
         return self.columns * self.rows if len(self.centre) or len(self.dots) else 0
 
     @property
-    def tile_pages(self) -> int:
-        """Number of pattern pages, all sheets."""
-        return self.tiles * self.sheets
-
-    @property
     def table_pages(self) -> int:
         """Number of radius-table pages (0 unless numbered)."""
         per_page = self.table_rows * self.table_columns
@@ -161,35 +244,6 @@ class PatternPlan:
     def pages(self) -> int:
         """Total pages: instructions, tiles of every sheet, radius table."""
         return 1 + self.tile_pages + self.table_pages
-
-    @property
-    def step(self) -> np.ndarray:
-        """(2,) distance between neighbouring tiles across and down, mm."""
-        return self.frame - self.overlap
-
-    def tile_box(self, column: int, row: int) -> np.ndarray:
-        """(2, 2) lower-left and upper-right plate corners of a tile, mm."""
-        x0 = self.origin[0] + column * self.step[0]
-        y1 = self.origin[1] - row * self.step[1]
-        return np.array([[x0, y1 - self.frame[1]], [x0 + self.frame[0], y1]])
-
-    def tile_of(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Column and row (k,) of the tile whose own part (left of and above the
-        next tiles' overlap) holds each point (k, 2)."""
-        col = np.floor((points[:, 0] - self.origin[0]) / self.step[0])
-        row = np.floor((self.origin[1] - points[:, 1]) / self.step[1])
-        return (np.clip(col, 0, self.columns - 1).astype(np.int64),
-                np.clip(row, 0, self.rows - 1).astype(np.int64))
-
-    def tile_page(self, sheet: int, column: int, row: int) -> int:
-        """Page number (from 1) of a tile of a sheet."""
-        return 2 + sheet * self.tiles + row * self.columns + column
-
-    def page_name(self, sheet: int, column: int, row: int) -> str:
-        """How the pages call a tile: its name, after its sheet's number if there
-        are several, e.g. ``B3`` or ``2:B3``."""
-        name = tile_name(column, row)
-        return f"{sheet + 1}:{name}" if self.sheets > 1 else name
 
 
 def tile_name(column: int, row: int) -> str:
@@ -277,17 +331,22 @@ class _Boxes:
 
 
 def _place_labels(centre: np.ndarray, size: np.ndarray, dots: np.ndarray,
-                  rings: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  rings: tuple[float, ...],
+                  directions: tuple[tuple[int, int], ...] = _DIRECTIONS,
+                  obstacles: np.ndarray | None = None,
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Greedy label placement around the crosses, nearest free place first.
 
-    A label may not cover a dot, another label, or come within ``_CROSS_CLEAR``
-    of another arc's cross.
+    A label may not cover a dot, an obstacle, another label, or come within
+    ``_CROSS_CLEAR`` of another arc's cross.
 
     Args:
-        centre: (k, 2) crosses, mm.
+        centre: (k, 2) crosses (or other anchors), mm.
         size: (k, 2) label box sizes, mm.
         dots: (d, 2) dots, mm.
         rings: extra distances from the cross to try, mm, nearest first.
+        directions: places around the cross to try, in order, as (x, y) signs.
+        obstacles: (o, 4) boxes no label may cover (x0, y0, x1, y1), mm.
 
     Returns:
         Label centres (k, 2) (where the first place tried for those that found
@@ -302,6 +361,8 @@ def _place_labels(centre: np.ndarray, size: np.ndarray, dots: np.ndarray,
     half = 0.5 * _DOT_MM + 0.3
     for x, y in dots.tolist():
         boxes.add((x - half, y - half, x + half, y + half))
+    for x0, y0, x1, y1 in (obstacles if obstacles is not None else np.zeros((0, 4))).tolist():
+        boxes.add((x0, y0, x1, y1))
     pos = np.zeros((k, 2))
     ok = np.zeros(k, dtype=bool)
     ring = np.zeros(k, dtype=np.int64)
@@ -316,7 +377,7 @@ def _place_labels(centre: np.ndarray, size: np.ndarray, dots: np.ndarray,
         hw, hh = 0.5 * size[i]
         for r_index, extra in enumerate(rings):
             d = _LABEL_GAP + extra
-            for sx, sy in _DIRECTIONS:
+            for sx, sy in directions:
                 f = 0.7 if sx and sy else 1.0  # diagonal places sit on a circle of radius d
                 x = cx + sx * (f * d + hw)
                 y = cy + sy * (f * d + hh)
@@ -350,9 +411,7 @@ def plan_pattern(grooves: Grooves, paper: str = "a4", overlap: float = 10.0) -> 
             paper or overlap is not allowed.
     """
     key, page = _paper(paper)
-    overlap = float(overlap)
-    if not 5.0 <= overlap <= 50.0:  # also refuses NaN
-        raise SpecholoError(f"page overlap must be in [5, 50] mm, got {overlap}")
+    overlap = check_overlap(overlap)
     segs, dots = _arcs(grooves)
     centre, radius, start, sweep = segs.geometry()
     k = len(radius)
@@ -388,35 +447,31 @@ def plan_pattern(grooves: Grooves, paper: str = "a4", overlap: float = 10.0) -> 
         parts.append(arc_bounds(segs))
     pts = np.concatenate(parts)
     lo, hi = pts.min(axis=0) - 2.0, pts.max(axis=0) + 2.0
-    frame = page - np.array([2 * _SIDE, _TOP + _BOTTOM])
-    step = frame - overlap
-    count = 1 + np.ceil(np.maximum(hi - lo - frame, 0.0) / step).astype(np.int64)
-    covered = frame + (count - 1) * step
-    mid = 0.5 * (lo + hi)
-    origin = np.array([mid[0] - 0.5 * covered[0], mid[1] + 0.5 * covered[1]])
-
-    # the table: lines per column and columns per page
-    line = _TABLE_LINE * _TEXT_PT / PT_PER_MM
-    table_rows = max(1, int((frame[1] - 12.0) // line) - 1)
-    mono = _char_widths(_MONO, _TEXT_PT, "0")["0"]
-    table_columns = max(1, int((frame[0] + 8.0) // (len(_table_line(0, "", "")) * mono
-                                                     + 8.0)))
+    frame, origin, count = tiling(lo, hi, page, overlap)
+    table_rows, table_columns = _table_size(frame, len(_table_line(0, "", "")))
 
     plan = PatternPlan(key, page, frame, overlap, origin, int(count[0]), int(count[1]),
                        centre, radius, start, sweep, segs.path.copy(), dots, sheet, sheets,
                        np.zeros(k, dtype=np.int64), numbered, text, label, size,
                        ring > 0, int(np.sum(~ok)), table_rows, table_columns)
-    # number in reading order: sheet, page, then bands down the page, across each band
-    col, row = plan.tile_of(centre)
-    top = origin[1] - row * step[1]
-    band = np.floor((top - centre[:, 1]) / _BAND_MM).astype(np.int64)
-    across = np.where(band % 2 == 0, centre[:, 0], -centre[:, 0])  # boustrophedon
-    order = np.lexsort((across, band, col, row, sheet))
-    number = np.empty(k, dtype=np.int64)
-    number[order] = np.arange(1, k + 1)
+    number = reading_numbers(plan, centre, sheet)
     if numbered:
         text = np.array([f"#{n}" for n in number.tolist()], dtype=object)
     return replace(plan, number=number, text=text)
+
+
+def reading_numbers(plan: Tiling, points: np.ndarray, sheet: np.ndarray) -> np.ndarray:
+    """Numbers from 1 (k,) for points (k, 2) on sheets (k,), in reading order:
+    sheet, page, then bands down the page, across each band (boustrophedon, so
+    neighbours have neighbouring numbers)."""
+    col, row = plan.tile_of(points)
+    top = plan.origin[1] - row * plan.step[1]
+    band = np.floor((top - points[:, 1]) / _BAND_MM).astype(np.int64)
+    across = np.where(band % 2 == 0, points[:, 0], -points[:, 0])
+    order = np.lexsort((across, band, col, row, sheet))
+    number = np.empty(len(points), dtype=np.int64)
+    number[order] = np.arange(1, len(points) + 1)
+    return number
 
 
 def arc_path(centre: np.ndarray, radius: np.ndarray, start: np.ndarray,
@@ -466,7 +521,7 @@ def _segments_path(a: np.ndarray, b: np.ndarray) -> Path:
     return Path(verts, codes)
 
 
-def _page(plan: PatternPlan) -> tuple[Figure, Axes]:
+def _page(plan: Tiling) -> tuple[Figure, Axes]:
     """A blank page and its paper axes (mm from the lower-left corner)."""
     w, h = plan.page
     fig = Figure(figsize=(w / 25.4, h / 25.4), dpi=72)
@@ -502,21 +557,8 @@ def _scale_bars(ax: Axes) -> None:
             ha="right", va="center")
 
 
-def _instructions(plan: PatternPlan, arcs: Path) -> Figure:
-    fig, ax = _page(plan)
-    w, h = plan.page
-    k, d = len(plan.radius), len(plan.dots)
-    x = _SIDE
-    y = h - _TOP - 4.0
-    ax.text(x, y, f"Scratch pattern: {k} arc{'s' * (k != 1)}"
-            + (f", {d} dimple{'s' * (d != 1)}" if d else ""), fontsize=15, weight="bold",
-            gid="title")
-    pages = (f"{plan.pages} pages: this one, {plan.tile_pages} pattern page"
-             f"{'s' * (plan.tile_pages != 1)} ({plan.columns} across \u00d7 {plan.rows} down"
-             + (f", {plan.sheets} sheets" if plan.sheets > 1 else "") + ")")
-    if plan.table_pages:
-        pages += f" and {plan.table_pages} page{'s' * (plan.table_pages != 1)} of radii"
-    ax.text(x, y - 7.0, f"{pages}; paper {plan.paper.upper()}, portrait.", fontsize=9)
+def _print_steps(plan: Tiling) -> list[str]:
+    """The first steps of every pattern: print it true to scale, join its pages."""
     steps = [
         "Print at 100 % (\u201cactual size\u201d; no \u201cfit to page\u201d). Every page has "
         "two 50 mm scale bars, across and down: measure both with a ruler. If either is "
@@ -527,6 +569,80 @@ def _instructions(plan: PatternPlan, arcs: Path) -> Figure:
             "Join the pages as in the map below (A1 at the top left). Trim each page along "
             "its frame on the sides marked \u201ccut\u201d, lay it over the grey overlap strip "
             "of its neighbour so the round targets coincide, and tape.")
+    return steps
+
+
+def _sheets_step(plan: Tiling, what: str, verb: str) -> str:
+    """The step that says how to lay the sheets of a pattern one after another."""
+    return (f"The {what} are spread over {plan.sheets} sheets so that every number stays "
+            "legible; each sheet is a full set of pages (page titles start with the sheet "
+            f"number). {verb} one sheet, then put the next exactly where it was: hinge the "
+            "sheets with tape along the same edge, or line up their diamonds and targets "
+            "with marks made on the plate.")
+
+
+def _pages_line(plan: Tiling, pages: int, table_pages: int, table: str) -> str:
+    """The line under an instruction page's title that says what the pages are."""
+    line = (f"{pages} pages: this one, {plan.tile_pages} pattern page"
+            f"{'s' * (plan.tile_pages != 1)} ({plan.columns} across \u00d7 {plan.rows} down"
+            + (f", {plan.sheets} sheets" if plan.sheets > 1 else "") + ")")
+    if table_pages:
+        line += f" and {table_pages} page{'s' * (table_pages != 1)} of {table}"
+    return f"{line}; paper {plan.paper.upper()}, portrait."
+
+
+def _instruction_page(plan: Tiling, title: str, pages: str, steps: list[str], facts: str,
+                      drawing: Path, dots: np.ndarray) -> Figure:
+    """The first page: title, numbered steps, facts, and a map of the pages over
+    a small drawing of the whole pattern (not to scale)."""
+    fig, ax = _page(plan)
+    w, h = plan.page
+    x = _SIDE
+    y = h - _TOP - 4.0
+    ax.text(x, y, title, fontsize=15, weight="bold", gid="title")
+    ax.text(x, y - 7.0, pages, fontsize=9)
+    y -= 16.0
+    for i, step in enumerate(steps, start=1):
+        body = textwrap.fill(step, 100)
+        ax.text(x, y, f"{i}.", fontsize=9, va="top")
+        ax.text(x + 5.0, y, body, fontsize=9, va="top", linespacing=1.4)
+        y -= 5.2 * (body.count("\n") + 1) + 2.0
+    if facts:
+        body = textwrap.fill(facts, 105)
+        ax.text(x, y, body, fontsize=9, va="top", linespacing=1.4)
+        y -= 5.2 * (body.count("\n") + 1) + 3.0
+
+    if plan.tiles:
+        box = np.array([x, _BOTTOM + 2.0, w - 2 * _SIDE, y - _BOTTOM - 6.0])
+        total = plan.frame + (np.array([plan.columns, plan.rows]) - 1) * plan.step
+        scale = min(box[2] / total[0], box[3] / total[1])
+        size = total * scale
+        left = box[0] + 0.5 * (box[2] - size[0])
+        bottom = box[1] + 0.5 * (box[3] - size[1])
+        m = fig.add_axes((left / w, bottom / h, size[0] / w, size[1] / h), label="map")
+        m.set_xlim(plan.origin[0], plan.origin[0] + total[0])
+        m.set_ylim(plan.origin[1] - total[1], plan.origin[1])
+        m.set_axis_off()
+        m.add_patch(PathPatch(drawing, fill=False, lw=0.4, color="0.4"))
+        if len(dots):
+            m.plot(dots[:, 0], dots[:, 1], ".", color="0.4", ms=1.5)
+        for row in range(plan.rows):
+            for col in range(plan.columns):
+                (x0, y0), (x1, y1) = plan.tile_box(col, row)
+                m.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, lw=0.6,
+                                      color="tab:blue"))
+                m.text(x0 + 3.0 / scale, y1 - 3.0 / scale, tile_name(col, row), fontsize=8,
+                       color="tab:blue", ha="left", va="top")
+        m.plot([0.0], [0.0], "D", color="black", ms=3)
+    _scale_bars(ax)
+    return fig
+
+
+def _instructions(plan: PatternPlan, arcs: Path) -> Figure:
+    k, d = len(plan.radius), len(plan.dots)
+    title = (f"Scratch pattern: {k} arc{'s' * (k != 1)}"
+             + (f", {d} dimple{'s' * (d != 1)}" if d else ""))
+    steps = _print_steps(plan)
     steps.append(
         "Fix the pattern to the plate with \u201cplate top\u201d up (towards the light): under "
         "a clear plate, or on an opaque one (then prick each cross and arc end through the "
@@ -542,54 +658,19 @@ def _instructions(plan: PatternPlan, arcs: Path) -> Figure:
             "For each cross: set the compass (dividers) to the radius written beside it (mm), "
             "put its point on the cross and scratch the drawn arc from end tick to end tick.")
     if plan.sheets > 1:
-        steps.append(
-            f"The arcs are spread over {plan.sheets} sheets so that every number stays "
-            "legible; each sheet is a full set of pages (page titles start with the sheet "
-            "number). Scratch one sheet, then put the next exactly where it was: hinge the "
-            "sheets with tape along the same edge, or line up their diamonds and targets "
-            "with marks made on the plate.")
+        steps.append(_sheets_step(plan, "arcs", "Scratch"))
     if d:
         steps.append("At each dot, press a small dimple with the compass point"
                      + (" (dots are on sheet 1)." if plan.sheets > 1 else "."))
-    y -= 16.0
-    for i, step in enumerate(steps, start=1):
-        body = textwrap.fill(step, 100)
-        ax.text(x, y, f"{i}.", fontsize=9, va="top")
-        ax.text(x + 5.0, y, body, fontsize=9, va="top", linespacing=1.4)
-        y -= 5.2 * (body.count("\n") + 1) + 2.0
+    facts = ""
     if k:
         facts = (f"Radii {format_number(plan.radius.min(), 1)} to "
                  f"{format_number(plan.radius.max(), 1)} mm.")
         if plan.crowded:
             facts += f" {plan.crowded} numbers found no free place and overlap others."
-        ax.text(x, y, facts, fontsize=9, va="top")
-        y -= 8.0
-
-    if plan.tiles:
-        # the map of the pages, not to scale
-        box = np.array([x, _BOTTOM + 2.0, w - 2 * _SIDE, y - _BOTTOM - 6.0])
-        total = plan.frame + (np.array([plan.columns, plan.rows]) - 1) * plan.step
-        scale = min(box[2] / total[0], box[3] / total[1])
-        size = total * scale
-        left = box[0] + 0.5 * (box[2] - size[0])
-        bottom = box[1] + 0.5 * (box[3] - size[1])
-        m = fig.add_axes((left / w, bottom / h, size[0] / w, size[1] / h), label="map")
-        m.set_xlim(plan.origin[0], plan.origin[0] + total[0])
-        m.set_ylim(plan.origin[1] - total[1], plan.origin[1])
-        m.set_axis_off()
-        m.add_patch(PathPatch(arcs, fill=False, lw=0.4, color="0.4"))
-        if d:
-            m.plot(plan.dots[:, 0], plan.dots[:, 1], ".", color="0.4", ms=1.5)
-        for row in range(plan.rows):
-            for col in range(plan.columns):
-                (x0, y0), (x1, y1) = plan.tile_box(col, row)
-                m.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, lw=0.6,
-                                      color="tab:blue"))
-                m.text(x0 + 3.0 / scale, y1 - 3.0 / scale, tile_name(col, row), fontsize=8,
-                       color="tab:blue", ha="left", va="top")
-        m.plot([0.0], [0.0], "D", color="black", ms=3)
-    _scale_bars(ax)
-    return fig
+    return _instruction_page(plan, title, _pages_line(plan, plan.pages, plan.table_pages,
+                                                      "radii"),
+                             steps, facts, arcs, plan.dots)
 
 
 def _crop_marks(ax: Axes, x0: float, y0: float, x1: float, y1: float) -> None:
@@ -603,7 +684,7 @@ def _crop_marks(ax: Axes, x0: float, y0: float, x1: float, y1: float) -> None:
                            lw=0.4, gid="crop marks"))
 
 
-def _targets(plan: PatternPlan) -> np.ndarray:
+def _targets(plan: Tiling) -> np.ndarray:
     """Registration targets (t, 2), mm: in the middle of each overlap strip, a
     quarter and three quarters along it, so they show on both pages."""
     pts = []
@@ -623,7 +704,10 @@ def _inside(points: np.ndarray, box: np.ndarray, pad: float = 0.0) -> np.ndarray
     return np.all((points >= box[0] - pad) & (points <= box[1] + pad), axis=1)
 
 
-def _tile(plan: PatternPlan, sheet: int, col: int, row: int, targets: np.ndarray) -> Figure:
+def _tile_axes(plan: Tiling, col: int, row: int,
+               targets: np.ndarray) -> tuple[Figure, Axes, Axes, np.ndarray]:
+    """A tile's page: its paper axes, its tile axes in plate mm (1:1) with the
+    grey overlap strips and the registration targets, and its plate box (2, 2)."""
     fig, paper = _page(plan)
     w, h = plan.page
     fw, fh = plan.frame
@@ -644,7 +728,77 @@ def _tile(plan: PatternPlan, sheet: int, col: int, row: int, targets: np.ndarray
         ax.plot(t[:, 0], t[:, 1], "o", ms=_TARGET_MM * PT_PER_MM, mfc="none", mec="0.3",
                 mew=0.5, gid="targets")
         ax.plot(t[:, 0], t[:, 1], "+", ms=1.6 * _TARGET_MM * PT_PER_MM, mec="0.3", mew=0.5)
+    return fig, paper, ax, box
 
+
+def _plate_centre(ax: Axes) -> None:
+    ax.plot([0.0], [0.0], "D", ms=2.0 * PT_PER_MM, mfc="none", mec="black", mew=0.6,
+            gid="plate centre")
+
+
+def _draw_labels(ax: Axes, box: np.ndarray, shown: np.ndarray, anchor: np.ndarray,
+                 label: np.ndarray, size: np.ndarray, text: np.ndarray, leader: np.ndarray,
+                 colour: list[str], gap: float) -> None:
+    """The labels among ``shown`` that reach the tile, each with a leader line
+    from ``gap`` mm off its anchor where it was placed further away."""
+    shown = shown[np.all((label[shown] + 0.5 * size[shown] > box[0])
+                         & (label[shown] - 0.5 * size[shown] < box[1]), axis=1)]
+    lead = shown[leader[shown]]
+    if len(lead):
+        # from the anchor to the nearest point of the label's box
+        tip = np.clip(anchor[lead], label[lead] - 0.5 * size[lead],
+                      label[lead] + 0.5 * size[lead])
+        v = tip - anchor[lead]
+        unit = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-9)
+        ax.add_collection(LineCollection(
+            list(np.stack([anchor[lead] + gap * unit, tip], axis=1)),
+            colors=[colour[i] for i in lead.tolist()], lw=0.3, gid="leaders"))
+    halo = [patheffects.withStroke(linewidth=1.5, foreground="white")]
+    em = _LABEL_PT / PT_PER_MM
+    for i in shown.tolist():
+        # the digits' middle on the box's middle
+        ax.text(label[i, 0], label[i, 1] - 0.365 * em, text[i], fontsize=_LABEL_PT,
+                ha="center", va="baseline", color=colour[i], path_effects=halo, clip_on=True,
+                gid=f"label {i}")
+
+
+def _tile_margins(plan: Tiling, paper: Axes, sheet: int, col: int, row: int,
+                  pages: int) -> None:
+    """The paper around a tile: frame, crop marks, title, how the pages join,
+    scale bars."""
+    w, h = plan.page
+    fw, fh = plan.frame
+    (x0, y0), (x1, y1) = plan.tile_box(col, row)
+    fx0, fy0, fx1, fy1 = _SIDE, _BOTTOM, _SIDE + fw, _BOTTOM + fh
+    paper.add_patch(Rectangle((fx0, fy0), fw, fh, fill=False, lw=0.4, gid="frame"))
+    _crop_marks(paper, fx0, fy0, fx1, fy1)
+    title = (f"{tile_name(col, row)}  (column {col + 1} of {plan.columns}, row {row + 1} of "
+             f"{plan.rows})")
+    if plan.sheets > 1:
+        title = f"Sheet {sheet + 1} of {plan.sheets}: " + title
+    paper.text(fx0, h - 6.0, title, fontsize=10, weight="bold", va="center")
+    paper.text(fx1, h - 6.0, f"\u2191 plate top     page {plan.tile_page(sheet, col, row)} of "
+               f"{pages}", fontsize=8, ha="right", va="center")
+    paper.text(fx0 + 2.0, fy1 + 1.0, f"plate x {x0:.1f} to {x1:.1f} mm, y {y0:.1f} to {y1:.1f} mm",
+               fontsize=6, color="0.4", va="bottom")
+    # how the pages join, in the margins beside the edges concerned
+    if col > 0:
+        paper.text(fx0 - 1.5, 0.5 * (fy0 + fy1), f"cut \u2014 lay over {tile_name(col - 1, row)}",
+                   rotation=90, fontsize=6, ha="right", va="center")
+    if row > 0:
+        paper.text(0.5 * (fx0 + fx1), fy1 + 1.0, f"cut \u2014 lay over {tile_name(col, row - 1)}",
+                   fontsize=6, ha="center", va="bottom")
+    if col + 1 < plan.columns:
+        paper.text(fx1 + 1.5, 0.5 * (fy0 + fy1), f"grey strip: {tile_name(col + 1, row)} lies "
+                   "over it", rotation=90, fontsize=6, ha="left", va="center")
+    if row + 1 < plan.rows:
+        paper.text(0.5 * (fx0 + fx1), fy0 - 1.5, f"grey strip: {tile_name(col, row + 1)} lies "
+                   "over it", fontsize=6, ha="center", va="top")
+    _scale_bars(paper)
+
+
+def _tile(plan: PatternPlan, sheet: int, col: int, row: int, targets: np.ndarray) -> Figure:
+    fig, paper, ax, box = _tile_axes(plan, col, row, targets)
     # this sheet's arcs that may show on this tile (their circles reach it)
     c, r = plan.centre, plan.radius
     near = np.all((c + r[:, None] >= box[0]) & (c - r[:, None] <= box[1]), axis=1)
@@ -665,80 +819,23 @@ def _tile(plan: PatternPlan, sheet: int, col: int, row: int, targets: np.ndarray
     if len(plan.dots) and sheet == 0:
         ax.plot(plan.dots[:, 0], plan.dots[:, 1], "o", ms=_DOT_MM * PT_PER_MM, mfc="black",
                 mec="none", gid="dots")
-    ax.plot([0.0], [0.0], "D", ms=2.0 * PT_PER_MM, mfc="none", mec="black", mew=0.6,
-            gid="plate centre")
-
-    lab, size = plan.label, plan.label_size
-    shown = mine[np.all((lab[mine] + 0.5 * size[mine] > box[0])
-                        & (lab[mine] - 0.5 * size[mine] < box[1]), axis=1)]
-    lead = shown[plan.leader[shown]]
-    if len(lead):
-        # from the cross's arm to the nearest point of the label's box
-        tip = np.clip(c[lead], lab[lead] - 0.5 * size[lead], lab[lead] + 0.5 * size[lead])
-        v = tip - c[lead]
-        unit = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-9)
-        ax.add_patch(PathPatch(_segments_path(c[lead] + 0.6 * _CROSS_MM * unit, tip),
-                               fill=False, lw=0.3, color="tab:red", gid="leaders"))
-    halo = [patheffects.withStroke(linewidth=1.5, foreground="white")]
-    em = _LABEL_PT / PT_PER_MM
-    for i in shown.tolist():
-        # the digits' middle on the box's middle
-        ax.text(lab[i, 0], lab[i, 1] - 0.365 * em, plan.text[i], fontsize=_LABEL_PT,
-                ha="center", va="baseline", color="tab:red", path_effects=halo, clip_on=True,
-                gid=f"label {i}")
-
-    # the paper around the frame
-    fx0, fy0, fx1, fy1 = _SIDE, _BOTTOM, _SIDE + fw, _BOTTOM + fh
-    paper.add_patch(Rectangle((fx0, fy0), fw, fh, fill=False, lw=0.4, gid="frame"))
-    _crop_marks(paper, fx0, fy0, fx1, fy1)
-    title = (f"{tile_name(col, row)}  (column {col + 1} of {plan.columns}, row {row + 1} of "
-             f"{plan.rows})")
-    if plan.sheets > 1:
-        title = f"Sheet {sheet + 1} of {plan.sheets}: " + title
-    paper.text(fx0, h - 6.0, title, fontsize=10, weight="bold", va="center")
-    paper.text(fx1, h - 6.0, f"\u2191 plate top     page {plan.tile_page(sheet, col, row)} of "
-               f"{plan.pages}", fontsize=8, ha="right", va="center")
-    paper.text(fx0 + 2.0, fy1 + 1.0, f"plate x {x0:.1f} to {x1:.1f} mm, y {y0:.1f} to {y1:.1f} mm",
-               fontsize=6, color="0.4", va="bottom")
-    # how the pages join, in the margins beside the edges concerned
-    if col > 0:
-        paper.text(fx0 - 1.5, 0.5 * (fy0 + fy1), f"cut \u2014 lay over {tile_name(col - 1, row)}",
-                   rotation=90, fontsize=6, ha="right", va="center")
-    if row > 0:
-        paper.text(0.5 * (fx0 + fx1), fy1 + 1.0, f"cut \u2014 lay over {tile_name(col, row - 1)}",
-                   fontsize=6, ha="center", va="bottom")
-    if col + 1 < plan.columns:
-        paper.text(fx1 + 1.5, 0.5 * (fy0 + fy1), f"grey strip: {tile_name(col + 1, row)} lies "
-                   "over it", rotation=90, fontsize=6, ha="left", va="center")
-    if row + 1 < plan.rows:
-        paper.text(0.5 * (fx0 + fx1), fy0 - 1.5, f"grey strip: {tile_name(col, row + 1)} lies "
-                   "over it", fontsize=6, ha="center", va="top")
-    _scale_bars(paper)
+    _plate_centre(ax)
+    _draw_labels(ax, box, mine, c, plan.label, plan.label_size, plan.text, plan.leader,
+                 ["tab:red"] * len(c), 0.6 * _CROSS_MM)
+    _tile_margins(plan, paper, sheet, col, row, plan.pages)
     return fig
 
 
-def _table_line(number: int, radius: str, page: str) -> str:
-    """One line of the radius table (number 0: the heading)."""
-    return f"{'#' + str(number) if number else 'No.':>7} {radius:>9}  {page:>6}  \u25a1"
-
-
-def _table(plan: PatternPlan, index: int) -> Figure:
+def _table_page(plan: Tiling, title: str, header: str, lines: list[str], rows: int,
+                columns: int) -> Figure:
+    """A page of a table in columns of ``rows`` lines under ``header``."""
     fig, ax = _page(plan)
     h = plan.page[1]
-    per_page = plan.table_rows * plan.table_columns
-    order = np.argsort(plan.number)[index * per_page:(index + 1) * per_page]
-    col, row = plan.tile_of(plan.centre[order])
-    lines = [_table_line(int(plan.number[i]), format_number(plan.radius[i], 1),
-                         plan.page_name(int(plan.sheet[i]), int(c), int(r)))
-             for i, c, r in zip(order.tolist(), col.tolist(), row.tolist(), strict=True)]
-    ax.text(_SIDE, h - 7.0, f"Compass radii (mm), by cross number \u2014 page "
-            f"{1 + plan.tile_pages + index + 1} of {plan.pages}", fontsize=10, weight="bold",
-            va="center")
-    header = _table_line(0, "radius mm", "page")[:-1]
-    column_w = (plan.frame[0] + 8.0) / plan.table_columns
+    ax.text(_SIDE, h - 7.0, title, fontsize=10, weight="bold", va="center")
+    column_w = (plan.frame[0] + 8.0) / columns
     line = _TABLE_LINE * _TEXT_PT / PT_PER_MM
-    for c in range(plan.table_columns):
-        chunk = lines[c * plan.table_rows:(c + 1) * plan.table_rows]
+    for c in range(columns):
+        chunk = lines[c * rows:(c + 1) * rows]
         if not chunk:
             break
         x = _SIDE + c * column_w
@@ -748,6 +845,33 @@ def _table(plan: PatternPlan, index: int) -> Figure:
                 va="top", linespacing=_TABLE_LINE, gid=f"table {c}")
     _scale_bars(ax)
     return fig
+
+
+def _table_size(frame: np.ndarray, width: int) -> tuple[int, int]:
+    """Lines per column and columns per page of a table of lines ``width``
+    characters wide."""
+    line = _TABLE_LINE * _TEXT_PT / PT_PER_MM
+    rows = max(1, int((frame[1] - 12.0) // line) - 1)
+    mono = _char_widths(_MONO, _TEXT_PT, "0")["0"]
+    return rows, max(1, int((frame[0] + 8.0) // (width * mono + 8.0)))
+
+
+def _table_line(number: int, radius: str, page: str) -> str:
+    """One line of the radius table (number 0: the heading)."""
+    return f"{'#' + str(number) if number else 'No.':>7} {radius:>9}  {page:>6}  \u25a1"
+
+
+def _table(plan: PatternPlan, index: int) -> Figure:
+    per_page = plan.table_rows * plan.table_columns
+    order = np.argsort(plan.number)[index * per_page:(index + 1) * per_page]
+    col, row = plan.tile_of(plan.centre[order])
+    lines = [_table_line(int(plan.number[i]), format_number(plan.radius[i], 1),
+                         plan.page_name(int(plan.sheet[i]), int(c), int(r)))
+             for i, c, r in zip(order.tolist(), col.tolist(), row.tolist(), strict=True)]
+    title = (f"Compass radii (mm), by cross number \u2014 page "
+             f"{1 + plan.tile_pages + index + 1} of {plan.pages}")
+    return _table_page(plan, title, _table_line(0, "radius mm", "page")[:-1], lines,
+                       plan.table_rows, plan.table_columns)
 
 
 def pattern_figures(plan: PatternPlan) -> Iterator[Figure]:
