@@ -16,7 +16,7 @@ from specholo.errors import SpecholoError
 from specholo.fabrication import dxf
 from specholo.fabrication.dxf import write_dxf
 from specholo.fabrication.gcode import is_straight
-from specholo.fabrication.svg import LAYER_COLOURS, plan_layers
+from specholo.fabrication.svg import LAYER_COLOURS, PLATE_LAYER_NAME, plan_layers
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -36,9 +36,13 @@ def drawing_data(path: Path) -> dict[str, Any]:
     header = {k: doc.header[k] for k in ("$INSUNITS", "$MEASUREMENT")}
     header.update({k: tuple(map(float, doc.header[k])) for k in ("$EXTMIN", "$EXTMAX")})
     layers = [(layer.dxf.name, layer.color, layer.description) for layer in doc.layers
-              if layer.dxf.name not in _SYSTEM_LAYERS]
+              if layer.dxf.name not in _SYSTEM_LAYERS | {PLATE_LAYER_NAME}]
     entities: list[tuple[str, str, list[Any]]] = []
+    plate: list[tuple[str, list[Any]]] = []
     for e in doc.modelspace():
+        if e.dxf.layer == PLATE_LAYER_NAME:
+            plate.append(plate_entity(e))
+            continue
         if e.dxftype() == "LWPOLYLINE":
             assert not e.closed and e.dxf.const_width == 0
             data = [tuple(map(float, p)) for p in e.get_points("xyb")]
@@ -47,8 +51,22 @@ def drawing_data(path: Path) -> dict[str, Any]:
         else:
             raise AssertionError(f"unexpected entity {e.dxftype()}")
         entities.append((e.dxftype(), e.dxf.layer, data))
+    (plate_layer,) = [(layer.color, layer.description) for layer in doc.layers
+                      if layer.dxf.name == PLATE_LAYER_NAME]
     return {"version": doc.dxfversion, "header": header, "layers": layers,
-            "entities": entities}
+            "entities": entities, "plate_layer": plate_layer, "plate": plate}
+
+
+def plate_entity(e: Any) -> tuple[str, list[Any]]:
+    """An entity of the plate's layer as plain data: the closed outline's corners,
+    a line's ends or a circle's centre and radius."""
+    if e.dxftype() == "LWPOLYLINE":
+        assert e.closed and e.dxf.const_width == 0
+        return "LWPOLYLINE", [tuple(map(float, p)) for p in e.get_points("xyb")]
+    if e.dxftype() == "LINE":
+        return "LINE", [tuple(map(float, e.dxf.start)), tuple(map(float, e.dxf.end))]
+    assert e.dxftype() == "CIRCLE", e.dxftype()
+    return "CIRCLE", [tuple(map(float, e.dxf.center)), float(e.dxf.radius)]
 
 
 def check_drawing(path: Path, g: Grooves, tool: Tool, depths: np.ndarray | None = None) -> None:
@@ -122,10 +140,10 @@ def test_example(tmp_path, groove_example):
     kinds = [(kind, layer) for kind, layer, _ in data["entities"]]
     assert kinds == [("LWPOLYLINE", "GROOVES_D0.080_R0.250")] * 2 + [
         ("CIRCLE", "DOTS_D0.080_R0.250")]
-    # extents: the dot's rim at (-5, -5) to the straight segment's end (20, 10)
-    r = 0.5 * tool.width
-    assert data["header"]["$EXTMIN"] == (-5 - r, -5 - r, 0.0)
-    assert data["header"]["$EXTMAX"] == (20.0, 10.0, 0.0)
+    # extents: the fitted plate (51 x 31 mm, see test_svg.test_document), which
+    # holds the grooves from the dot's rim at (-5, -5) to the segment's end (20, 10)
+    assert data["header"]["$EXTMIN"] == (-25.5, -15.5, 0.0)
+    assert data["header"]["$EXTMAX"] == (25.5, 15.5, 0.0)
     # the 270-degree arc and the half circle keep their bulges to 12 decimals
     assert [b for _, _, b in data["entities"][1][2]] == [
         round(np.tan(np.radians(270) / 4), 12), -1.0, 0.0]

@@ -13,7 +13,14 @@ from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.gcode import is_straight
-from specholo.fabrication.svg import LAYER_COLOURS, arc_bounds, plan_layers, write_svg
+from specholo.fabrication.svg import (
+    LAYER_COLOURS,
+    PLATE_LAYER,
+    PLATE_LAYER_NAME,
+    arc_bounds,
+    plan_layers,
+    write_svg,
+)
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -60,12 +67,27 @@ def read(path: Path) -> ET.Element:
     return root
 
 
-def layers(root: ET.Element) -> list[ET.Element]:
+def all_layers(root: ET.Element) -> list[ET.Element]:
     """The top-level groups, all of them Inkscape layers."""
     groups = root.findall(f"{SVG}g")
     assert all(g.get(f"{INKSCAPE}groupmode") == "layer" for g in groups)
     assert len(root) == len(groups)  # nothing outside the layers
     return groups
+
+
+def is_plate(group: ET.Element) -> bool:
+    return group.get(f"{INKSCAPE}label", "").endswith(f" {PLATE_LAYER_NAME}")
+
+
+def layers(root: ET.Element) -> list[ET.Element]:
+    """The groove and dot layers, in order; the plate's layer is the last one."""
+    groups = all_layers(root)
+    assert [is_plate(g) for g in groups] == [False] * (len(groups) - 1) + [True]
+    return groups[:-1]
+
+
+def plate_layer(root: ET.Element) -> ET.Element:
+    return all_layers(root)[-1]
 
 
 def test_golden(tmp_path, groove_example, golden):
@@ -85,9 +107,11 @@ def test_document(tmp_path, groove_example):
     vb = [float(v) for v in root.get("viewBox", "").split()]
     # 1 user unit = 1 mm
     assert np.allclose(vb[2:], [float(w[:-2]), float(h[:-2])])
-    # grooves span x in [-5, 20] and y in [-5, 10]; the 270-degree arc stays inside that
-    pad = 5.0 + 0.5 * tool.width
-    assert np.allclose(vb, [-5 - pad, -10 - pad, 25 + 2 * pad, 15 + 2 * pad], atol=1e-4)
+    # grooves span x in [-5, 20] and y in [-5, 10] (the 270-degree arc stays inside
+    # that): the fitted plate, centred, whole mm, 5 mm beyond the grooves' edges, is
+    # ceil(2 * 20 + width + 10) x ceil(2 * 10 + width + 10) = 51 x 31 mm and holds the
+    # grooves' 5 mm border, so the page is the plate
+    assert np.allclose(vb, [-25.5, -15.5, 51, 31], atol=1e-4)
     grooves, dots = layers(root)
     assert grooves.get("id") == "layer1" and dots.get("id") == "layer2"
     assert grooves.get(f"{INKSCAPE}label") == "1 GROOVES_D0.080_R0.250"
@@ -251,7 +275,8 @@ def test_vpype_reads_layers(tmp_path, groove_example):
     write_svg(out, groove_example, tool, depths=depths)
     doc = vpype.read_multilayer_svg(str(out), quantization=0.01)
     plan = plan_layers(groove_example, tool, depths)
-    assert sorted(doc.layers) == [p.number for p in plan] == [1, 2, 4]
+    assert sorted(doc.layers) == [p.number for p in plan] + [PLATE_LAYER] == [1, 2, 4, 99]
+    assert doc.layers[PLATE_LAYER].property("vp_name") == f"{PLATE_LAYER} {PLATE_LAYER_NAME}"
     root = read(out)
     x0, y0 = (float(v) for v in root.get("viewBox", "").split()[:2])
     px = 96.0 / 25.4  # vpype works in CSS pixels

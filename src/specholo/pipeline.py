@@ -23,6 +23,7 @@ import numpy as np
 from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
+from specholo.fabrication.plate import PLATE_MARGIN, Plate, fit_plate
 from specholo.fabrication.tools import (
     Cutter,
     ViewCheck,
@@ -527,10 +528,6 @@ def coverage(n: int, runs: Runs, grooves: Grooves, dropped: np.ndarray) -> Cover
                     int(np.count_nonzero(has)))
 
 
-#: Blank border around the grooves when the plate size is not given, mm.
-PLATE_MARGIN = 5.0
-
-
 def groove_extent(grooves: Grooves) -> np.ndarray:
     """(2, 2) corners of the grooves' centrelines, arcs included where they bulge
     past their end points (the tool follows the arc, not its chord)."""
@@ -557,7 +554,8 @@ def plate_rect(grooves: Grooves, width: float, config: DesignConfig,
             raise SpecholoError(
                 f"plate {name} {size[axis]:g} mm is smaller than the design, which needs "
                 f"{need[axis]:.1f} mm (grooves reach +-{reach[axis]:.1f} mm from the centre)")
-    size = np.where(given, size, np.ceil(need + 2.0 * PLATE_MARGIN))
+    fitted = fit_plate(np.stack([lo, hi]), width, PLATE_MARGIN)
+    size = np.where(given, size, fitted[1] - fitted[0])
     return np.stack([-0.5 * size, 0.5 * size])
 
 
@@ -1086,6 +1084,10 @@ def write_design(d: Design, out: str | os.PathLike[str],
     if d.config.order:
         info["machining"]["travel_unordered_mm"] = order_stats.travel_before_mm
         info["machining"]["travel_mm"] = order_stats.travel_after_mm
+    width = d.config.cutter().section(d.config.depth_mm).width
+    plate = Plate.from_corners(d.plate if d.plate is not None else
+                               plate_rect(d.grooves, width, d.config),
+                               d.config.stock_thickness)
     with publish(out, inputs) as tmp:
         if "gcode" in formats:
             t0 = time.perf_counter()
@@ -1095,7 +1097,7 @@ def write_design(d: Design, out: str | os.PathLike[str],
                                 "cutter": d.config.cutter().describe(),
                                 # the limits `specholo check FILE` checks it against, mm
                                 **design_limits(d).header()},
-                        options=options, depth=d.config.depth_mm)
+                        options=options, depth=d.config.depth_mm, plate=plate)
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = check_written_gcode(path, d)
@@ -1103,13 +1105,13 @@ def write_design(d: Design, out: str | os.PathLike[str],
             timings["gcode check"] = time.perf_counter() - t0
         if "svg" in formats:
             t0 = time.perf_counter()
-            write_svg(tmp / "hologram.svg", grooves, setup.tool)
+            write_svg(tmp / "hologram.svg", grooves, setup.tool, plate=plate)
             timings["svg"] = time.perf_counter() - t0
         if "dxf" in formats:
             from specholo.fabrication.dxf import write_dxf  # ezdxf: only when asked for
 
             t0 = time.perf_counter()
-            write_dxf(tmp / "hologram.dxf", grooves, setup.tool)
+            write_dxf(tmp / "hologram.dxf", grooves, setup.tool, plate=plate)
             timings["dxf"] = time.perf_counter() - t0
         if "pdf" in formats:
             from specholo.fabrication.pattern import write_pattern  # matplotlib's PDF

@@ -20,6 +20,11 @@ dots of each depth class, named like ``GROOVES_D0.080_R0.250`` (depth and ball
 radius in mm), each in its own colour. The drawing is in the plate frame (x
 right, y up, origin at the plate centre), $INSUNITS = 4 (mm), $MEASUREMENT = 1.
 
+The layer ``PLATE`` holds the plate (:mod:`~specholo.fabrication.plate`): its
+outline as a closed LWPOLYLINE and each registration mark as two LINEs (a
+crosshair) and a CIRCLE, in the colour of the SVG's plate layer. The extents
+and the initial view take in the whole plate.
+
 The same grooves give the same file byte for byte: the drawing's dates and
 GUIDs, which ezdxf would otherwise take from the clock and a random source,
 are its fixed values (1 January 2000 and the constant GUID), and its classes
@@ -32,7 +37,10 @@ drawing in memory, and even Python's float text costs microseconds a number.
 ezdxf writes the rest of the drawing (header, tables, objects) with an empty
 modelspace and the entities go in its place, laid out as ezdxf lays them out,
 with the handles ezdxf would have given them: each layer's entities take the
-handles after the layer's own, and $HANDSEED lies past them all.
+handles after the layer's own, and $HANDSEED lies past them all. The plate's
+few entities are ezdxf's own, added after the grooves' handles are taken, so
+they and their handles are the same on every run too; the grooves are written
+before them.
 """
 
 from __future__ import annotations
@@ -41,6 +49,7 @@ import contextlib
 import io
 import os
 from collections.abc import Iterator
+from typing import Any
 
 import ezdxf
 import numpy as np
@@ -56,7 +65,15 @@ from specholo.fabrication.gcode import (
     is_straight,
     path_chunks,
 )
-from specholo.fabrication.svg import Layer, drawing_bounds, plan_layers, take_paths
+from specholo.fabrication.plate import Plate
+from specholo.fabrication.svg import (
+    PLATE_COLOUR,
+    PLATE_LAYER_NAME,
+    Layer,
+    drawing_bounds,
+    plan_layers,
+    take_paths,
+)
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -75,9 +92,8 @@ _BULGE_SCALE = 10**_BULGE_DECIMALS
 # decimal: the sweep moves by 4 db / (1 + b^2), so that is still finer.
 _BIG_BULGE = 1e6
 _MAX_BULGE = 1e17
-# where ezdxf writes the (empty) modelspace
+# where ezdxf writes the modelspace (the plate's entities only)
 _ENTITIES = "  0\nSECTION\n  2\nENTITIES\n"
-_ENDSEC = "  0\nENDSEC\n"
 
 
 @contextlib.contextmanager
@@ -153,8 +169,21 @@ def _circles(g: Grooves, first_handle: int, layer: str, owner: str, radius: floa
     return t.tobytes()
 
 
+def _add_plate(msp: Any, plate: Plate) -> None:
+    """The plate's outline and registration marks on layer ``PLATE`` of the modelspace."""
+    attribs = {"layer": PLATE_LAYER_NAME}
+    msp.add_lwpolyline([(float(x), float(y)) for x, y in plate.corners()], close=True,
+                       dxfattribs=attribs)
+    arm, r = plate.mark_arm, plate.mark_radius
+    for x, y in plate.marks():
+        x, y = float(x), float(y)
+        msp.add_line((x - arm, y), (x + arm, y), dxfattribs=attribs)
+        msp.add_line((x, y - arm), (x, y + arm), dxfattribs=attribs)
+        msp.add_circle((x, y), r, dxfattribs=attribs)
+
+
 def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
-              depths: np.ndarray | None = None) -> list[Layer]:
+              depths: np.ndarray | None = None, plate: Plate | None = None) -> list[Layer]:
     """Write the grooves as a DXF drawing in mm, atomically, a chunk of paths at a time.
 
     Args:
@@ -164,9 +193,12 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
             names and the dots' diameter.
         depths: optional (n,) depth of each path, mm; each depth class gets its
             own groove and dot layers.
+        plate: the plate, drawn on layer ``PLATE`` with its registration marks;
+            default the plate fitted to the grooves
+            (:func:`~specholo.fabrication.plate.fit_plate`).
 
     Returns:
-        The layers written (non-empty ones only), by number.
+        The groove and dot layers written (non-empty ones only), by number.
 
     Raises:
         SpecholoError: if the grooves hold an empty path or non-finite numbers,
@@ -192,15 +224,22 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
         first = int(str(handles), 16)
         first_handles.append(first)
         handles.reset(f"{first + len(layer.paths):X}")
+    widest = max([layer.width for layer in layers] or [tool.width])
+    if plate is None:
+        plate = Plate.fitted(grooves.extent(), widest)
+    entry = doc.layers.add(PLATE_LAYER_NAME, color=PLATE_COLOUR[0])
+    entry.description = (f"specholo plate {format_number(plate.width, 4)} x "
+                         f"{format_number(plate.height, 4)} mm and registration marks: "
+                         "crosshair and circle inside each corner and at the origin")
+    _add_plate(msp, plate)
 
-    # extents and the initial view, so viewers open on the drawing
-    half = 0.5 * max([layer.width for layer in layers] or [tool.width])
-    box = drawing_bounds(grooves, half)
-    lo, hi = box if box is not None else np.zeros((2, 2))
-    # ezdxf copies these into $EXTMIN/$EXTMAX; an empty drawing keeps its "no extents"
-    if box is not None:
-        msp.dxf.extmin = (float(lo[0]), float(lo[1]), 0.0)
-        msp.dxf.extmax = (float(hi[0]), float(hi[1]), 0.0)
+    # extents and the initial view, so viewers open on the drawing and the plate
+    box = drawing_bounds(grooves, 0.5 * widest)
+    lo, hi = plate.box if box is None else (np.minimum(box[0], plate.box[0]),
+                                            np.maximum(box[1], plate.box[1]))
+    # ezdxf copies these into $EXTMIN/$EXTMAX
+    msp.dxf.extmin = (float(lo[0]), float(lo[1]), 0.0)
+    msp.dxf.extmax = (float(hi[0]), float(hi[1]), 0.0)
     size = float(max(hi[0] - lo[0], hi[1] - lo[1], 1.0))
     doc.set_modelspace_vport(1.1 * size, center=(float(0.5 * (lo[0] + hi[0])),
                                                  float(0.5 * (lo[1] + hi[1]))))
@@ -214,9 +253,9 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
         doc.write(text)
     drawing = text.getvalue()
     at = drawing.find(_ENTITIES)
-    if at < 0 or not drawing.startswith(_ENDSEC, at + len(_ENTITIES)):
-        raise SpecholoError(f"ezdxf {ezdxf.__version__} wrote no empty ENTITIES section")
-    at += len(_ENTITIES)
+    if at < 0 or drawing.find(_ENTITIES, at + 1) >= 0:
+        raise SpecholoError(f"ezdxf {ezdxf.__version__} wrote no single ENTITIES section")
+    at += len(_ENTITIES)  # the grooves go before the plate's entities
     with atomic_open(path, "wb") as fh:
         fh.write(doc.encode(drawing[:at]))
         for layer, first in zip(layers, first_handles, strict=True):

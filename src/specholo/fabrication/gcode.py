@@ -24,6 +24,9 @@ Three dialects share one writer (:class:`GcodeOptions`):
 
 A mill program works in absolute coordinates, the XY plane and feed per
 minute, with its origin at the plate centre and Z = 0 on the plate surface.
+Its header names the plate (:mod:`~specholo.fabrication.plate`): size, corners
+and thickness, the registration marks of the SVG and DXF drawings, and how to
+set the origin on it; comments only, after the ``check`` lines.
 Each groove is cut as: a comment ``(stipple N)``, a rapid to its start at the
 safe height, a plunge to ``-depth``, its arcs as ``G2``/``G3`` (centre given by
 ``I J`` relative to the arc's start) or ``G1`` when they are straight, and a
@@ -66,6 +69,7 @@ import numpy as np
 from specholo._threads import concurrent_kernels_safe
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
+from specholo.fabrication.plate import Plate
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves, Segments
 
@@ -418,6 +422,40 @@ def _comment(text: str, semicolon: bool = False) -> str:
     return "(" + clean.replace("(", "[").replace(")", "]") + ")"
 
 
+def plate_lines(plate: Plate, options: GcodeOptions) -> list[str]:
+    """The header's plate block, comment texts in the program's units: the plate's
+    size, corners and thickness, the registration marks, and how to set the
+    origin. The words it quotes (``G10 L20``, ``G92``) set the origin of the
+    dialect's machine where the tool stands; nothing here moves it."""
+    unit = "mm" if options.units == "mm" else "in"
+
+    def num(mm: float) -> str:
+        text = format_number(mm * options.per_mm, options.decimals).rstrip("0").rstrip(".")
+        return "0" if text in ("", "-0") else text
+
+    def xy(p: np.ndarray) -> str:
+        return f"X{num(p[0])} Y{num(p[1])}"
+
+    thick = f", {num(plate.thickness)} {unit} thick" if plate.thickness is not None else ""
+    corners = plate.corners()
+    marks = plate.marks()
+    lower_left = xy(corners[0])
+    if options.mill:
+        zero = (f"X0 Y0 on the origin mark at the plate centre, or G10 L20 P1 {lower_left} "
+                "with the tool on the lower-left corner; Z0 on the top surface")
+    else:
+        zero = (f"G92 X0 Y0 with the beam on the origin mark at the plate centre, or "
+                f"G92 {lower_left} on the lower-left corner; focus on the top surface")
+    return [
+        f"plate: {num(plate.width)} x {num(plate.height)} {unit}{thick}, "
+        f"corners {xy(corners[0])} to {xy(corners[2])}",
+        f"plate marks: crosshair and {num(plate.mark_radius)} {unit} radius circle, "
+        "layer PLATE of the SVG and DXF, not cut",
+        "plate marks at: " + ", ".join(xy(m) for m in marks[:4]) + f", origin {xy(marks[4])}",
+        f"plate zero: {zero}",
+    ]
+
+
 def _short_number(value: float) -> str:
     """A setting (dwell, power) with up to 3 decimals and no trailing zeros."""
     text = format_number(value, 3).rstrip("0").rstrip(".")
@@ -616,6 +654,7 @@ def write_gcode(
     header: dict[str, str] | None = None,
     options: GcodeOptions | None = None,
     depth: float | None = None,
+    plate: Plate | None = None,
 ) -> GcodeStats:
     """Write the program that cuts the grooves, atomically.
 
@@ -630,6 +669,8 @@ def write_gcode(
             leaves the spindle alone); the laser ignores the heights and spindle.
         header: extra ``key: value`` lines for the header comments.
         options: dialect, units and the rest (default: GRBL in mm).
+        plate: the plate the header names (:func:`plate_lines`); default the
+            plate fitted to the grooves (:func:`~specholo.fabrication.plate.fit_plate`).
 
     Returns:
         Line count, path count and move lengths (mm) of the program.
@@ -677,6 +718,9 @@ def write_gcode(
         ]
     head.append(comment(f"grooves: {n_paths}, dots: {n_dots}"))
     head += [comment(f"{k}: {v}") for k, v in (header or {}).items() if k != "cutter"]
+    if plate is None:
+        plate = Plate.fitted(grooves.extent(), tool.width)
+    head += [comment(text) for text in plate_lines(plate, opt)]
     setup_codes = ["G21" if opt.units == "mm" else "G20", "G90"]
     if mill:
         head.append(" ".join([*setup_codes, "G17", "G94", "G40"]))

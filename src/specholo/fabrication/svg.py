@@ -15,6 +15,14 @@ layer number (a name like ``GROOVES_D0.080_R0.250`` alone would read as layer
 0, i.e. 1, for every layer). Each layer has its own colour, which is also how
 laser software such as LightBurn tells layers apart.
 
+The plate (:mod:`~specholo.fabrication.plate`) has a layer of its own, ``PLATE``:
+its outline and the registration marks (a crosshair and a circle inside each
+corner and at the origin), hairlines in a colour no groove layer has. Its number
+is :data:`PLATE_LAYER` unless the depth classes could reach it
+(:func:`plate_layer_number`): vpype reads a label's number 0 as layer 1, so the
+plate cannot take 0, and a number past every groove and dot layer never takes
+one of theirs. The drawing's page holds the whole plate.
+
 Like the G-code writer, it writes a chunk of paths at a time, one row of text
 per vertex (:class:`~specholo.fabrication.gcode.TextRows`), so memory does not
 grow with the drawing and no Python code runs per element.
@@ -40,6 +48,7 @@ from specholo.fabrication.gcode import (
     path_chunks,
     slice_paths,
 )
+from specholo.fabrication.plate import Plate
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves, Segments
 
@@ -63,6 +72,17 @@ LAYER_COLOURS: tuple[tuple[int, str], ...] = (
     (34, "#7F3F00"), (154, "#003F7F"), (3, "#00FF00"), (4, "#00FFFF"), (2, "#FFFF00"),
     (8, "#808080"),
 )
+#: Layer number of the plate's outline and registration marks: the layers of up
+#: to 49 depth classes stay below it (a design has one), and it is the same for
+#: every drawing, so that a plotter or laser setup can name it.
+PLATE_LAYER = 99
+#: Name of the plate's layer (SVG label after the number, DXF layer name).
+PLATE_LAYER_NAME = "PLATE"
+#: The plate layer's colour, one no groove or dot layer has: (ACI, SVG ``#rrggbb``).
+PLATE_COLOUR = (140, "#00BFFF")
+#: Stroke of the plate's outline and marks, mm: 0.001 inch, which laser drivers
+#: read as a hairline (a vector line, not an area to fill).
+PLATE_STROKE = 0.025
 
 
 @dataclass(frozen=True)
@@ -81,6 +101,8 @@ class Layer:
         aci: AutoCAD colour index of the layer.
         colour: the same colour as SVG ``#rrggbb``.
         paths: (k,) indices of the layer's paths, ascending.
+        classes: depth classes of the drawing: no layer of it is numbered above
+            2 * classes.
     """
 
     number: int
@@ -91,6 +113,7 @@ class Layer:
     aci: int
     colour: str
     paths: np.ndarray
+    classes: int = 1
 
 
 def surface_width(radius: float, depth: float | np.ndarray) -> np.ndarray:
@@ -157,8 +180,16 @@ def _layers(grooves: Grooves, tool: Tool, keys: np.ndarray, mean: np.ndarray,
             name = (f"{'DOTS' if is_dot else 'GROOVES'}_D{format_number(key / scale, 3)}"
                     f"_R{radius}")
             layers.append(Layer(number, name, is_dot, float(mean[c]), float(widths[c]), aci,
-                                colour, paths))
+                                colour, paths, len(keys)))
     return layers
+
+
+def plate_layer_number(layers: list[Layer]) -> int:
+    """Number of the plate's layer: :data:`PLATE_LAYER`, or the first number past
+    every groove and dot layer of the drawing's depth classes when those reach it
+    (it depends on the classes, not on which of their layers are empty)."""
+    classes = layers[0].classes if layers else 1
+    return max(PLATE_LAYER, 2 * classes + 1)
 
 
 def take_paths(grooves: Grooves, paths: np.ndarray) -> Grooves:
@@ -305,8 +336,31 @@ def _dot_text(g: Grooves, radius: str) -> bytes:
     return t.tobytes()
 
 
+def _plate_text(plate: Plate, number: int) -> bytes:
+    """The plate's layer: its outline, then each registration mark as a crosshair
+    and a circle (SVG y = -plate y)."""
+    def num(value: float) -> str:
+        return format_number(value, _DECIMALS)
+
+    arm, r = plate.mark_arm, plate.mark_radius
+    colour = PLATE_COLOUR[1]
+    rows = [f'<g id="layer{number}" inkscape:groupmode="layer"'
+            f' inkscape:label="{number} {PLATE_LAYER_NAME}" fill="none" stroke="{colour}"'
+            f' stroke-width="{num(PLATE_STROKE)}">',
+            f'<rect x="{num(plate.x0)}" y="{num(-plate.y1)}" width="{num(plate.width)}"'
+            f' height="{num(plate.height)}"/>']
+    for x, y in plate.marks():
+        y = -y
+        rows.append(f'<path d="M {num(x - arm)} {num(y)} L {num(x + arm)} {num(y)}'
+                    f' M {num(x)} {num(y - arm)} L {num(x)} {num(y + arm)}"/>')
+        rows.append(f'<circle cx="{num(x)}" cy="{num(y)}" r="{num(r)}"/>')
+    rows.append("</g>\n")
+    return "\n".join(rows).encode("ascii")
+
+
 def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
-              margin: float = 5.0, depths: np.ndarray | None = None) -> None:
+              margin: float = 5.0, depths: np.ndarray | None = None,
+              plate: Plate | None = None) -> None:
     """Write the grooves as an SVG drawing in mm, atomically, a chunk of paths at a time.
 
     Args:
@@ -316,6 +370,9 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
         margin: blank border around the grooves, mm.
         depths: optional (n,) depth of each path, mm; each depth class gets its
             own groove and dot layers (see :func:`plan_layers`).
+        plate: the plate, drawn in its own layer with its registration marks;
+            default the plate fitted to the grooves
+            (:func:`~specholo.fabrication.plate.fit_plate`).
 
     Raises:
         SpecholoError: if the grooves hold an empty path or non-finite numbers,
@@ -329,9 +386,13 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     box = drawing_bounds(grooves)
     if box is None:
         box = np.zeros((2, 2))
-    pad = margin + 0.5 * max([layer.width for layer in layers] or [tool.width])
-    x0, x1 = box[0, 0] - pad, box[1, 0] + pad
-    y0, y1 = -box[1, 1] - pad, -box[0, 1] + pad  # SVG y = -plate y
+    widest = max([layer.width for layer in layers] or [tool.width])
+    if plate is None:
+        plate = Plate.fitted(grooves.extent(), widest)
+    pad = margin + 0.5 * widest
+    # the page holds the grooves with their border and the whole plate
+    x0, x1 = min(box[0, 0] - pad, plate.x0), max(box[1, 0] + pad, plate.x1)
+    y0, y1 = min(-box[1, 1] - pad, -plate.y1), max(-box[0, 1] + pad, -plate.y0)  # SVG y = -y
     w, h = x1 - x0, y1 - y0
 
     def num(value: float) -> str:
@@ -344,7 +405,9 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
         f'     viewBox="{num(x0)} {num(y0)} '
         f'{num(w)} {num(h)}">\n'
         "<!-- specholo grooves; units mm; origin at the plate centre; "
-        "plate y up = SVG -y; layers GROOVES/DOTS_D<depth>_R<tool radius> -->\n"
+        "plate y up = SVG -y; layers GROOVES/DOTS_D<depth>_R<tool radius>, "
+        f"{PLATE_LAYER_NAME}: plate {num(plate.width)} x {num(plate.height)} mm "
+        "and registration marks -->\n"
     )
     with atomic_open(path, "wb") as fh:
         fh.write(head.encode("ascii"))
@@ -365,4 +428,5 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
             for chunk in in_order(text, path_chunks(grooves, _CHUNK_ROWS, layer.paths)):
                 fh.write(chunk)
             fh.write(b"</g>\n")
+        fh.write(_plate_text(plate, plate_layer_number(layers)))
         fh.write(b"</svg>\n")
