@@ -40,7 +40,8 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
      "view on the plate as cut at least this share of the time (e.g. 0.8): several designs "
      "are tried, from --stipples [off]."),
     ("seed", int, "Random seed for stippling [0]."),
-    ("band", float, "Striped design: half-height of the band, bounds vertical error, mm [0.2]."),
+    ("band", float, "Striped design: half-height of the band, bounds vertical error, mm "
+     "[0.2; 1 with --tool scriber, for fewer, longer strokes by hand]."),
     ("placement", click.Choice(["auto", "avoid", "phase"]),
      "Striped design: avoid places each stipple's stripes in turn out of the grooves placed "
      "before (jumping between the band's paths where a crossing would cut glints away); "

@@ -35,8 +35,9 @@ from specholo_cli.app import (
 @click.option("--no-order", is_flag=True,
               help="Keep the paths in design order (default: ordered to cut air travel).")
 @click.option("--formats", default=None,
-              help="Fabrication files, comma-separated: gcode, svg, dxf, pdf (the compass "
-                   "pattern of an arc design) [gcode,svg]; for a ridged design png, tiff "
+              help="Fabrication files, comma-separated: gcode, svg, dxf, pdf (a 1:1 "
+                   "pattern to scribe by hand: each stroke of a striped or hyperbola design, "
+                   "an arc design's compass arcs) [gcode,svg]; for a ridged design png, tiff "
                    "(16-bit height maps), stl, gcode [all four].")
 @_design_options
 def design(model: Path, out: Path, method: str | None, config_path: Path | None,
