@@ -277,6 +277,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
     from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.check import check_program
     from specholo.fabrication.gcode import write_gcode
+    from specholo.fabrication.plate import Plate
     from specholo.fabrication.svg import write_svg
     from specholo.folders import check_out, publish
     from specholo.preview.motion import write_animation
@@ -312,8 +313,10 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                   f"turning plate, open grooves: the view circles the scene {cfg.turns} "
                   "times per turn", "walls": cfg.setup.walls}
         limits = spin_limits(d.grooves, cfg.tool.depth, cfg.machining)
+        # one plate for the program, the relief cut and the drawing: the grooves'
+        plate = Plate.fitted(d.grooves.extent(), cfg.tool.width)
         gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
-                             header={**header, **limits.header()})
+                             header={**header, **limits.header()}, plate=plate)
         safety = check_program(tmp / "hologram.gcode", limits)
         meta: dict[str, Any] = {
             "design": "spinning", "config": cfg.as_dict(),
@@ -339,12 +342,12 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                          "tool": "V-bit, 30 deg included angle, tip on the groove's edge"}
                 rlimits = spin_limits(relief, depth, cfg.machining)
                 write_gcode(tmp / "relief.gcode", relief, cfg.tool, cfg.machining,
-                            header={**rhead, **rlimits.header()}, depth=depth)
+                            header={**rhead, **rlimits.header()}, depth=depth, plate=plate)
                 check_program(tmp / "relief.gcode", rlimits)
             meta["relief"] = {"depth_mm": depth, "v_bit_included_deg": 30.0,
                               "other_wall_keeps_tilts_below_deg":
                                   math.degrees(d.relief_tilt)}
-        write_svg(tmp / "hologram.svg", d.grooves, cfg.tool)
+        write_svg(tmp / "hologram.svg", d.grooves, cfg.tool, plate=plate)
         write_spin_verification(reports, tmp, step_deg)
         with atomic_open(tmp / "hologram.json") as fh:
             json.dump(meta, fh, indent=1, sort_keys=True)
