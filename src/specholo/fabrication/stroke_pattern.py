@@ -67,8 +67,9 @@ from specholo.fabrication.pattern import (
 from specholo.fabrication.svg import arc_bounds
 from specholo.toolpaths.grooves import Grooves, Segments
 
-#: Line width of a stroke, points: thin, so its middle is clear to follow.
-STROKE_PT = 0.5
+#: Line width of a stroke, points: thin, so its middle is clear to follow (and
+#: unlike any other line of the page, which tells the strokes apart in the PDF).
+STROKE_PT = 0.45
 #: Line width of the end ticks and leader lines, points.
 TICK_PT = 0.35
 #: Half-length of the tick across each end of a stroke, mm: short enough to
@@ -164,6 +165,14 @@ class StrokePlan(Tiling):
         return [COLOURS[n % len(COLOURS)] for n in self.number[group].tolist()]
 
 
+def _first_last(segs: Segments) -> tuple[np.ndarray, np.ndarray]:
+    """The first and last arc (p,) of each groove of some arcs."""
+    if len(segs) == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    first = np.flatnonzero(np.r_[True, segs.path[1:] != segs.path[:-1]])
+    return first, np.r_[first[1:] - 1, len(segs) - 1]
+
+
 def _ends(segs: Segments, first: np.ndarray,
           last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each stroke's two ends (p, 2, 2) and the unit tangents there (p, 2, 2),
@@ -241,9 +250,7 @@ def plan_strokes(grooves: Grooves, paper: str = "a4", overlap: float = 10.0) -> 
     path = np.flatnonzero(~grooves.is_dot)
     strokes = grooves.take(path)
     segs = strokes.segments()
-    first = np.flatnonzero(np.r_[True, segs.path[1:] != segs.path[:-1]])
-    last = np.r_[first[1:] - 1, len(segs) - 1] if len(first) else first
-    ends, _ = _ends(segs, first, last)
+    ends, _ = _ends(segs, *_first_last(segs))
     p = len(path)
 
     # a stroke's box: its vertices, grown by its arcs' largest sagitta
@@ -335,10 +342,7 @@ def _tile(plan: StrokePlan, sheet: int, col: int, row: int, targets: np.ndarray)
         ax.add_patch(PathPatch(stroke_path(sub), fill=False, lw=STROKE_PT, color=c,
                                capstyle="butt", joinstyle="round", gid=f"strokes {c}"))
     # ticks across both ends of each stroke, where the scriber goes down and up
-    first = np.flatnonzero(np.r_[True, segs.path[1:] != segs.path[:-1]]) if len(segs) else \
-        np.zeros(0, dtype=np.int64)
-    last = np.r_[first[1:] - 1, len(segs) - 1] if len(first) else first
-    ends, tangent = _ends(segs, first, last)
+    ends, tangent = _ends(segs, *_first_last(segs))
     normal = np.stack([-tangent[..., 1], tangent[..., 0]], axis=-1)
     ticks = np.stack([ends - TICK_MM * normal, ends + TICK_MM * normal], axis=2).reshape(-1, 2, 2)
     ax.add_collection(LineCollection(list(ticks), colors=np.repeat(colour, 2).tolist(),
