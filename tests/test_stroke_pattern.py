@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 from matplotlib.colors import to_rgb
 from scipy.spatial import cKDTree
 
+from specholo.errors import SpecholoError
 from specholo.fabrication.pattern import PT_PER_MM, SCALE_BAR_MM, _targets
 from specholo.fabrication.stroke_pattern import (
     COLOURS,
@@ -19,6 +21,7 @@ from specholo.fabrication.stroke_pattern import (
     stroke_path,
     write_stroke_pattern,
 )
+from specholo.pipeline import BAND, HAND_BAND, DesignConfig, check_formats
 from specholo.setup import Setup
 from specholo.toolpaths.common import make_runs
 from specholo.toolpaths.grooves import Grooves
@@ -302,11 +305,26 @@ def test_same_design_same_file(tmp_path, small):
     assert a.read_bytes() == b.read_bytes()
 
 
+def test_the_hand_scribers_band():
+    """A wide band by default for the hand scriber: fewer, longer strokes."""
+    assert DesignConfig(tool="scriber").band == HAND_BAND == 1.0
+    assert DesignConfig().band == DesignConfig(tool="ball").band == BAND == 0.2
+    assert DesignConfig(tool="scriber", band=0.3).band == 0.3
+    for method in ("striped", "hyperbola", "arc"):
+        check_formats(("gcode", "pdf"), method)
+    with pytest.raises(SpecholoError, match=r"^the pdf pattern is for .*\(got 'spin'\)$"):
+        check_formats(("pdf",), "spin")
+
+
 def test_cli_writes_the_stroke_pattern(tmp_path, capsys):
     out = tmp_path / "holo"
     assert main(["design", str(BUNNY), "--out", str(out), "--stipples", "40", "--method",
                  "striped", "--tool", "scriber", "--formats", "pdf"]) == 0
     assert (out / "pattern.pdf").is_file() and not (out / "hologram.gcode").exists()
+    info = json.loads((out / "hologram.json").read_text())
+    assert info["settings"]["band"] == HAND_BAND
+    assert pypdf.PdfReader(out / "pattern.pdf").pages[0].extract_text().startswith(
+        "Stroke pattern")
     capsys.readouterr()
     # no pattern for a ridged plate: one line, no traceback, nothing written
     bad = tmp_path / "ridged"

@@ -17,7 +17,10 @@ set of the same pages, laid on the plate in the same place after the first.
 A drawing larger than the paper is tiled over pages that overlap by a strip
 holding registration targets; every page carries crop marks on its frame and
 two 50 mm scale bars (across and down) to check that it was printed at 100 %.
-The first page says how to print, assemble and use the pattern.
+The first page says how to print, assemble and use the pattern. The pages
+(:class:`Tiling`, the tiles' axes and margins, labels, instruction and table
+pages) also carry the stroke pattern of the other designs
+(:mod:`specholo.fabrication.stroke_pattern`).
 
 Geometry is in the plate frame (mm, x right, y up, origin at the plate
 centre), seen from the viewer's side. Figures are 72 dpi, so their display
