@@ -107,6 +107,24 @@ def test_rejects_bad_plates(args):
         Plate(*args)
 
 
+def test_default_plate_of_an_arc_written_straight(tmp_path):
+    """A bulge so small that its arc's radius overflows is written as its chord,
+    and the default plate is fitted to the chord (it was an infinite plate)."""
+    g = Grooves(np.array([[0.0, 0.0], [0.0, 0.0], [0.9, 1.5]]), np.array([0.0, 2.2e-309, 0.0]),
+                np.array([0, 1, 3]), np.array([0, 0]))
+    assert not np.isfinite(g.extent()).all()
+    want = fit_plate(np.array([[0.0, 0.0], [0.9, 1.5]]), Tool().width)
+    np.testing.assert_array_equal(want, [[-6.5, -7.0], [6.5, 7.0]])  # ceil(2 * 1.08 + 10)
+    write_svg(tmp_path / "s.svg", g, Tool())
+    write_dxf(tmp_path / "s.dxf", g, Tool())
+    write_gcode(tmp_path / "s.ngc", g, Tool(), Machining())
+    np.testing.assert_array_equal(plate_block(tmp_path / "s.ngc")["corners"], want)
+    rect = plate_group(ET.parse(tmp_path / "s.svg").getroot()).find(f"{SVG}rect")
+    assert rect is not None and float(rect.get("width", "nan")) == 13.0
+    doc = ezdxf.readfile(tmp_path / "s.dxf")
+    assert tuple(doc.header["$EXTMIN"])[:2] == (-6.5, -7.0)
+
+
 # ---------------------------------------------------------------------------
 # SVG
 

@@ -60,6 +60,7 @@ from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import (
     TextRows,
     check_grooves,
+    drawn_extent,
     format_number,
     in_order,
     is_straight,
@@ -226,7 +227,7 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
         handles.reset(f"{first + len(layer.paths):X}")
     widest = max([layer.width for layer in layers] or [tool.width])
     if plate is None:
-        plate = Plate.fitted(grooves.extent(), widest)
+        plate = Plate.fitted(drawn_extent(grooves), widest)
     entry = doc.layers.add(PLATE_LAYER_NAME, color=PLATE_COLOUR[0])
     entry.description = (f"specholo plate {format_number(plate.width, 4)} x "
                          f"{format_number(plate.height, 4)} mm and registration marks: "

@@ -422,6 +422,24 @@ def _comment(text: str, semicolon: bool = False) -> str:
     return "(" + clean.replace("(", "[").replace(")", "]") + ")"
 
 
+def drawn_extent(grooves: Grooves) -> np.ndarray:
+    """(2, 2) corners of the grooves' centrelines as the exporters write them:
+    :meth:`~specholo.toolpaths.grooves.Grooves.extent` with the arcs they write
+    straight (:func:`is_straight`) taken as their chords, so that a bulge too
+    small for its radius to be a finite number does not reach infinity."""
+    first, path = grooves.arcs()
+    bulge = grooves.bulges[first]
+    bent = np.flatnonzero(bulge != 0)
+    segs = Segments(grooves.vertices[first[bent]], grooves.vertices[first[bent] + 1],
+                    bulge[bent], path[bent])
+    flat = bent[is_straight(segs)]
+    if len(flat) == 0:
+        return grooves.extent()
+    bulges = np.array(grooves.bulges, dtype=float)
+    bulges[first[flat]] = 0.0
+    return Grooves(grooves.vertices, bulges, grooves.offsets, grooves.stipple).extent()
+
+
 def plate_lines(plate: Plate, options: GcodeOptions) -> list[str]:
     """The header's plate block, comment texts in the program's units: the plate's
     size, corners and thickness, the registration marks, and how to set the
@@ -670,7 +688,8 @@ def write_gcode(
         header: extra ``key: value`` lines for the header comments.
         options: dialect, units and the rest (default: GRBL in mm).
         plate: the plate the header names (:func:`plate_lines`); default the
-            plate fitted to the grooves (:func:`~specholo.fabrication.plate.fit_plate`).
+            plate fitted to the grooves (:func:`~specholo.fabrication.plate.fit_plate`
+            of their :func:`drawn_extent`).
 
     Returns:
         Line count, path count and move lengths (mm) of the program.
@@ -719,7 +738,7 @@ def write_gcode(
     head.append(comment(f"grooves: {n_paths}, dots: {n_dots}"))
     head += [comment(f"{k}: {v}") for k, v in (header or {}).items() if k != "cutter"]
     if plate is None:
-        plate = Plate.fitted(grooves.extent(), tool.width)
+        plate = Plate.fitted(drawn_extent(grooves), tool.width)
     head += [comment(text) for text in plate_lines(plate, opt)]
     setup_codes = ["G21" if opt.units == "mm" else "G20", "G90"]
     if mill:

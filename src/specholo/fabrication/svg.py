@@ -42,6 +42,7 @@ from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import (
     TextRows,
     check_grooves,
+    drawn_extent,
     format_number,
     in_order,
     is_straight,
@@ -388,7 +389,7 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
         box = np.zeros((2, 2))
     widest = max([layer.width for layer in layers] or [tool.width])
     if plate is None:
-        plate = Plate.fitted(grooves.extent(), widest)
+        plate = Plate.fitted(drawn_extent(grooves), widest)
     pad = margin + 0.5 * widest
     # the page holds the grooves with their border and the whole plate
     x0, x1 = min(box[0, 0] - pad, plate.x0), max(box[1, 0] + pad, plate.x1)
