@@ -13,7 +13,8 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 #: A package names every module under it; ``specholo`` is the package's front
 #: page (it re-exports the setup's dataclasses).
 LAYERS: list[set[str]] = [
-    {"specholo.errors", "specholo._memory", "specholo._threads", "specholo._pages"},
+    {"specholo.errors", "specholo._memory", "specholo._threads", "specholo._pages",
+     "specholo._compiling"},
     {"specholo.readback"},
     {"specholo.setup", "specholo"},
     {"specholo.optics"},
@@ -24,7 +25,7 @@ LAYERS: list[set[str]] = [
     {"specholo.fabrication"},
     {"specholo.simulation"},
     {"specholo.preview"},
-    {"specholo.folder", "specholo.folders"},
+    {"specholo.folder", "specholo.folders", "specholo.staging"},
     {"specholo.pipeline"},
     {"specholo.density", "specholo.ridged", "specholo.compose", "specholo.spin",
      "specholo.steady"},

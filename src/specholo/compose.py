@@ -579,14 +579,15 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
     """
     from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.surface_gcode import check_surface_program, write_surface_gcode
-    from specholo.folders import check_out, publish
+    from specholo.folders import check_out
+    from specholo.staging import stage_design
 
     comp = d.comp
     inputs = [*inputs, *composition_files(comp)]
     check_out(out, inputs)  # before the G-code is made and checked
     program = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, comp.axes)
-    with publish(out, inputs) as tmp:
-        tmp = Path(tmp)
+    with stage_design(out, inputs) as stage:
+        tmp = stage.path
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
             d.grooves.save(fh)
         with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
@@ -599,8 +600,8 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
         with atomic_open(tmp / "hologram.gcode") as fh:
             fh.write(program.text)
         # read back by the safety check every program passes, before it is kept
-        check = check_surface_program(tmp / "hologram.gcode", d.grooves, comp.host, comp.tool,
-                                      comp.machining, comp.axes)
+        check = stage.check("hologram.gcode", check=lambda path: check_surface_program(
+            path, d.grooves, comp.host, comp.tool, comp.machining, comp.axes))
         meta = {"design": "conforming", "composition": comp.settings,
                 "host": comp.host.describe(), "mode": comp.motion.mode,
                 "tool": {"radius": comp.tool.radius, "depth": comp.tool.depth,

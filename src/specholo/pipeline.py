@@ -6,7 +6,6 @@ speak (degrees, mm) and are converted once, here, to the library's radians.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import math
@@ -856,24 +855,6 @@ def hologram_json(d: Design) -> dict[str, Any]:
     }
 
 
-@contextlib.contextmanager
-def staged_output(out: str | os.PathLike[str],  # type: ignore[no-untyped-def]
-                  stale: tuple[str, ...] = ()):
-    """A scratch folder that replaces ``out`` whole only if the block succeeds
-    (:func:`specholo.folders.publish`, which also drops every specholo file
-    the block did not write).
-
-    Args:
-        out: the output folder (created if missing).
-        stale: ignored: which names are specholo's is one registry
-            (:data:`specholo.folders.OUTPUT_NAMES`).
-    """
-    from specholo.folders import publish
-
-    with publish(out) as tmp:
-        yield tmp
-
-
 def software_versions() -> dict[str, str]:
     """Versions of specholo, Python and the libraries a design's numbers depend on."""
     import platform
@@ -1055,9 +1036,10 @@ def write_design(d: Design, out: str | os.PathLike[str],
     from specholo.fabrication.order import order_paths
     from specholo.fabrication.svg import write_svg
     from specholo.fabrication.timing import estimate_time
-    from specholo.folders import check_out, publish
+    from specholo.folders import check_out
     from specholo.preview.preview import render_preview
     from specholo.scene.stippling import check_disk
+    from specholo.staging import stage_design
 
     check_formats(formats, d.config.method)
     inputs = list(inputs)
@@ -1099,7 +1081,8 @@ def write_design(d: Design, out: str | os.PathLike[str],
     plate = Plate.from_corners(d.plate if d.plate is not None else
                                plate_rect(d.grooves, width, d.config),
                                d.config.stock_thickness)
-    with publish(out, inputs) as tmp:
+    with stage_design(out, inputs) as stage:
+        tmp = stage.path
         if "gcode" in formats:
             t0 = time.perf_counter()
             path = tmp / "hologram.gcode"
@@ -1111,7 +1094,7 @@ def write_design(d: Design, out: str | os.PathLike[str],
                         options=options, depth=d.config.depth_mm, plate=plate)
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
-            safety = check_written_gcode(path, d)
+            safety = stage.check(path.name, design_limits(d))
             info["machining"]["safety_check"] = {"moves": safety.moves, "violations": 0}
             timings["gcode check"] = time.perf_counter() - t0
         if "svg" in formats:

@@ -208,17 +208,6 @@ def ridged_limits(d: RidgedDesign) -> Any:
                   max(m.feed, m.plunge)), (m.spindle, m.spindle), "mill")
 
 
-def check_ridged_gcode(path: str | os.PathLike[str], d: RidgedDesign) -> Any:
-    """The independent safety check of a ridged plate's G-code (:func:`ridged_limits`).
-
-    Raises:
-        SpecholoError: on any violation, in one line.
-    """
-    from specholo.fabrication.check import check_program
-
-    return check_program(path, ridged_limits(d))
-
-
 def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
                         formats: tuple[str, ...] = DEFAULT_RIDGED_FORMATS,
                         inputs: Iterable[str | os.PathLike[str] | None] = ()
@@ -237,15 +226,16 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
         (``machining``, empty without G-code).
     """
     from specholo.fabrication.heightmap import RIDGED_FILES, write_raster_gcode, write_ridged_files
-    from specholo.folders import publish
     from specholo.preview.preview import render_field_preview
+    from specholo.staging import stage_design
 
     check_formats(formats, "ridged")
     setup = d.config.setup()
     info = ridged_json(d)
     timings: dict[str, float] = {}
     machining: dict[str, Any] = {}
-    with publish(out, inputs) as tmp:
+    with stage_design(out, inputs) as stage:
+        tmp = stage.path
         images = tuple(f for f in formats if f != "gcode")
         timings.update(write_ridged_files(d.plate, tmp, setup.machining, d.config.ball_radius,
                                           d.config.stock_thickness, images))
@@ -258,7 +248,7 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
                         "cutter": info["tool"]["description"], **ridged_limits(d).header()})
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
-            safety = check_ridged_gcode(path, d)
+            safety = stage.check(path.name, ridged_limits(d))
             timings["gcode check"] = time.perf_counter() - t0
             machining = {"dialect": d.config.dialect, "units": "mm",
                          "ball_radius_mm": d.config.ball_radius,

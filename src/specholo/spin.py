@@ -275,12 +275,12 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
         The summary of the verification.
     """
     from specholo.fabrication.atomic import atomic_open
-    from specholo.fabrication.check import check_program
     from specholo.fabrication.gcode import write_gcode
     from specholo.fabrication.plate import Plate
     from specholo.fabrication.svg import write_svg
-    from specholo.folders import check_out, publish
+    from specholo.folders import check_out
     from specholo.preview.motion import write_animation
+    from specholo.staging import stage_design
 
     d, cfg = job.design, job.config
     if d.grooves.n_paths == 0:
@@ -289,8 +289,8 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
     check_out(out, inputs)  # before the verification
     reports = verify_spin(job, step_deg)
     summary = summarise(reports)
-    with publish(out, inputs) as tmp:
-        tmp = Path(tmp)
+    with stage_design(out, inputs) as stage:
+        tmp = stage.path
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
             g = d.grooves
             np.savez_compressed(fh, vertices=g.vertices, bulges=g.bulges, offsets=g.offsets,
@@ -317,7 +317,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
         plate = Plate.fitted(d.grooves.extent(), cfg.tool.width)
         gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
                              header={**header, **limits.header()}, plate=plate)
-        safety = check_program(tmp / "hologram.gcode", limits)
+        safety = stage.check("hologram.gcode", limits)
         meta: dict[str, Any] = {
             "design": "spinning", "config": cfg.as_dict(),
             "tilts_deg": [math.degrees(t) for t in d.tilts],
@@ -343,7 +343,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                 rlimits = spin_limits(relief, depth, cfg.machining)
                 write_gcode(tmp / "relief.gcode", relief, cfg.tool, cfg.machining,
                             header={**rhead, **rlimits.header()}, depth=depth, plate=plate)
-                check_program(tmp / "relief.gcode", rlimits)
+                stage.check("relief.gcode", rlimits)
             meta["relief"] = {"depth_mm": depth, "v_bit_included_deg": 30.0,
                               "other_wall_keeps_tilts_below_deg":
                                   math.degrees(d.relief_tilt)}

@@ -165,9 +165,9 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
     file, which ``out`` must not hold as a file a design writes. The G-code is
     read back by the safety check (:func:`steady_limits`) before anything is kept."""
     from specholo.fabrication.atomic import atomic_open
-    from specholo.fabrication.check import check_program
-    from specholo.folders import check_out, publish
+    from specholo.folders import check_out
     from specholo.preview.steady import steady_preview
+    from specholo.staging import stage_design
 
     inputs = list(inputs)
     check_out(out, inputs)  # before the verification
@@ -175,14 +175,14 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
     summary = summarise(reports)
     if design.n_cuts == 0:
         raise SpecholoError("no stipple can be given a scoop: nothing to cut")
-    with publish(out, inputs) as tmp:
-        tmp = Path(tmp)
+    with stage_design(out, inputs) as stage:
+        tmp = stage.path
         limits = steady_limits(design, config)
         lines = write_path_gcode(tmp / "hologram.gcode", design, config.tool, config.machining,
                                  {"design": f"{design.shape}s, one per stipple and eye",
                                   "tool": f"ball end, radius {config.tool.radius:g} mm",
                                   **limits.header()})
-        safety = check_program(tmp / "hologram.gcode", limits)
+        safety = stage.check("hologram.gcode", limits)
         with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
             np.savez_compressed(fh, points=design.points, centres=design.centres,
                                 offsets=design.offsets, stipple=design.stipple,

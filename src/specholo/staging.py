@@ -1,0 +1,100 @@
+"""A design folder being written: published whole, and only with every program checked.
+
+Every job writes its design through :func:`stage_design`, the one path from a
+design to a folder. It stages the folder (:func:`specholo.folders.publish`:
+every older specholo file goes, the user's files stay), and before the folder
+is published it looks at every machine program the job wrote: each must have
+been read back by its safety check through :meth:`Stage.check`. A job that
+writes a program and forgets its check publishes nothing, so no kind of
+hologram can keep a program no check has read.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from specholo.errors import SpecholoError
+
+#: The suffixes of machine programs: each such file in a stage must be checked.
+PROGRAM_SUFFIXES = frozenset({".gcode", ".ngc", ".nc", ".tap"})
+
+
+@dataclass
+class Stage:
+    """The folder a job writes into before it is published.
+
+    Attributes:
+        path: the staged folder.
+        checked: program name -> what its check found (its report or figures).
+    """
+
+    path: Path
+    checked: dict[str, Any] = field(default_factory=dict)
+
+    def check(self, name: str, limits: Any = None,
+              check: Callable[[Path], Any] | None = None) -> Any:
+        """Read the program ``name`` back through its safety check.
+
+        Args:
+            name: the program's file name in the stage.
+            limits: :class:`~specholo.fabrication.check.Limits` to check a flat
+                program against (None: the limits in its own header).
+            check: a check of the job's own instead (a curved host's), given the
+                program's path; it raises :class:`SpecholoError` on a violation.
+
+        Returns:
+            The check's report (or the job's check's figures).
+
+        Raises:
+            SpecholoError: the program breaks a limit, or names no limits.
+        """
+        from specholo.fabrication.check import check_program, limits_from_header
+
+        path = self.path / name
+        if check is not None:
+            found = check(path)
+        else:
+            if limits is None:
+                limits = limits_from_header(path)
+                if limits is None:
+                    raise SpecholoError(f"{name} names no limits to check it against: "
+                                        "nothing written")
+            found = check_program(path, limits)
+        self.checked[name] = found
+        return found
+
+    def unchecked(self) -> list[str]:
+        """The programs in the stage that no check has read, by name."""
+        return sorted(p.name for p in self.path.iterdir()
+                      if p.suffix.lower() in PROGRAM_SUFFIXES and p.name not in self.checked)
+
+
+@contextlib.contextmanager
+def stage_design(out: str | os.PathLike[str],
+                 inputs: Iterable[str | os.PathLike[str] | None] = ()) -> Iterator[Stage]:
+    """A :class:`Stage` that replaces ``out`` whole once the block succeeds and
+    every program in it has passed its check.
+
+    Args:
+        out: the output folder.
+        inputs: the job's input files, which ``out`` must not hold as files a
+            design writes.
+
+    Raises:
+        SpecholoError: a program in the stage was not checked (nothing is
+            published), or see :func:`specholo.folders.publish`.
+    """
+    from specholo.folders import publish
+
+    with publish(out, inputs) as tmp:
+        stage = Stage(Path(tmp))
+        yield stage
+        missed = stage.unchecked()
+        if missed:
+            raise SpecholoError(f"{missed[0]} was written but not read back by the safety "
+                                "check: nothing written")
