@@ -30,6 +30,7 @@ LAYERS: list[set[str]] = [
     {"specholo.density", "specholo.ridged", "specholo.compose", "specholo.spin",
      "specholo.steady"},
     {"specholo.jobs"},
+    {"specholo.studio"},
     {"specholo_cli"},
 ]
 

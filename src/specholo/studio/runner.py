@@ -1,0 +1,148 @@
+"""The studio's exact design: one at a time, in a background thread.
+
+The page asks for a design and polls :meth:`Runner.status`; the design and its
+files are the command line's own (:func:`specholo.pipeline.design`,
+:func:`specholo.pipeline.write_design`), written into a folder published whole,
+so a folder the page offers is always a complete design.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import threading
+import time
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from specholo.errors import SpecholoError
+from specholo.pipeline import DesignConfig, design, write_design
+
+#: The stages of a design, as the page shows them.
+STAGES = ("designing: stipples, occlusion, grooves and their as-cut figures",
+          "writing the G-code, SVG and data")
+
+
+def one_line(exc: BaseException) -> str:
+    """An error as the one line the page shows (never a traceback)."""
+    if isinstance(exc, MemoryError):
+        return "out of memory; try fewer stipples"
+    text = str(exc).splitlines()[0] if str(exc).strip() else ""
+    if isinstance(exc, SpecholoError):
+        return text or "bad input"
+    if isinstance(exc, OSError):
+        name = f"{exc.filename}: " if exc.filename else ""
+        return f"{name}{exc.strerror or text or type(exc).__name__}"
+    return f"internal error ({type(exc).__name__}: {text})"
+
+
+def summary_figures(d: Any, written: Any, out: Path) -> dict[str, Any]:
+    """The design's own figures for the page: as cut, machining, hidden stipples."""
+    from specholo.fabrication.timing import plain_duration
+    from specholo.jobs.flat import design_summary
+
+    figures = d.as_cut.mean_and_lowest() if d.as_cut is not None else None
+    mach = written.machining
+    summary = design_summary(d, written, out)
+    return {
+        "stipples": int(len(d.points)),
+        "paths": int(d.grooves.n_paths),
+        "groove_length_mm": float(d.grooves.total_length()),
+        "as_cut_mean": None if figures is None else float(figures[0]),
+        "as_cut_lowest": None if figures is None else float(figures[1]),
+        "machining_hours": float(mach["estimated_hours"]),
+        "machining": plain_duration(3600.0 * float(mach["estimated_hours"])),
+        "cutting_hours": float(mach.get("cutting_hours", math.nan)),
+        "hidden": None if d.coverage is None else int(d.coverage.hidden),
+        "depth_mm": float(d.config.depth_mm),
+        "lines": list(summary.lines),
+        "warnings": list(summary.warnings),
+    }
+
+
+class Runner:
+    """At most one exact design at a time, its stage and its result.
+
+    Args:
+        out_root: the folder designs are written under (one subfolder a model).
+    """
+
+    def __init__(self, out_root: Path) -> None:
+        self.out_root = Path(out_root)
+        self._lock = threading.Lock()
+        self._state: dict[str, Any] = {"state": "idle"}
+        self._started = 0.0
+        self._thread: threading.Thread | None = None
+
+    def start(self, model: Path, name: str, config: DesignConfig,
+              on_done: Callable[[], None] | None = None) -> bool:
+        """Start a design of ``model`` into ``out_root/name``; False if one is running."""
+        with self._lock:
+            if self._state["state"] == "running":
+                return False
+            out = (self.out_root / name).resolve()
+            self._state = {"state": "running", "stage": STAGES[0], "folder": str(out),
+                           "stipples": config.stipples}
+            self._started = time.monotonic()
+            # A daemon: Ctrl-C ends the studio at once; a design cut short leaves
+            # its folder as it was (published whole or not at all).
+            self._thread = threading.Thread(target=self._run, args=(model, out, config, on_done),
+                                            name="specholo-studio-design", daemon=True)
+            self._thread.start()
+            return True
+
+    def _set(self, **values: Any) -> None:
+        with self._lock:
+            self._state.update(values)
+
+    def _run(self, model: Path, out: Path, config: DesignConfig,
+             on_done: Callable[[], None] | None) -> None:
+        try:
+            d = design(model, config)
+            self._set(stage=STAGES[1])
+            out.parent.mkdir(parents=True, exist_ok=True)
+            written = write_design(d, out, command=["specholo", "studio", str(model)],
+                                   inputs=[model])
+            self._set(state="done", stage="done", summary=summary_figures(d, written, out))
+        except BaseException as exc:  # noqa: BLE001 - the page shows one line, never a trace
+            self._set(state="failed", stage="failed", error=one_line(exc))
+        finally:
+            with self._lock:
+                self._state["seconds"] = time.monotonic() - self._started
+            if on_done is not None:
+                on_done()
+
+    def status(self) -> dict[str, Any]:
+        """The state (idle, running, done, failed), stage, seconds, figures or error."""
+        with self._lock:
+            state = dict(self._state)
+            if state["state"] == "running":
+                state["seconds"] = time.monotonic() - self._started
+            return state
+
+    def wait(self, timeout: float | None = None) -> None:
+        """Wait for the running design, if any (tests, and a clean exit)."""
+        thread = self._thread
+        if thread is not None:
+            thread.join(timeout)
+
+    def zip_bytes(self) -> tuple[str, bytes]:
+        """The finished design's folder as a zip, made in memory: (file name, bytes).
+
+        Raises:
+            SpecholoError: no finished design, or its folder is gone.
+        """
+        state = self.status()
+        if state["state"] != "done":
+            raise SpecholoError("no finished design to download yet")
+        folder = Path(state["folder"])
+        if not folder.is_dir():
+            raise SpecholoError(f"the design folder {folder} is gone")
+        buf = io.BytesIO()
+        with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+            for f in sorted(folder.rglob("*")):
+                if f.is_file():
+                    zf.write(f, Path(folder.name) / f.relative_to(folder))
+        return f"{folder.name}.zip", buf.getvalue()

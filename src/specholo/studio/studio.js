@@ -1,0 +1,317 @@
+// specholo studio: the page talks only to the server that sent it (same origin).
+// Plate frame, mm: x right, y up, z toward the viewer; the plate is z = 0.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const SLIDERS = ["size", "center_z", "offset_x", "offset_y", "light_elevation", "view_range",
+                 "view_distance", "stipples"];
+const S = {settings: {}, azimuth: 0, preview: null, model: null, span: 80,
+           asked: 0, inFlight: false, dirty: false, glintDraws: 0, lastGlints: []};
+
+function showError(text) { $("error").textContent = text ? "error: " + text : ""; }
+
+async function call(method, url, body, headers) {
+  // Every answer is JSON with "error" on failure: one line for the page.
+  const opts = {method, headers: Object.assign({"X-Specholo": "1"}, headers || {})};
+  if (body !== undefined) {
+    opts.body = body instanceof Blob ? body : JSON.stringify(body);
+    if (!(body instanceof Blob)) opts.headers["Content-Type"] = "application/json";
+  }
+  let reply;
+  try {
+    reply = await fetch(url, opts);
+  } catch (e) {
+    throw new Error("the studio server does not answer (was it stopped?)");
+  }
+  const data = await reply.json().catch(() => ({error: "bad answer from the server"}));
+  if (data.error) throw new Error(data.error);
+  return data;
+}
+
+// ---------------------------------------------------------------- settings
+function wrap(a) { return ((a + 180) % 360 + 360) % 360 - 180; }
+
+function setSetting(key, value) {
+  S.settings[key] = value;
+  const el = $(key);
+  if (el && el.type === "range") {
+    el.value = value;
+    el.parentElement.querySelector("output").textContent = (+value).toFixed(
+      key === "stipples" ? 0 : Number.isInteger(+value) ? 0 : 1);
+  } else if (el) {
+    el.value = value;
+  }
+  $("rotate-out").textContent = `x ${(+S.settings.rotate_x).toFixed(0)}\u00b0, ` +
+    `y ${(+S.settings.rotate_y).toFixed(0)}\u00b0`;
+}
+
+function setAzimuth(a) {
+  const range = +S.settings.view_range;
+  S.azimuth = Math.max(-range, Math.min(range, a));
+  const el = $("azimuth");
+  el.min = -range; el.max = range; el.value = S.azimuth;
+  el.parentElement.querySelector("output").textContent = S.azimuth.toFixed(1);
+  $("azimuth-out").textContent = S.azimuth.toFixed(1);
+  drawGlints();
+}
+
+function sent() {
+  // What the server designs from: the design's option names.
+  const s = {};
+  for (const k of [...SLIDERS, "up", "rotate_x", "rotate_y", "seed"]) s[k] = S.settings[k];
+  s.stipples = Math.round(s.stipples);
+  return s;
+}
+
+// ---------------------------------------------------------------- preview
+function changed() { S.dirty = true; if (!S.inFlight) askPreview(); }
+
+async function askPreview() {
+  if (!S.model) return;
+  S.dirty = false; S.inFlight = true;
+  const t0 = performance.now();
+  try {
+    S.preview = await call("POST", "/api/preview", {settings: sent()});
+    S.preview.ms = performance.now() - t0;
+    S.asked += 1;
+    showError("");
+  } catch (e) {
+    showError(e.message);
+  }
+  S.inFlight = false;
+  fit(); drawModel(); drawGlints(); showEstimates();
+  if (S.dirty) askPreview();
+}
+
+function visibleAt(p, az) {
+  // Stipples seen by the eye at azimuth az (degrees): their runs hold it.
+  const r = p.runs, seen = new Uint8Array(p.stipples);
+  for (let k = 0; k < r.stipple.length; k++)
+    if (r.start[k] <= az && az <= r.end[k]) seen[r.stipple[k]] = 1;
+  return seen;
+}
+
+function glintsAt(az) {
+  // The crossing of the sightline eye -> stipple with the plate z = 0.
+  const p = S.preview;
+  if (!p) return [];
+  const t = az * Math.PI / 180, R = p.eye.radius;
+  const ex = R * Math.sin(t), ey = p.eye.height, ez = R * Math.cos(t);
+  const seen = visibleAt(p, az), out = [];
+  for (let i = 0; i < p.stipples; i++) {
+    if (!seen[i]) continue;
+    const px = p.points[3 * i], py = p.points[3 * i + 1], pz = p.points[3 * i + 2];
+    const s = ez / (ez - pz);
+    out.push({id: i, x: ex + s * (px - ex), y: ey + s * (py - ey)});
+  }
+  return out;
+}
+
+function fit() {
+  // One scale for both canvases, in 20 mm steps so it holds still while dragging.
+  const p = S.preview;
+  if (!p) return;
+  let m = 10;
+  const range = p.eye.range_deg;
+  for (let i = 0; i < p.stipples; i++) {
+    const x = p.points[3 * i], y = p.points[3 * i + 1], z = p.points[3 * i + 2];
+    const reach = Math.abs(z) * Math.tan(range * Math.PI / 180);
+    m = Math.max(m, Math.abs(x) + reach, Math.abs(y));
+  }
+  S.span = Math.ceil(1.1 * m / 20) * 20;
+}
+
+function frame(canvas) {
+  const g = canvas.getContext("2d"), w = canvas.width, h = canvas.height;
+  g.fillStyle = "#000"; g.fillRect(0, 0, w, h);
+  const k = 0.5 * Math.min(w, h) / S.span;
+  g.strokeStyle = "#333"; g.beginPath();
+  g.moveTo(w / 2, 0); g.lineTo(w / 2, h); g.moveTo(0, h / 2); g.lineTo(w, h / 2); g.stroke();
+  g.fillStyle = "#666"; g.font = "11px sans-serif";
+  g.fillText(`\u00b1${S.span} mm`, 6, 14);
+  return {g, k, cx: w / 2, cy: h / 2};
+}
+
+function drawModel() {
+  const {g, k, cx, cy} = frame($("model"));
+  const p = S.preview;
+  $("prompt").hidden = !!S.model;
+  if (!p) return;
+  const seen = new Uint8Array(p.stipples);
+  for (const s of p.runs.stipple) seen[s] = 1;
+  for (let i = 0; i < p.stipples; i++) {
+    const z = p.points[3 * i + 2];
+    g.fillStyle = !seen[i] ? "#555" : z < 0 ? "#4af" : "#fa4";
+    g.fillRect(cx + k * p.points[3 * i] - 1, cy - k * p.points[3 * i + 1] - 1, 2, 2);
+  }
+}
+
+function drawGlints() {
+  const {g, k, cx, cy} = frame($("glints"));
+  const found = glintsAt(S.azimuth);
+  g.fillStyle = "#fff";
+  for (const q of found) g.fillRect(cx + k * q.x - 1, cy - k * q.y - 1, 2.5, 2.5);
+  g.fillStyle = "#999";
+  g.fillText(`eye at ${S.azimuth.toFixed(1)}\u00b0: ${found.length} glints`, 6, 28);
+  S.lastGlints = found; S.glintDraws += 1;
+}
+
+function row(table, name, value, note) {
+  const tr = table.insertRow();
+  tr.insertCell().textContent = name;
+  const td = tr.insertCell(); td.textContent = value;
+  if (note) { const n = tr.insertCell(); n.className = "note"; n.textContent = note; }
+}
+
+function showEstimates() {
+  const t = $("estimates"); t.innerHTML = "";
+  const p = S.preview;
+  if (!p) return;
+  const e = p.estimates;
+  row(t, "stipples", p.stipples, "the design's own (same seed)");
+  row(t, "hidden from every view", e.hidden, "exact: the design's occlusion");
+  row(t, "groove length", `about ${(e.groove_length_mm / 1000).toFixed(2)} m`,
+      "closed form: what the views need (exact grooves within ~1%)");
+  row(t, "cutting time", `at least ${e.cutting_at_least}`,
+      `lower bound at ${S.settings.feed} mm/min`);
+  row(t, "machining, whole job", "\u2014", "plunges, hops and rapids: exact design only");
+  row(t, "as-cut visibility", "\u2014", e.as_cut_why);
+  row(t, "preview took", `${Math.round(p.ms)} ms`);
+}
+
+// ---------------------------------------------------------------- exact design
+async function design() {
+  showError("");
+  try {
+    await call("POST", "/api/design", {settings: sent()});
+  } catch (e) {
+    showError(e.message);
+    return;
+  }
+  poll();
+}
+
+async function poll() {
+  let st;
+  try {
+    st = await call("GET", "/api/design");
+  } catch (e) {
+    showError(e.message);
+    return;
+  }
+  showDesign(st);
+  if (st.state === "running") setTimeout(poll, 400);
+}
+
+function showDesign(st) {
+  $("design").disabled = st.state === "running";
+  const secs = st.seconds !== undefined ? ` (${Math.round(st.seconds)} s)` : "";
+  $("status").textContent = st.state === "idle" ? "" :
+    st.state === "failed" ? `failed: ${st.error}` : `${st.stage}${secs}`;
+  const t = $("result"); t.innerHTML = "";
+  $("export").hidden = st.state !== "done";
+  if (st.state !== "done") return;
+  const f = st.summary, pct = (v) => v === null ? "\u2014" : `${Math.round(100 * v)}%`;
+  row(t, "as-cut visibility", `${pct(f.as_cut_mean)} mean, ${pct(f.as_cut_lowest)} lowest`);
+  row(t, "machining", `about ${f.machining} (${f.machining_hours.toFixed(2)} h)`);
+  row(t, "hidden stipples", `${f.hidden} of ${f.stipples}`);
+  row(t, "groove length", `${(f.groove_length_mm / 1000).toFixed(2)} m, ${f.paths} paths`);
+  for (const w of f.warnings) row(t, "warning", w);
+  $("folder").textContent = st.folder;
+}
+
+// ---------------------------------------------------------------- input
+function bindInputs() {
+  for (const key of SLIDERS) {
+    $(key).addEventListener("input", (ev) => {
+      setSetting(key, +ev.target.value);
+      if (key === "view_range") setAzimuth(S.azimuth);
+      changed();
+    });
+  }
+  $("up").addEventListener("change", (ev) => { setSetting("up", ev.target.value); changed(); });
+  $("azimuth").addEventListener("input", (ev) => setAzimuth(+ev.target.value));
+  $("reset").addEventListener("click", () => {
+    for (const k of ["rotate_x", "rotate_y", "offset_x", "offset_y"]) setSetting(k, 0);
+    changed();
+  });
+  $("design").addEventListener("click", design);
+  $("file").addEventListener("change", async (ev) => {
+    const file = ev.target.files[0];
+    if (!file) return;
+    try {
+      const st = await call("POST", "/api/model", file,
+                            {"X-Specholo-Name": encodeURIComponent(file.name)});
+      setModel(st.model);
+      changed();
+    } catch (e) {
+      showError(e.message);
+    }
+    ev.target.value = "";
+  });
+  const model = $("model");
+  let drag = null;
+  model.addEventListener("pointerdown", (ev) => {
+    drag = {x: ev.clientX, y: ev.clientY};
+    model.setPointerCapture(ev.pointerId);
+  });
+  model.addEventListener("pointermove", (ev) => {
+    if (!drag) return;
+    const dx = ev.clientX - drag.x, dy = ev.clientY - drag.y;
+    drag = {x: ev.clientX, y: ev.clientY};
+    if (ev.shiftKey) {  // move on the plate, mm per pixel of the drawing
+      const mm = S.span / (0.5 * model.width);
+      setSetting("offset_x", Math.max(-150, Math.min(150, S.settings.offset_x + dx * mm)));
+      setSetting("offset_y", Math.max(-150, Math.min(150, S.settings.offset_y - dy * mm)));
+    } else {  // turn about the plate's y (across) and x (up and down) axes
+      setSetting("rotate_y", wrap(S.settings.rotate_y + 0.5 * dx));
+      setSetting("rotate_x", wrap(S.settings.rotate_x + 0.5 * dy));
+    }
+    changed();
+  });
+  const end = () => { drag = null; };
+  model.addEventListener("pointerup", end);
+  model.addEventListener("pointercancel", end);
+  model.addEventListener("wheel", (ev) => {
+    ev.preventDefault();
+    setSetting("size", Math.max(5, Math.min(300, S.settings.size * Math.exp(-0.001 * ev.deltaY))));
+    changed();
+  }, {passive: false});
+  $("glints").addEventListener("mousemove", (ev) => {
+    const r = ev.target.getBoundingClientRect();
+    setAzimuth((2 * (ev.clientX - r.left) / r.width - 1) * S.settings.view_range);
+  });
+}
+
+function setModel(name) {
+  S.model = name;
+  $("model-name").textContent = name || "no model";
+  $("prompt").hidden = !!name;
+}
+
+async function start() {
+  bindInputs();
+  try {
+    const st = await call("GET", "/api/state");
+    for (const [k, v] of Object.entries(st.settings)) setSetting(k, v);
+    setAzimuth(0);
+    setModel(st.model);
+    showDesign(st.design);
+    if (st.design.state === "running") poll();
+    drawModel();
+    changed();
+  } catch (e) {
+    showError(e.message);
+  }
+}
+
+// For tests and the curious: the page's state and what it drew.
+window.studio = {
+  settings: () => Object.assign({}, S.settings),
+  glints: () => S.lastGlints.slice(),
+  draws: () => S.glintDraws,
+  previews: () => S.asked,
+  busy: () => S.inFlight || S.dirty,
+  azimuth: () => S.azimuth,
+};
+start();
