@@ -1,0 +1,298 @@
+"""The studio: its preview puts each glint on the eye's sightline through the
+stipple, its pose is the design's, bad input is one line and the server stays
+up; in a browser, the page poses, redraws, designs exactly and exports a
+folder that verifies."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import threading
+import urllib.error
+import urllib.request
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from specholo.errors import SpecholoError
+from specholo.pipeline import DesignConfig
+from specholo.scene.loading import load_model
+from specholo.scene.placement import place
+from specholo.scene.pose import Pose
+from specholo.scene.stippling import stipple
+from specholo.studio.preview import fast_preview
+from specholo.studio.server import StudioServer, make_server
+from specholo_cli.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+BUNNY = ROOT / "examples" / "bunny.obj"
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--headless=new", "--no-sandbox", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--no-first-run",
+    "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+]
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[StudioServer]:
+    s = make_server(BUNNY, tmp_path_factory.mktemp("studio-out"), 0)
+    thread = threading.Thread(target=s.serve_forever, daemon=True)
+    thread.start()
+    yield s
+    s.shutdown()
+    s.server_close()
+    s.studio.runner.wait(60)
+
+
+def request(server: StudioServer, path: str, body: Any = None, headers: dict | None = None,
+            method: str | None = None) -> tuple[int, Any]:
+    """(status, JSON or bytes) of one request to the studio."""
+    data = None
+    hdrs = {"X-Specholo": "1", **(headers or {})}
+    if isinstance(body, bytes):
+        data = body
+    elif body is not None:
+        data = json.dumps(body).encode()
+        hdrs["Content-Type"] = "application/json"
+    req = urllib.request.Request(server.url.rstrip("/") + path, data=data, headers=hdrs,
+                                 method=method or ("POST" if data is not None else "GET"))
+    try:
+        with urllib.request.urlopen(req, timeout=60) as reply:
+            code, raw, kind = reply.status, reply.read(), reply.headers["Content-Type"]
+    except urllib.error.HTTPError as exc:
+        code, raw, kind = exc.code, exc.read(), exc.headers["Content-Type"]
+    return code, json.loads(raw) if kind == "application/json" else raw
+
+
+SETTINGS = {"stipples": 300, "size": 50, "center_z": -30, "rotate_x": 10, "rotate_y": 25}
+
+
+def test_glints_lie_on_the_sightline_through_their_stipple(server: StudioServer):
+    code, got = request(server, "/api/preview", {"settings": SETTINGS})
+    assert code == 200, got
+    config = DesignConfig.from_dict(SETTINGS)
+    pv = fast_preview(load_model(BUNNY), config)
+    # the page's data is the library's preview, to the micrometre
+    assert got["stipples"] == len(pv.points) == 300
+    np.testing.assert_allclose(np.reshape(got["points"], (-1, 3)), pv.points, atol=6e-4)
+    assert got["runs"]["stipple"] == pv.stipple.tolist()
+    np.testing.assert_allclose(got["runs"]["start"], np.degrees(pv.start), atol=1e-4)
+    for az in (-30.0, 0.0, 20.0):
+        ids, glints = pv.glints(math.radians(az))
+        assert len(ids) > 50
+        eye = pv.viewer.eye(np.array([math.radians(az)]))[0]
+        np.testing.assert_allclose(eye, [got["eye"]["radius"] * math.sin(math.radians(az)),
+                                         got["eye"]["height"],
+                                         got["eye"]["radius"] * math.cos(math.radians(az))])
+        g = np.column_stack([glints, np.zeros(len(ids))])
+        p = pv.points[ids]
+        # on the segment from the eye to the stipple, at the plate z = 0
+        t = (g - eye)[:, 2] / (p - eye)[:, 2]
+        assert ((t > 0) & (t < 1)).all()
+        np.testing.assert_allclose(eye + t[:, None] * (p - eye), g, atol=1e-9)
+        # and only stipples the design's occlusion says the eye sees
+        inside = (pv.start <= math.radians(az)) & (math.radians(az) <= pv.end)
+        assert set(ids.tolist()) == set(pv.stipple[inside].tolist())
+    # figures labelled as what they are
+    e = got["estimates"]
+    assert e["as_cut_visibility"] is None and e["as_cut_why"]
+    assert e["groove_length_mm"] > 0 and e["cutting_hours_at_least"] > 0
+
+
+def test_rotate_y_turns_the_stipples_as_place_does(server: StudioServer):
+    base = {"stipples": 200, "size": 60, "center_z": -40}
+    model = load_model(BUNNY)
+    points = {}
+    for ry in (0.0, 90.0):
+        code, got = request(server, "/api/preview", {"settings": {**base, "rotate_y": ry}})
+        assert code == 200, got
+        points[ry] = np.reshape(got["points"], (-1, 3))
+        placed = place(model, 60, -40, Pose("y", (0.0, ry, 0.0)).rotation())
+        want = stipple(placed, np.random.default_rng(0), count=200).points
+        np.testing.assert_allclose(points[ry], want, atol=6e-4)
+    # a quarter turn about y: the model's depth becomes its width, and the
+    # side that faced the viewer (+z) now faces right (+x)
+    a = place(model, 60, -40, Pose().rotation()).points
+    b = place(model, 60, -40, Pose("y", (0.0, 90.0, 0.0)).rotation()).points
+    np.testing.assert_allclose(np.ptp(b, axis=0), np.ptp(a, axis=0)[[2, 1, 0]], rtol=1e-9)
+    front = np.argmax(a[:, 2])
+    assert b[front, 0] == pytest.approx(b[:, 0].max())
+    assert not np.allclose(points[0.0], points[90.0])
+
+
+def test_bad_input_is_one_line_and_the_server_stays_up(server: StudioServer):
+    for name, data in (("broken.stl", b"solid x\nfacet nonsense\n"),
+                       ("notes.txt", b"hello"), ("empty.obj", b"")):
+        code, got = request(server, "/api/model", data,
+                            {"X-Specholo-Name": name, "Content-Type": "application/octet-stream"})
+        assert code == 400, got
+        assert set(got) == {"error"} and "\n" not in got["error"] and got["error"], got
+        assert "specholo-studio" not in got["error"]  # the maker's file name, not the copy
+    for settings in ({"stipples": -5}, {"view_range": 95}, {"nonsense": 1}, [1, 2],
+                     {"center_z": 500}):
+        code, got = request(server, "/api/preview", {"settings": settings})
+        assert code == 400 and "\n" not in got["error"], (settings, got)
+    code, got = request(server, "/api/preview", b"{not json",
+                        {"Content-Type": "application/json"})
+    assert code == 400 and got["error"].startswith("the request is not JSON")
+    code, got = request(server, "/api/state")
+    assert code == 200 and got["model"] == "bunny"
+
+
+def test_a_good_upload_replaces_the_model(server: StudioServer, tmp_path: Path):
+    code, got = request(server, "/api/model", (ROOT / "examples" / "knot.obj").read_bytes(),
+                        {"X-Specholo-Name": "my%20knot.obj"})
+    assert code == 200 and got["model"] == "my_knot", got
+    code, got = request(server, "/api/model", BUNNY.read_bytes(),
+                        {"X-Specholo-Name": "bunny.obj"})
+    assert code == 200 and got["model"] == "bunny"
+
+
+def test_the_studio_serves_this_machine_only(server: StudioServer, tmp_path: Path):
+    assert server.server_address[0] == "127.0.0.1"
+    for host in ("0.0.0.0", "::", "192.168.1.2", "localhost"):
+        with pytest.raises(SpecholoError, match="127.0.0.1 only"):
+            make_server(BUNNY, tmp_path, 0, host=host)
+    code, got = request(server, "/api/state", headers={"Host": "evil.example:80"})
+    assert code == 403
+    # a page from elsewhere cannot post without the studio's header
+    req = urllib.request.Request(server.url + "api/preview", data=b"{}", method="POST")
+    with pytest.raises(urllib.error.HTTPError) as err:
+        urllib.request.urlopen(req, timeout=10)
+    assert err.value.code == 403
+
+
+def test_one_design_at_a_time(server: StudioServer):
+    settings = {"settings": {"stipples": 60, "size": 40, "center_z": -20}}
+    code, got = request(server, "/api/design", settings)
+    assert code == 202 and got["state"] == "running", got
+    code, got = request(server, "/api/design", settings)
+    assert code == 409 and "already running" in got["error"]
+    server.studio.runner.wait(60)
+    code, st = request(server, "/api/design")
+    assert st["state"] == "done", st
+    f = st["summary"]
+    assert f["stipples"] == 60 and 0 < f["machining_hours"] and 0 <= f["as_cut_lowest"] <= 1
+    code, data = request(server, "/api/design.zip")
+    names = zipfile.ZipFile(io.BytesIO(data)).namelist()
+    assert "bunny/hologram.json" in names and "bunny/hologram.gcode" in names
+
+
+def test_the_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    assert main(["studio", "--help"]) == 0
+    assert "127.0.0.1" in capsys.readouterr().out
+    assert main(["studio", str(tmp_path / "missing.obj"), "--no-browser"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "does not exist" in err
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 1 2\n")
+    assert main(["studio", str(bad), "--no-browser", "--port", "0"]) == 1
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_a_port_in_use_is_one_line(server: StudioServer, tmp_path: Path,
+                                   capsys: pytest.CaptureFixture[str]):
+    port = server.server_address[1]
+    assert main(["studio", "--port", str(port), "--no-browser", "--out", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"127.0.0.1:{port}" in err
+
+
+# ---------------------------------------------------------------- in a browser
+@pytest.fixture(scope="module")
+def browser() -> Any:
+    if not Path(CHROMIUM).exists():
+        pytest.skip("Chromium not installed at /usr/bin/chromium")
+    sync_api = pytest.importorskip("playwright.sync_api")
+    with sync_api.sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+def _slide(page: Any, key: str, value: float) -> None:
+    page.evaluate("([k, v]) => { const e = document.getElementById(k); e.value = v; "
+                  "e.dispatchEvent(new Event('input')); }", [key, value])
+
+
+def _settled(page: Any) -> None:
+    page.wait_for_function("window.studio && window.studio.previews() > 0 && "
+                           "!window.studio.busy()", timeout=20_000)
+
+
+def test_the_page_poses_redraws_and_designs_a_plate_that_verifies(
+        server: StudioServer, browser: Any, tmp_path: Path):
+    from specholo.jobs import VerifyOptions, job_of
+
+    # The page forbids eval; the test's own probes (wait_for_function) need it.
+    context = browser.new_context(accept_downloads=True, bypass_csp=True,
+                                  viewport={"width": 1400, "height": 900})
+    page = context.new_page()
+    errors: list[str] = []
+    urls: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("request", lambda r: urls.append(r.url))
+    page.goto(server.url)
+    _settled(page)
+    assert page.inner_text("#model-name") == "bunny"
+
+    # drag on the model: the pose turns about the plate's y and x axes
+    box = page.locator("#model").bounding_box()
+    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    asked = page.evaluate("window.studio.previews()")
+    page.mouse.move(cx, cy)
+    page.mouse.down()
+    page.mouse.move(cx + 60, cy + 20, steps=6)
+    page.mouse.up()
+    _settled(page)
+    pose = page.evaluate("window.studio.settings()")
+    assert pose["rotate_y"] == pytest.approx(30.0) and pose["rotate_x"] == pytest.approx(10.0)
+    assert page.evaluate("window.studio.previews()") > asked
+
+    # the light slider: a new preview, the glint canvas drawn again
+    draws = page.evaluate("window.studio.draws()")
+    before = page.inner_text("#estimates")
+    _slide(page, "light_elevation", 55)
+    page.wait_for_function(f"window.studio.draws() > {draws} && !window.studio.busy()")
+    _settled(page)
+    assert page.inner_text("#estimates") != before  # the groove length follows the light
+
+    # the page's glints are the library's, on each eye's sightline
+    _slide(page, "stipples", 150)
+    _settled(page)
+    _slide(page, "azimuth", 20)
+    shown = page.evaluate("window.studio.glints()")
+    settings = page.evaluate("window.studio.settings()")
+    config = DesignConfig.from_dict({k: settings[k] for k in (
+        "size", "center_z", "up", "rotate_x", "rotate_y", "offset_x", "offset_y",
+        "light_elevation", "view_range", "view_distance", "stipples", "seed")})
+    ids, glints = fast_preview(load_model(BUNNY), config).glints(math.radians(20.0))
+    assert [g["id"] for g in shown] == ids.tolist()
+    np.testing.assert_allclose([[g["x"], g["y"]] for g in shown], glints, atol=2e-3)
+
+    # design exactly, download the zip, verify what it holds
+    page.click("#design")
+    page.wait_for_selector("#export:not([hidden])", timeout=60_000)
+    assert "as-cut visibility" in page.inner_text("#result")
+    assert page.inner_text("#folder").endswith("bunny")
+    with page.expect_download() as dl:
+        page.click("#zip")
+    with zipfile.ZipFile(dl.value.path()) as zf:
+        zf.extractall(tmp_path)
+    folder = tmp_path / "bunny"
+    info = json.loads((folder / "hologram.json").read_text())
+    assert info["stats"]["stipples"] == 150
+    assert info["settings"]["rotate_y"] == pytest.approx(30.0)
+    result = job_of(folder).verify(folder, VerifyOptions(step_deg=15.0), print)
+    p95 = [float(row[result.table.columns.index("p95 mm")]) for row in result.table.rows]
+    assert max(p95) < 0.5, result.lines
+    context.close()
+    assert errors == []
+    assert urls and all(u.startswith(server.url) for u in urls), urls
