@@ -139,10 +139,13 @@ function drawModel() {
   if (!p) return;
   const seen = new Uint8Array(p.stipples);
   for (const s of p.runs.stipple) seen[s] = 1;
-  for (let i = 0; i < p.stipples; i++) {
-    const z = p.points[3 * i + 2];
-    g.fillStyle = !seen[i] ? "#555" : z < 0 ? "#4af" : "#fa4";
-    g.fillRect(cx + k * p.points[3 * i] - 1, cy - k * p.points[3 * i + 1] - 1, 2, 2);
+  for (const pass of [0, 1]) {  // the unseen first, so the seen ones stay on top
+    for (let i = 0; i < p.stipples; i++) {
+      if (seen[i] !== pass) continue;
+      const z = p.points[3 * i + 2];
+      g.fillStyle = !seen[i] ? "#555" : z < 0 ? "#4af" : "#fa4";
+      g.fillRect(cx + k * p.points[3 * i] - 1, cy - k * p.points[3 * i + 1] - 1, 2, 2);
+    }
   }
 }
 
