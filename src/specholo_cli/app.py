@@ -3,11 +3,12 @@ output checks, and printing a library result."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -250,6 +251,70 @@ def _stderr_console() -> Any:
     from rich.console import Console
 
     return Console(stderr=True)
+
+
+#: About how many kernels a command compiles on a fresh install (counted on
+#: the README's design by ``benchmarks/first_run.py``; its verify then
+#: compiles none): the progress line's "of ~N", only ever shown while compiling.
+KERNELS = {"design": 66}
+#: Seconds between two compiling lines when stderr is not a terminal (a log).
+_LOG_EVERY = 5.0
+
+
+class _Status:
+    """A status line (rich) that also says when kernels compile.
+
+    On a terminal the line is replaced while compiling and restored after; to
+    a file or a pipe, where the status line never shows, a compiling line is
+    written at the first kernel and then at most every few seconds.
+    """
+
+    def __init__(self, console: Any, status: Any, text: str, expected: int | None) -> None:
+        self.console, self.status, self.text, self.expected = console, status, text, expected
+        self.compiling = False
+        self.logged = -math.inf
+
+    def update(self, text: str) -> None:
+        self.text = text
+        if not self.compiling:
+            self.status.update(text)
+
+    def compiled(self, count: int, name: str | None) -> None:
+        import time
+
+        if name is None:
+            self.compiling = False
+            self.status.update(self.text)
+            return
+        self.compiling = True
+        of = f" of ~{self.expected}" if self.expected and count <= self.expected else ""
+        line = f"compiling kernels for this machine (first run only): {count}{of}, {name}..."
+        if self.console.is_terminal:
+            self.status.update(_escape(line))
+        elif time.monotonic() - self.logged >= _LOG_EVERY:
+            self.logged = time.monotonic()
+            click.echo(line, err=True)
+
+
+@contextlib.contextmanager
+def _status(text: str, command: str | None = None) -> Iterator[_Status]:
+    """``rich``'s status line on stderr showing ``text``, saying also when the
+    kernels compile (a first run); ``command`` names the estimate in
+    :data:`KERNELS`."""
+    from specholo._compiling import compiling_shown
+
+    console = _stderr_console()
+    with console.status(text) as status:
+        shown = _Status(console, status, text, KERNELS.get(command or ""))
+        with compiling_shown(shown.compiled):
+            yield shown
+
+
+def _escape(text: str) -> str:
+    """``text`` shown as is by rich (no markup)."""
+    from rich.markup import escape as rich_escape
+
+    return str(rich_escape(text))
 
 
 def _pose_options(fn: Any) -> Any:

@@ -15,6 +15,7 @@ from specholo_cli.app import (
     _Folder,
     _print_summary,
     _read_config,
+    _status,
     cli,
 )
 
@@ -81,13 +82,13 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
         def tried(n: int, v: float) -> None:
             console.print(f"{n} stipples: as cut, {v:.0%} in both eyes at the lowest view")
 
-        with console.status(f"finding the most stipples that keep {config.visibility:.0%} "
-                            "as cut..."):
+        with _status(f"finding the most stipples that keep {config.visibility:.0%} "
+                     "as cut...", "design"):
             d = design_for_visibility(model, config, tried)
     else:
-        with console.status("designing..."):
+        with _status("designing...", "design"):
             d = run_design(model, config)
-    with console.status("writing..."):
+    with _status("writing...", "design"):
         written = write_design(d, out, wanted, command=_command_line(),
                                inputs=[model, config_path])
     from specholo.jobs.flat import design_summary
@@ -98,14 +99,11 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
 def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...],
                    inputs: Sequence[Path | None]) -> None:
     """The design command for a ridged (full-parallax) plate."""
-    from rich.console import Console
-
     from specholo.ridged import design_ridged_model, write_ridged_design
 
-    console = Console(stderr=True)
-    with console.status("designing the ridged plate..."):
+    with _status("designing the ridged plate..."):
         d = design_ridged_model(model, config)
-    with console.status("writing..."):
+    with _status("writing..."):
         written = write_ridged_design(d, out, formats, inputs)
     from specholo.jobs.ridged import design_summary
 

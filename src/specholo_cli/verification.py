@@ -12,7 +12,7 @@ import click
 from specholo.errors import SpecholoError
 from specholo_cli.app import (
     _print_verification,
-    _stderr_console,
+    _status,
     cli,
 )
 
@@ -58,7 +58,7 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: s
     options = VerifyOptions(step, from_gcode, cut, cut_method, resolution, stl)
     if cut:
         choose_cut_method(cut_method, resolution, stl)  # refused before the folder is read
-    with _stderr_console().status("verifying...") as status:
+    with _status("verifying...", "verify") as status:
         result = job_of(folder).verify(folder, options, status.update)
     _print_verification(result)
     # The verification's files appear together or not at all.
