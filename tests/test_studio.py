@@ -204,6 +204,48 @@ def test_a_port_in_use_is_one_line(server: StudioServer, tmp_path: Path,
     assert err.count("\n") == 1 and f"127.0.0.1:{port}" in err
 
 
+def test_without_a_model_the_page_asks_for_one(tmp_path: Path):
+    s = make_server(None, tmp_path, 0)
+    threading.Thread(target=s.serve_forever, daemon=True).start()
+    try:
+        code, got = request(s, "/api/state")
+        assert code == 200 and got["model"] is None
+        code, got = request(s, "/api/preview", {"settings": {"stipples": 100}})
+        assert code == 400 and got["error"].startswith("no model open")
+        code, got = request(s, "/api/design.zip")
+        assert code == 400 and "no finished design" in got["error"]
+    finally:
+        s.shutdown()
+        s.server_close()
+    assert not s.studio.uploads.exists()
+
+
+def test_ctrl_c_ends_the_command_with_one_line(tmp_path: Path):
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from specholo_cli.cli import main; "
+         "sys.argv[0] = 'specholo'; main()", "studio", str(BUNNY), "--port", "0",
+         "--no-browser", "--out", str(tmp_path)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        line = proc.stdout.readline()
+        assert "http://127.0.0.1:" in line, line
+        url = line.split()[2]
+        with urllib.request.urlopen(url, timeout=20) as reply:
+            assert b"studio.js" in reply.read()
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130
+    assert err.splitlines() == ["error: interrupted; no file was left half-written"], err
+
+
 # ---------------------------------------------------------------- in a browser
 @pytest.fixture(scope="module")
 def browser() -> Any:
