@@ -99,12 +99,23 @@ class Runner:
 
     def _run(self, model: Path, out: Path, config: DesignConfig,
              on_done: Callable[[], None] | None) -> None:
+        from specholo._compiling import compiling_shown
+
+        stage = [STAGES[0]]
+
+        def compiling(count: int, name: str | None) -> None:
+            # A first run compiles the kernels for tens of seconds: say so.
+            self._set(stage=stage[0] if name is None else
+                      f"{stage[0]} (compiling for this machine, once: kernel {count}, {name})")
+
         try:
-            d = design(model, config)
-            self._set(stage=STAGES[1])
-            out.parent.mkdir(parents=True, exist_ok=True)
-            written = write_design(d, out, command=["specholo", "studio", str(model)],
-                                   inputs=[model])
+            with compiling_shown(compiling):
+                d = design(model, config)
+                stage[0] = STAGES[1]
+                self._set(stage=STAGES[1])
+                out.parent.mkdir(parents=True, exist_ok=True)
+                written = write_design(d, out, command=["specholo", "studio", str(model)],
+                                       inputs=[model])
             self._set(state="done", stage="done", summary=summary_figures(d, written, out))
         except BaseException as exc:  # noqa: BLE001 - the page shows one line, never a trace
             self._set(state="failed", stage="failed", error=one_line(exc))
