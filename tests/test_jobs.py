@@ -65,3 +65,84 @@ def test_every_picture_command_serves_a_kind_or_says_why(tmp_path, capsys, desig
     if command not in job.pictures:
         # refused before anything is read, naming the pictures the kind has
         assert job.title in err[0] and job.own_pictures in err[0]
+
+
+class DotsJob:
+    """A sixth kind, as a new module would add it: one dimple per model vertex,
+    written through the stage, verified by reading its program back."""
+
+    kind = "dots"
+    title = "a dot design"
+    verified_on = "its dots"
+    pictures: frozenset[str] = frozenset()
+    own_pictures = "none"
+    design_step: tuple[float, float, float] | None = (10.0, 1.0, 45.0)
+    preview_frames: int | None = None
+    overcut = 0.0
+
+    def configure(self, values, inputs):  # type: ignore[no-untyped-def]
+        depth = float(values.get("depth", 0.01))
+        if not 0 < depth < 0.1:
+            raise SpecholoError(f"depth must be in (0, 0.1) mm, got {depth}")
+        return depth
+
+    def design(self, inputs, config, status):  # type: ignore[no-untyped-def]
+        from specholo.jobs.base import Designed
+
+        status("reading the model...")
+        return Designed((inputs[0].read_text().split(), config), ["one dot per word"])
+
+    def write(self, designed, out, inputs, options, status):  # type: ignore[no-untyped-def]
+        from specholo.fabrication.check import Limits, Stock
+        from specholo.jobs.base import Summary
+        from specholo.staging import stage_design
+
+        words, depth = designed.design
+        limits = Limits(Stock(-50.0, -50.0, 50.0, 50.0, 3.0), depth, 1.0, (100.0, 100.0),
+                        (0.0, 0.0), tool="drag")
+        with stage_design(out, inputs) as stage:
+            program = ["G21", "G90", "G0 Z1"]
+            for i, _ in enumerate(words):
+                program += [f"G0 X{i:.1f} Y0", f"G1 Z{-depth - self.overcut:.3f} F100", "G0 Z1"]
+            (stage.path / "hologram.gcode").write_text("\n".join(program) + "\n")
+            report = stage.check("hologram.gcode", limits)
+            (stage.path / "hologram.json").write_text(json.dumps(
+                {"design": "dots", "step_deg": options.step_deg}))
+        return Summary([*designed.notes, f"{len(words)} dots, {report.moves['G1']} plunges"],
+                       [])
+
+    def holds(self, folder):  # type: ignore[no-untyped-def]
+        from specholo.folder import design_kind
+
+        return design_kind(folder) == "dots"
+
+    def verify(self, folder, options, status):  # type: ignore[no-untyped-def]
+        raise SpecholoError("not verified")
+
+
+def test_a_sixth_kind_is_one_class_and_a_line_in_the_registry(tmp_path, monkeypatch):
+    import specholo.jobs as jobs
+    from specholo.jobs.base import WriteOptions, run
+
+    monkeypatch.setattr(jobs, "JOBS", (DotsJob(), *JOBS))
+    model = tmp_path / "model.txt"
+    model.write_text("a b c")
+    out = tmp_path / "holo"
+    seen: list[str] = []
+    summary = run(DotsJob(), [model], {"depth": 0.02}, out, status=seen.append)
+    assert summary.lines == ["one dot per word", "3 dots, 3 plunges"]
+    assert seen == ["reading the model..."]
+    assert jobs.job_of(out).kind == "dots"
+    assert json.loads((out / "hologram.json").read_text())["step_deg"] == 10.0  # its default
+    # bad settings and steps are refused before anything is designed or written
+    for values, options, why in (({"depth": 0.5}, None, "depth must be"),
+                                 ({}, WriteOptions(step_deg=90.0), "step must be in")):
+        with pytest.raises(SpecholoError, match=why):
+            run(DotsJob(), [model], values, tmp_path / "never", options, seen.append)
+    assert not (tmp_path / "never").exists() and len(seen) == 1
+    # a dot deeper than its limits: refused, the folder as it was
+    before = (out / "hologram.gcode").read_bytes()
+    monkeypatch.setattr(DotsJob, "overcut", 0.01)
+    with pytest.raises(SpecholoError, match="failed its safety check"):
+        run(DotsJob(), [model], {"depth": 0.02}, out)
+    assert (out / "hologram.gcode").read_bytes() == before

@@ -72,3 +72,31 @@ def test_every_design_folder_is_written_through_the_stage() -> None:
             if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "publish":
                 callers.add(f.relative_to(SRC).as_posix())
     assert callers == {"staging.py", "jobs/base.py"}
+
+
+def test_every_kind_writes_one_verify_schema(tmp_path: Path) -> None:
+    """verify.json of any kind names the same figures under the same names, and a
+    file written before the shared schema still gives them."""
+    import json
+
+    from specholo.folder import VERIFY_SCHEMA, read_verify_figures, write_verify_json
+
+    flat = {"worst_p95_error": 0.157, "min_visibility": 0.98, "max_false_glints": 0.0}
+    spin = {"worst_p95_mm": 0.31, "lowest_visibility": 0.9, "stray": 2}
+    rows = [{"azimuth": -5.0}, {"azimuth": 0.0}, {"azimuth": 5.0}]
+    for kind, summary, key in (("flat", flat, "azimuths"), ("spinning", spin, "angles")):
+        write_verify_json(tmp_path, kind, 5.0, summary, key, rows, {"source": "x"})
+        record = json.loads((tmp_path / "verify.json").read_text())
+        assert record["schema"] == VERIFY_SCHEMA and record["kind"] == kind
+        assert record["rows"] == key and record[key] == rows and record["summary"] == summary
+        worst = summary.get("worst_p95_error", summary.get("worst_p95_mm"))
+        lowest = summary.get("min_visibility", summary.get("lowest_visibility"))
+        assert record["figures"] == {"worst_p95_mm": worst, "lowest_visibility": lowest,
+                                     "positions": 3}
+        assert read_verify_figures(tmp_path / "verify.json") == record["figures"]
+        # as written before the shared keys: the same figures
+        (tmp_path / "old.json").write_text(json.dumps({"summary": summary, key: rows}))
+        assert read_verify_figures(tmp_path / "old.json") == record["figures"]
+    (tmp_path / "bad.json").write_text("[1]")
+    with pytest.raises(SpecholoError, match="not a verification"):
+        read_verify_figures(tmp_path / "bad.json")

@@ -12,7 +12,7 @@ import json
 import math
 import os
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +31,9 @@ from specholo.toolpaths.spinning import (
     rotate_z,
     vertex_angles,
 )
+
+#: The setup's angles, radians inside, saved in degrees.
+SPIN_ANGLES = ("elevation",)
 
 
 @dataclass(frozen=True)
@@ -76,10 +79,27 @@ class SpinConfig:
         if not 1 <= self.turns <= 8:
             raise SpecholoError(f"turns must be in [1, 8], got {self.turns}")
 
+    @classmethod
+    def from_options(cls, models: int = 1, size: float = 40.0, center_z: float = 0.0,
+                     turns: int | None = None, stipples: int = 800, seed: int = 0,
+                     view_distance: float = 600.0, view_elevation: float = 45.0,
+                     ipd: float = 64.0, light_height: float | None = None, walls: str = "one",
+                     occlusion: bool = True, tool_radius: float = 0.25, depth: float = 0.08,
+                     pose: Pose | None = None) -> SpinConfig:
+        """The settings from the command's names and units (degrees, converted here
+        once); ``turns`` defaults to the number of models."""
+        setup = SpinSetup(distance=view_distance, elevation=math.radians(view_elevation),
+                          ipd=ipd, light_height=light_height, walls=walls)
+        return cls(size=size, center_z=center_z, stipples=stipples, seed=seed,
+                   pose=pose or Pose(), occlusion=occlusion,
+                   turns=models if turns is None else turns, setup=setup,
+                   tool=Tool(tool_radius, depth))
+
     def as_dict(self) -> dict[str, Any]:
-        d = asdict(self)
-        d["setup"]["elevation_deg"] = math.degrees(d["setup"].pop("elevation"))
-        return d
+        """The settings as ``hologram.json`` records them (angles in degrees)."""
+        from specholo.folder import saved_config
+
+        return saved_config(self, SPIN_ANGLES)
 
 
 @dataclass(frozen=True)
@@ -362,7 +382,8 @@ def write_spin_verification(reports: list[SpinReport], folder: str | os.PathLike
     from specholo.folder import write_verify_json
 
     summary = summarise(reports)
-    write_verify_json(folder, step_deg, summary, "angles", [r.as_dict() for r in reports])
+    write_verify_json(folder, "spinning", step_deg, summary, "angles",
+                      [r.as_dict() for r in reports])
     return summary
 
 
@@ -380,6 +401,7 @@ def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:
         SpecholoError: a file is unreadable, unlike what :func:`write_spin` writes,
             or the files disagree.
     """
+    from specholo.folder import config_arguments
     from specholo.readback import (
         ArraySpec,
         load_arrays,
@@ -387,7 +409,6 @@ def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:
         read_json,
         settings_from,
         table,
-        whole,
     )
     from specholo.scene.loading import read_mesh
     from specholo.toolpaths.grooves import MAX_COORDINATE, Grooves
@@ -396,21 +417,9 @@ def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:
     path = folder / "hologram.json"
     meta = table(read_json(path), str(path))
     with settings_from(path):
-        c = dict(table(meta["config"], "config"))
-        st = dict(table(c.pop("setup"), "config.setup"))
-        pose = table(c.pop("pose", {}), "config.pose")  # none before poses
-        c["pose"] = Pose(str(pose.get("up", "y")),
-                         tuple(pose.get("rotate_deg", (0.0, 0.0, 0.0))),
-                         tuple(pose.get("offset", (0.0, 0.0))))
-        st["elevation"] = math.radians(number(st.pop("elevation_deg"), "elevation_deg"))
-        # Counts must be whole: the turns and samples size arrays.
-        for values, keys in ((c, ("stipples", "seed", "turns")),
-                             (st, ("harmonics", "angles", "samples"))):
-            for key in keys:
-                if key in values:
-                    whole(values[key], key)
-        cfg = SpinConfig(setup=SpinSetup(**st), tool=Tool(**table(c.pop("tool"), "tool")),
-                         machining=Machining(**table(c.pop("machining"), "machining")), **c)
+        cfg = SpinConfig(**config_arguments(meta["config"], SpinSetup, SPIN_ANGLES,
+                                            ("stipples", "seed", "turns", "harmonics",
+                                             "angles", "samples")))
         tilts = meta["tilts_deg"]
         if not (isinstance(tilts, list) and len(tilts) == 2):
             raise SpecholoError("tilts_deg must be 2 numbers")

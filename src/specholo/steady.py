@@ -11,7 +11,7 @@ import json
 import math
 import os
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +22,9 @@ from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.steady import SteadyReport, verify_steady
 from specholo.toolpaths.steady import SteadyDesign, SteadySetup, design_steady, tool_tips
+
+#: The setup's angles, radians inside, saved in degrees.
+STEADY_ANGLES = ("elevation", "half_range")
 
 
 @dataclass(frozen=True)
@@ -58,12 +61,24 @@ class SteadyConfig:
         if not 1 <= self.stipples <= 200_000:
             raise SpecholoError(f"stipples must be in [1, 200000], got {self.stipples}")
 
+    @classmethod
+    def from_options(cls, size: float = 40.0, center_z: float = -20.0, stipples: int = 300,
+                     seed: int = 0, view_distance: float = 600.0, ipd: float = 64.0,
+                     light_elevation: float = 45.0, light_range: float = 5.0,
+                     shape: str = "scoop", tool_radius: float = 0.05, depth: float = 0.02,
+                     pose: Pose | None = None) -> SteadyConfig:
+        """The settings from the command's names and units (degrees, converted here once)."""
+        setup = SteadySetup(distance=view_distance, ipd=ipd,
+                            elevation=math.radians(light_elevation),
+                            half_range=math.radians(light_range))
+        return cls(size=size, center_z=center_z, stipples=stipples, seed=seed,
+                   pose=pose or Pose(), shape=shape, setup=setup, tool=Tool(tool_radius, depth))
+
     def as_dict(self) -> dict[str, Any]:
-        d = asdict(self)
-        st = d["setup"]
-        st["elevation_deg"] = math.degrees(st.pop("elevation"))
-        st["half_range_deg"] = math.degrees(st.pop("half_range"))
-        return d
+        """The settings as ``hologram.json`` records them (angles in degrees)."""
+        from specholo.folder import saved_config
+
+        return saved_config(self, STEADY_ANGLES)
 
 
 def design_steady_job(model_path: str | os.PathLike[str], config: SteadyConfig,
@@ -208,7 +223,8 @@ def write_verification(reports: list[SteadyReport], folder: Path, step_deg: floa
     from specholo.folder import write_verify_json
 
     summary = summarise(reports)
-    write_verify_json(folder, step_deg, summary, "elevations", [r.as_dict() for r in reports])
+    write_verify_json(folder, "steady", step_deg, summary, "elevations",
+                      [r.as_dict() for r in reports])
     return summary
 
 
@@ -226,15 +242,14 @@ def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, St
         SpecholoError: a file is unreadable, unlike what :func:`write_steady`
             writes, or the files disagree.
     """
+    from specholo.folder import config_arguments
     from specholo.readback import (
         ArraySpec,
         check_offsets,
         load_arrays,
-        number,
         read_json,
         settings_from,
         table,
-        whole,
         within,
     )
     from specholo.toolpaths.grooves import MAX_COORDINATE
@@ -243,21 +258,11 @@ def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, St
     path = folder / "hologram.json"
     meta = table(read_json(path), str(path))
     with settings_from(path):
-        c = dict(table(meta["config"], "config"))
-        st = dict(table(c.pop("setup"), "config.setup"))
-        pose = table(c.pop("pose", {}), "config.pose")  # none before poses
-        c["pose"] = Pose(str(pose.get("up", "y")),
-                         tuple(pose.get("rotate_deg", (0.0, 0.0, 0.0))),
-                         tuple(pose.get("offset", (0.0, 0.0))))
-        st["elevation"] = math.radians(number(st.pop("elevation_deg"), "elevation_deg"))
-        st["half_range"] = math.radians(number(st.pop("half_range_deg"), "half_range_deg"))
-        for values, key in ((c, "stipples"), (c, "seed"), (st, "samples")):
-            if key in values:
-                whole(values[key], key)
+        c = config_arguments(meta["config"], SteadySetup, STEADY_ANGLES,
+                             ("stipples", "seed", "samples"))
         if c.get("shape", "scoop") not in ("scoop", "flat"):
             raise SpecholoError(f"shape must be scoop or flat, got {str(c['shape'])[:40]!r}")
-        config = SteadyConfig(setup=SteadySetup(**st), tool=Tool(**table(c.pop("tool"), "tool")),
-                              machining=Machining(**table(c.pop("machining"), "machining")), **c)
+        config = SteadyConfig(**c)
     stipples = folder / "stipples.npz"
     a = load_arrays(stipples, {
         "points": ArraySpec((None, 3), finite=True), "centres": ArraySpec((None, 3), finite=True),

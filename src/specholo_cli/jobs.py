@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
 import click
 
-from specholo.errors import SpecholoError
+from specholo.jobs.base import WriteOptions
 from specholo_cli.app import (
     _check_out,
     _Folder,
-    _pose,
     _pose_options,
     _print_summary,
     _print_verification,
@@ -32,38 +30,9 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
     """Design a hologram from a TOML composition: any host (plane, cylinder, sphere,
     height field, mesh, panels), a walking viewer or a moving light, one or more
     scenes keyed to the motion; then verify it."""
-    from rich.console import Console
+    from specholo.jobs.composed import ComposedJob
 
-    from specholo.compose import (
-        composition_files,
-        design_composition,
-        read_composition,
-        write_composition,
-    )
-    from specholo.jobs import VerifyOptions
-    from specholo.jobs.composed import ComposedJob, design_summary
-
-    if not (math.isfinite(step) and 0.1 <= step <= 30.0):
-        raise SpecholoError(f"step must be in [0.1, 30] degrees, got {step}")
-    if not 0 <= frames <= 1000:
-        raise SpecholoError(f"frames must be in [0, 1000], got {frames}")
-    _check_out(out, [composition])
-    comp = read_composition(composition)
-    _check_out(out, [composition, *composition_files(comp)])
-    with Console(stderr=True).status("designing grooves along the motion...") as status:
-
-        def finish(stage: Path, check: dict[str, Any]) -> None:
-            """The verification and previews, published with the design's files."""
-            status.stop()
-            _print_summary(design_summary(d, check))
-            with Console(stderr=True).status("simulating eye pairs along the motion...") as s:
-                result = ComposedJob().verify(stage, VerifyOptions(step), s.update)
-            _print_verification(result)
-            result.write(stage)  # joins the new design's files, published with them
-            _preview_composed(d, stage, frames)
-
-        d = design_composition(comp)
-        write_composition(d, out, [composition], then=finish)
+    _run(ComposedJob(), [composition], {}, out, WriteOptions(step_deg=step, frames=frames))
 
 
 @cli.command()
@@ -112,31 +81,14 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
     plate through 360 degrees. Several models (or --turns N): the view circles the
     scene N times per plate turn, each model on its own circuit (720 degrees for
     two), with stipples sliding over the turning scene on open grooves."""
-    from rich.console import Console
+    from specholo.jobs.spin import SpinJob
 
-    from specholo.setup import Tool
-    from specholo.spin import SpinConfig, design_spin, write_spin
-    from specholo.toolpaths.spinning import SpinSetup
-
-    if not (math.isfinite(step) and 0.5 <= step <= 90.0):
-        raise SpecholoError(f"step must be in [0.5, 90] degrees, got {step}")
-    if not 0 <= frames <= 1000:
-        raise SpecholoError(f"frames must be in [0, 1000], got {frames}")
-    _check_out(out, model)
-    setup = SpinSetup(distance=view_distance, elevation=math.radians(view_elevation), ipd=ipd,
-                      light_height=light_height, walls=walls)
-    turns = len(model) if turns is None else turns
-    config = SpinConfig(size=size, center_z=center_z, stipples=stipples, seed=seed,
-                        pose=_pose(**pose),
-                        occlusion=not no_occlusion, turns=turns, setup=setup,
-                        tool=Tool(tool_radius, depth))
-    what = "closed grooves" if turns == 1 else "stipples sliding over the turning scene"
-    with Console(stderr=True).status(f"designing {what} and verifying the turn..."):
-        job = design_spin(list(model), config)
-        summary = write_spin(job, out, step, frames, inputs=list(model))
-    from specholo.jobs.spin import design_summary
-
-    _print_summary(design_summary(job, summary, out, step))
+    _run(SpinJob(), list(model), {
+        "size": size, "center_z": center_z, "turns": turns, "stipples": stipples, "seed": seed,
+        "view_distance": view_distance, "view_elevation": view_elevation, "ipd": ipd,
+        "light_height": light_height, "walls": walls, "occlusion": not no_occlusion,
+        "tool_radius": tool_radius, "depth": depth, **pose}, out,
+        WriteOptions(step_deg=step, frames=frames))
 
 
 @cli.command()
@@ -172,32 +124,26 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
     """Design a hologram of MODEL for a viewer standing still whose image stays put
     while the sun moves a little in elevation: for each stipple and eye, a scoop
     whose glint does not move with the light. Then verify it over the range."""
-    from specholo.setup import Tool
-    from specholo.steady import SteadyConfig, design_steady_job, write_steady
-    from specholo.toolpaths.steady import SteadySetup
+    from specholo.jobs.steady import SteadyJob
 
-    if not (math.isfinite(step) and 0.05 <= step <= 10.0):
-        raise SpecholoError(f"step must be in [0.05, 10] degrees, got {step}")
-    _check_out(out, [model])
-    setup = SteadySetup(distance=view_distance, ipd=ipd,
-                        elevation=math.radians(light_elevation),
-                        half_range=math.radians(light_range))
-    config = SteadyConfig(size=size, center_z=center_z, stipples=stipples, seed=seed,
-                          pose=_pose(**pose),
-                          shape=shape, setup=setup, tool=Tool(tool_radius, depth))
-    design = design_steady_job(model, config)
-    s = write_steady(design, config, out, step, inputs=[model])
-    from specholo.jobs.steady import design_summary
-
-    _print_summary(design_summary(design, config, s, out))
+    _run(SteadyJob(), [model], {
+        "size": size, "center_z": center_z, "stipples": stipples, "seed": seed,
+        "view_distance": view_distance, "ipd": ipd, "light_elevation": light_elevation,
+        "light_range": light_range, "shape": shape, "tool_radius": tool_radius,
+        "depth": depth, **pose}, out, WriteOptions(step_deg=step))
 
 
-def _preview_composed(d: Any, out: Path, frames: int) -> None:
-    """preview.png and preview.gif, with a progress bar over the animation's frames."""
-    from rich.progress import Progress
+def _run(job: Any, inputs: list[Path], values: dict[str, Any], out: Path,
+         options: WriteOptions) -> None:
+    """Run a job with a status line, then print what it says."""
+    from rich.console import Console
 
-    from specholo.preview.composed import write_previews
+    from specholo.jobs.base import run
 
-    with Progress(transient=True, console=None) as bar:
-        task = bar.add_task("rendering preview.gif", total=frames)
-        write_previews(d, out, frames, progress=lambda: bar.advance(task))
+    _check_out(out, inputs)
+    with Console(stderr=True).status("starting...") as status:
+        summary = run(job, inputs, values, out, options, status.update)
+    if summary.table is not None:
+        _print_verification(summary)
+        summary = type(summary)([], summary.warnings)
+    _print_summary(summary)

@@ -1,19 +1,24 @@
-"""The interface every kind of hologram implements, and what verifying one returns.
+"""The interface every kind of hologram implements, and the one way to run it.
 
 In the style of the hosts' :class:`~specholo.hosts.surfaces.Host` protocol one
-level up: a job knows its folders (:meth:`Job.holds`) and verifies them
+level up: a job turns the command's settings into its own
+(:meth:`Job.configure`, degrees converted there once), designs
+(:meth:`Job.design`), writes its folder (:meth:`Job.write`, through
+:func:`specholo.staging.stage_design`, which publishes nothing while a program
+in it is unchecked), knows its folders (:meth:`Job.holds`) and verifies them
 (:meth:`Job.verify`), returning a :class:`Verification`: the figures as a table
 and lines to print, and the files to write, which
-:func:`publish_verification` publishes together (all or none).
+:func:`publish_verification` publishes together (all or none). :func:`run`
+does the same steps for every kind.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from specholo.errors import SpecholoError
 
@@ -57,11 +62,40 @@ class Table:
 
 @dataclass(frozen=True)
 class Summary:
-    """What a design says once its folder is written: lines for the terminal and
-    warnings (each one line, for the error stream)."""
+    """What a design says once its folder is written: lines for the terminal,
+    warnings (each one line, for the error stream) and, for the kinds that
+    verify as they design, the verification's table."""
 
     lines: list[str]
     warnings: list[str]
+    table: Table | None = None
+
+
+@dataclass(frozen=True)
+class WriteOptions:
+    """How a design is written (each kind takes what it uses).
+
+    Attributes:
+        formats: fabrication files to write (None: the kind's default).
+        command: the command line, recorded in ``run.json`` (None: ``sys.argv``).
+        step_deg: largest step between the positions verified with the design,
+            degrees (None: the kind's default).
+        frames: frames of an animated preview (None: the kind's default).
+    """
+
+    formats: tuple[str, ...] | None = None
+    command: list[str] | None = None
+    step_deg: float | None = None
+    frames: int | None = None
+
+
+@dataclass
+class Designed:
+    """A job's design, not yet written, and lines it has to say about how it was
+    found (e.g. each density tried), which lead its summary."""
+
+    design: Any
+    notes: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -95,6 +129,9 @@ class Job(Protocol):
         pictures: the picture commands that draw it (of :data:`PICTURE_COMMANDS`).
         own_pictures: what it draws itself when it is designed ("preview.gif"),
             named when a picture command does not serve it.
+        design_step: for a kind verified as it is designed, the step between
+            verified positions, degrees: (default, lowest, highest); else None.
+        preview_frames: the default frames of its animated preview, or None.
     """
 
     kind: str
@@ -102,6 +139,23 @@ class Job(Protocol):
     verified_on: str
     pictures: frozenset[str]
     own_pictures: str
+    design_step: tuple[float, float, float] | None
+    preview_frames: int | None
+
+    def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
+        """The kind's settings from the command's (or TOML's) names and units
+        (degrees, converted here once), checked; ``inputs`` are the model files."""
+        ...
+
+    def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
+        """Design the hologram of ``inputs``; nothing is written."""
+        ...
+
+    def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
+              options: WriteOptions, status: Status) -> Summary:
+        """Write the folder whole (:func:`specholo.staging.stage_design`) and say
+        what it holds; ``inputs`` may not be files the design writes in ``out``."""
+        ...
 
     def holds(self, folder: Path) -> bool:
         """Whether ``folder`` holds a design of this kind."""
@@ -139,3 +193,49 @@ def publish_verification(folder: str | os.PathLike[str], v: Verification) -> Non
 
     with publish(folder, replaces=set(v.files)) as stage:
         v.write(stage)
+
+
+def run(job: Job, inputs: Sequence[Path], values: Mapping[str, Any], out: Path,
+        options: WriteOptions | None = None, status: Status = quiet,
+        other_inputs: Sequence[Path | None] = ()) -> Summary:
+    """Design and write one hologram of any kind, the same steps for every kind:
+    the settings checked, the output folder checked before the (long) design,
+    the design, then its folder written whole with every program checked.
+
+    Args:
+        job: the kind (one of :data:`specholo.jobs.JOBS`).
+        inputs: the model files (a composition's TOML for a composition).
+        values: the settings by the command's names, in its units.
+        out: the output folder.
+        options: how to write it.
+        status: told what a long step is doing.
+        other_inputs: further files read (a config file), which ``out`` may not
+            hold as files a design writes.
+    """
+    from specholo.folders import check_out
+
+    options = write_options(job, options or WriteOptions())
+    config = job.configure(values, inputs)
+    every = [*inputs, *other_inputs]
+    check_out(out, every)
+    designed = job.design(inputs, config, status)
+    return job.write(designed, out, every, options, status)
+
+
+def write_options(job: Job, options: WriteOptions) -> WriteOptions:
+    """``options`` checked for ``job`` before anything long runs, its defaults
+    filled in: the verification step and the preview's frames."""
+    import math
+    from dataclasses import replace
+
+    step, frames = options.step_deg, options.frames
+    if job.design_step is not None:
+        default, low, high = job.design_step
+        step = default if step is None else step
+        if not (math.isfinite(step) and low <= step <= high):
+            raise SpecholoError(f"step must be in [{low:g}, {high:g}] degrees, got {step}")
+    if job.preview_frames is not None:
+        frames = job.preview_frames if frames is None else frames
+        if not 0 <= frames <= 1000:
+            raise SpecholoError(f"frames must be in [0, 1000], got {frames}")
+    return replace(options, step_deg=step, frames=frames)

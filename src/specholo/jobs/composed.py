@@ -3,17 +3,20 @@ or the light, along its motion."""
 
 from __future__ import annotations
 
-import json
 import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from specholo.errors import SpecholoError
 from specholo.jobs.base import (
+    Designed,
     Status,
     Summary,
     Table,
     Verification,
     VerifyOptions,
+    WriteOptions,
     refuse_cut_options,
 )
 
@@ -43,6 +46,51 @@ class ComposedJob:
     verified_on = "its grooves"
     pictures: frozenset[str] = frozenset()
     own_pictures = "preview.png and preview.gif"
+    design_step: tuple[float, float, float] | None = (5.0, 0.1, 30.0)
+    preview_frames: int | None = 48
+
+    def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
+        """The composition file's settings (a composition is all in its TOML)."""
+        from specholo.compose import read_composition
+
+        if len(inputs) != 1:
+            raise SpecholoError(f"a design is composed from one TOML file, got {len(inputs)}")
+        return read_composition(inputs[0])
+
+    def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
+        from specholo.compose import design_composition
+
+        status("designing grooves along the motion...")
+        return Designed(design_composition(config))
+
+    def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
+              options: WriteOptions, status: Status) -> Summary:
+        """The folder with its verification and previews, published together."""
+        from specholo.compose import write_composition
+        from specholo.preview.composed import write_previews
+
+        d = designed.design
+        step, frames = options.step_deg or 5.0, options.frames or 0
+        found: list[Summary] = []
+
+        def finish(stage: Path, check: dict[str, Any]) -> None:
+            summary = design_summary(d, check)
+            status("simulating eye pairs along the motion...")
+            result = self.verify(stage, VerifyOptions(step), status)
+            result.write(stage)  # joins the new design's files, published with them
+            done = [0]
+
+            def frame() -> None:
+                done[0] += 1
+                status(f"rendering preview.gif: frame {done[0]} of {frames}")
+
+            status("rendering the previews...")
+            write_previews(d, stage, frames, progress=frame)
+            found.append(Summary(summary.lines + result.lines, summary.warnings, result.table))
+
+        status("writing...")
+        write_composition(d, out, inputs, then=finish)
+        return found[0]
 
     def holds(self, folder: Path) -> bool:
         from specholo.compose import is_composed_folder
@@ -51,7 +99,7 @@ class ComposedJob:
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.compose import load_composition_folder, verify_composition
-        from specholo.fabrication.atomic import atomic_open
+        from specholo.folder import write_verify_json
         from specholo.simulation.conforming import reports_to_dicts, summarise
 
         refuse_cut_options(self, options)
@@ -68,9 +116,9 @@ class ComposedJob:
         summary = summarise(reports)
 
         def verify_json(into: Path) -> None:
-            with atomic_open(into / "verify.json") as fh:
-                json.dump({"positions": reports_to_dicts(reports), "summary": summary}, fh,
-                          indent=1, sort_keys=True)
+            write_verify_json(into, self.kind, options.step_deg, summary, "positions",
+                              reports_to_dicts(reports), {"motion": d.comp.motion.mode,
+                                                          "host": d.comp.host.kind})
 
         line = (f"worst p95 error {summary['worst_p95_error']:.3f} mm, lowest visibility "
                 f"{summary['min_visibility']:.3f}, most stray glints {summary['max_stray']:.3f}")

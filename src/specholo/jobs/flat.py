@@ -3,13 +3,20 @@ method): verified by stereo eye pairs along the arc, ideally and as cut."""
 
 from __future__ import annotations
 
-import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from specholo.jobs.base import Status, Summary, Table, Verification, VerifyOptions
+from specholo.jobs.base import (
+    Designed,
+    Status,
+    Summary,
+    Table,
+    Verification,
+    VerifyOptions,
+    WriteOptions,
+)
 
 
 def design_summary(d: Any, written: Any, out: Path) -> Summary:
@@ -84,12 +91,47 @@ class FlatJob:
     verified_on = "its grooves"
     pictures = frozenset({"render", "animate", "stereo", "report", "view"})
     own_pictures = "preview.png"
+    design_step: tuple[float, float, float] | None = None
+    preview_frames: int | None = None
+
+    def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
+        from specholo.pipeline import DesignConfig
+
+        return DesignConfig.from_dict(dict(values))
+
+    def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
+        from specholo.pipeline import design
+
+        if config.visibility is None:
+            status("designing...")
+            return Designed(design(inputs[0], config))
+        from specholo.density import design_for_visibility
+
+        notes: list[str] = []
+
+        def tried(n: int, v: float) -> None:
+            notes.append(f"{n} stipples: as cut, {v:.0%} in both eyes at the lowest view")
+            status(f"finding the most stipples that keep {config.visibility:.0%} as cut... "
+                   + notes[-1])
+
+        status(f"finding the most stipples that keep {config.visibility:.0%} as cut...")
+        return Designed(design_for_visibility(inputs[0], config, tried), notes)
+
+    def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
+              options: WriteOptions, status: Status) -> Summary:
+        from specholo.pipeline import DEFAULT_FORMATS, write_design
+
+        status("writing...")
+        written = write_design(designed.design, out, options.formats or DEFAULT_FORMATS,
+                               command=options.command, inputs=inputs)
+        summary = design_summary(designed.design, written, out)
+        return Summary(designed.notes + summary.lines, summary.warnings)
 
     def holds(self, folder: Path) -> bool:
         return True
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
-        from specholo.fabrication.atomic import atomic_open
+        from specholo.folder import write_verify_json
         from specholo.pipeline import (
             DEFAULT_RESOLUTION,
             cut_method,
@@ -142,15 +184,14 @@ class FlatJob:
         source = "hologram.gcode" if options.from_gcode or cut else "grooves.npz"
 
         def verify_json(into: Path) -> None:
-            with atomic_open(into / "verify.json") as fh:
-                json.dump({"method": name, "source": source, "summary": summary,
-                           "azimuths": rows}, fh, indent=1)
+            write_verify_json(into, self.kind, options.step_deg, dict(summary), "azimuths", rows,
+                              {"method": name, "source": source})
 
         def verify_cut_json(into: Path) -> None:
-            with atomic_open(into / "verify_cut.json") as fh:
-                json.dump({"method": name, "source": source, "cut_method": method,
-                           "resolution_mm": resolution if method == "field" else None,
-                           "summary": cut_summary, "azimuths": cut_rows}, fh, indent=1)
+            write_verify_json(into, self.kind, options.step_deg, cut_summary, "azimuths",
+                              cut_rows, {"method": name, "source": source, "cut_method": method,
+                                         "resolution_mm": resolution if method == "field"
+                                         else None}, name="verify_cut.json")
 
         def verify_png(into: Path) -> None:
             plot_verification(rows, into / "verify.png", f"{name}: stereo verification")

@@ -3,16 +3,18 @@ verified by heads over azimuth and elevation on its exact heights."""
 
 from __future__ import annotations
 
-import json
 import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from specholo.jobs.base import (
+    Designed,
     Status,
     Summary,
     Verification,
     VerifyOptions,
+    WriteOptions,
     refuse_cut_options,
 )
 
@@ -58,6 +60,28 @@ class RidgedJob:
     verified_on = "its height field (plate.npz)"
     pictures = frozenset({"render", "view"})
     own_pictures = "preview.png"
+    design_step: tuple[float, float, float] | None = None
+    preview_frames: int | None = None
+
+    def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
+        from specholo.pipeline import DesignConfig
+
+        return DesignConfig.from_dict({**values, "method": "ridged"})
+
+    def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
+        from specholo.ridged import design_ridged_model
+
+        status("designing the ridged plate...")
+        return Designed(design_ridged_model(inputs[0], config))
+
+    def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
+              options: WriteOptions, status: Status) -> Summary:
+        from specholo.ridged import DEFAULT_RIDGED_FORMATS, write_ridged_design
+
+        status("writing...")
+        written = write_ridged_design(designed.design, out,
+                                      options.formats or DEFAULT_RIDGED_FORMATS, inputs)
+        return design_summary(designed.design, written, out)
 
     def holds(self, folder: Path) -> bool:
         from specholo.ridged import is_ridged_folder
@@ -65,7 +89,7 @@ class RidgedJob:
         return is_ridged_folder(folder)
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
-        from specholo.fabrication.atomic import atomic_open
+        from specholo.folder import write_verify_json
         from specholo.preview.preview import plot_field_verification
         from specholo.ridged import load_ridged_design, verify_ridged_design
         from specholo.simulation.heightfield import report_table
@@ -108,11 +132,10 @@ class RidgedJob:
                      f"max false glints {summary['max_false_glints']:.3f}")
 
         def verify_json(into: Path) -> None:
-            with atomic_open(into / "verify.json") as fh:
-                json.dump({"method": "ridged", "optic": loaded.config.optic,
-                           **({"refraction": loaded.config.refraction} if refract else {}),
-                           "source": "plate.npz", "summary": summary,
-                           "views": rows}, fh, indent=1)
+            write_verify_json(into, self.kind, step, summary, "views", rows,
+                              {"method": "ridged", "optic": loaded.config.optic,
+                               **({"refraction": loaded.config.refraction} if refract else {}),
+                               "source": "plate.npz"})
 
         def verify_png(into: Path) -> None:
             plot_field_verification(rows, into / "verify.png",

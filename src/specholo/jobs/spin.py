@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from specholo.jobs.base import (
+    Designed,
     Status,
     Summary,
     Verification,
     VerifyOptions,
+    WriteOptions,
     refuse_cut_options,
 )
 
@@ -37,6 +40,32 @@ class SpinJob:
     verified_on = "its grooves"
     pictures: frozenset[str] = frozenset()
     own_pictures = "preview.gif"
+    design_step: tuple[float, float, float] | None = (5.0, 0.5, 90.0)
+    preview_frames: int | None = 48
+
+    def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
+        from specholo.scene.pose import POSE_OPTIONS, Pose
+        from specholo.spin import SpinConfig
+
+        given = {k: v for k, v in values.items() if v is not None}
+        pose = Pose.from_options(**{k: given.pop(k) for k in POSE_OPTIONS if k in given})
+        return SpinConfig.from_options(models=len(inputs), pose=pose, **given)
+
+    def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
+        from specholo.spin import design_spin
+
+        status("designing closed grooves..." if config.turns == 1 else
+               "designing stipples sliding over the turning scene...")
+        return Designed(design_spin(list(inputs), config))
+
+    def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
+              options: WriteOptions, status: Status) -> Summary:
+        from specholo.spin import write_spin
+
+        step, frames = options.step_deg or 5.0, options.frames or 0
+        status("verifying the turn and writing...")
+        summary = write_spin(designed.design, out, step, frames, inputs=inputs)
+        return design_summary(designed.design, summary, out, step)
 
     def holds(self, folder: Path) -> bool:
         from specholo.spin import is_spin_folder

@@ -4,14 +4,18 @@ light's range."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from specholo.errors import SpecholoError
 from specholo.jobs.base import (
+    Designed,
     Status,
     Summary,
     Verification,
     VerifyOptions,
+    WriteOptions,
     refuse_cut_options,
 )
 
@@ -36,6 +40,34 @@ class SteadyJob:
     verified_on = "its cuts"
     pictures: frozenset[str] = frozenset()
     own_pictures = "preview.png"
+    design_step: tuple[float, float, float] | None = (1.0, 0.05, 10.0)
+    preview_frames: int | None = None
+
+    def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
+        from specholo.scene.pose import POSE_OPTIONS, Pose
+        from specholo.steady import SteadyConfig
+
+        given = {k: v for k, v in values.items() if v is not None}
+        pose = Pose.from_options(**{k: given.pop(k) for k in POSE_OPTIONS if k in given})
+        return SteadyConfig.from_options(pose=pose, **given)
+
+    def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
+        from specholo.steady import design_steady_job
+
+        if len(inputs) != 1:
+            raise SpecholoError(f"a steady image is of one model, got {len(inputs)}")
+        status("designing a scoop for each stipple and eye...")
+        return Designed((design_steady_job(inputs[0], config), config))
+
+    def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
+              options: WriteOptions, status: Status) -> Summary:
+        from specholo.steady import write_steady
+
+        design, config = designed.design
+        step = options.step_deg or 1.0
+        status("moving the light and writing...")
+        s = write_steady(design, config, out, step, inputs=inputs)
+        return design_summary(design, config, s, out)
 
     def holds(self, folder: Path) -> bool:
         from specholo.steady import is_steady_folder

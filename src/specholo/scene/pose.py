@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -53,6 +54,10 @@ def orientation(up: str = "y", rotate: tuple[float, float, float] = (0.0, 0.0, 0
     return r
 
 
+#: The command-line and TOML names of a pose (:meth:`Pose.from_options`).
+POSE_OPTIONS = ("up", "rotate_x", "rotate_y", "rotate_z", "offset_x", "offset_y")
+
+
 @dataclass(frozen=True)
 class Pose:
     """How a model is turned and moved onto the plate, in the user's units.
@@ -83,6 +88,24 @@ class Pose:
             raise SpecholoError(f"up must be one of {', '.join(UP_AXES)}, got {self.up!r}")
         object.__setattr__(self, "rotate_deg", rot)
         object.__setattr__(self, "offset", off)
+
+    @classmethod
+    def from_options(cls, up: str | None = None, rotate_x: float | None = None,
+                     rotate_y: float | None = None, rotate_z: float | None = None,
+                     offset_x: float | None = None, offset_y: float | None = None) -> Pose:
+        """The pose the command-line and TOML names ask for (None: the default)."""
+        return cls(up or "y", (rotate_x or 0.0, rotate_y or 0.0, rotate_z or 0.0),
+                   (offset_x or 0.0, offset_y or 0.0))
+
+    @classmethod
+    def from_saved(cls, saved: Any) -> Pose:
+        """The pose a job's ``hologram.json`` recorded (:func:`dataclasses.asdict`);
+        an empty table or None (a folder written before poses) is the default pose."""
+        saved = saved or {}
+        if not isinstance(saved, dict):
+            raise SpecholoError("the pose must be a table")
+        return cls(str(saved.get("up", "y")), tuple(saved.get("rotate_deg", (0.0, 0.0, 0.0))),
+                   tuple(saved.get("offset", (0.0, 0.0))))
 
     def rotation(self) -> np.ndarray:
         """(3, 3) model-to-plate rotation (:func:`orientation`; degrees to radians here)."""
