@@ -322,7 +322,8 @@ def test_the_page_poses_redraws_and_designs_a_plate_that_verifies(
     # design exactly, download the zip, verify what it holds
     page.click("#design")
     page.wait_for_selector("#export:not([hidden])", timeout=60_000)
-    assert "as-cut visibility" in page.inner_text("#result")
+    result_text = page.inner_text("#result")
+    assert "as-cut visibility" in result_text and "of 150" in result_text, result_text
     assert page.inner_text("#folder").endswith("bunny")
     with page.expect_download() as dl:
         page.click("#zip")

@@ -185,10 +185,13 @@ function showEstimates() {
 // ---------------------------------------------------------------- exact design
 async function design() {
   showError("");
+  // The last design's figures go at once: what shows next is this one's.
+  showDesign({state: "running", stage: "starting"});
   try {
     await call("POST", "/api/design", {settings: sent()});
   } catch (e) {
     showError(e.message);
+    poll();  // a refusal: show the design that is running, or none
     return;
   }
   poll();
