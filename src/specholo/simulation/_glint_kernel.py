@@ -1,4 +1,4 @@
-"""Compiled glint search on groove arcs (numba, parallel over candidate arcs).
+"""Compiled glint search on groove arcs (numba, on threads over chunks of candidate arcs).
 
 The same physics as the numpy description in :mod:`specholo.simulation.glints`:
 screen h . t at an arc's ends on the toolpath, then bracket the root of h . t on
@@ -13,6 +13,8 @@ import math
 import numba as nb
 import numpy as np
 
+from specholo._threads import chunked
+
 #: Screen tolerance: an end within this fraction of |h| of a root is kept.
 SCREEN = 0.01
 #: Fixed-point steps placing the glint on the groove wall (see wall_glint).
@@ -21,6 +23,8 @@ WALL_STEPS = 3
 #: has the same h . t on both sides, so it cannot glint as a corner (it would
 #: only double the glint of the arc that starts there).
 SMOOTH = 1e-9
+#: Fewest arcs per thread worth a thread's start (a few microseconds).
+_GRAIN = 2048
 
 
 @nb.njit(cache=True, inline="always")
@@ -88,7 +92,6 @@ def _at_row(geo: np.ndarray, i: int, u: float) -> tuple[float, float, float, flo
             geo[i, 5], geo[i, 6])
 
 
-@nb.njit(cache=True, parallel=True)
 def arc_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: float,
                max_tilt: float, eye: np.ndarray, light: np.ndarray, point: bool,
                iterations: int) -> tuple[np.ndarray, np.ndarray]:
@@ -111,10 +114,20 @@ def arc_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: flo
     m = rows.size
     ok = np.zeros(m, np.bool_)
     pts = np.empty((m, 3))
+    chunked(_arc_glints, 0, m, rows, geo, tool_radius, depth, max_tilt, eye, light, point,
+            iterations, ok, pts, grain=_GRAIN)
+    return ok, pts
+
+
+@nb.njit(cache=True, nogil=True)
+def _arc_glints(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: float,
+                depth: float, max_tilt: float, eye: np.ndarray, light: np.ndarray,
+                point: bool, iterations: int, ok: np.ndarray, pts: np.ndarray) -> None:
+    """:func:`arc_glints` of rows[lo:hi] into ok and pts."""
     cz = tool_radius - depth
     cos_tilt = math.cos(max_tilt)
     reach = abs(cz) + tool_radius
-    for j in nb.prange(m):
+    for j in range(lo, hi):
         i = rows[j]
         # Screen on the toolpath: the wall shifts h by only ~R / distance radians.
         px, py, tx, ty = _at_row(geo, i, 0.0)
@@ -161,10 +174,8 @@ def arc_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: flo
         if _tilt_ok(hx, hy, hz, cos_tilt):
             ok[j] = True
             pts[j, 0], pts[j, 1], pts[j, 2] = gx, gy, gz
-    return ok, pts
 
 
-@nb.njit(cache=True, parallel=True)
 def corner_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: float,
                   max_tilt: float, eye: np.ndarray, light: np.ndarray,
                   point: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -180,9 +191,19 @@ def corner_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: 
     m = rows.shape[0]
     ok = np.zeros(m, np.bool_)
     pts = np.zeros((m, 3))
+    chunked(_corner_glints, 0, m, rows, geo, tool_radius, depth, max_tilt, eye, light, point,
+            ok, pts, grain=_GRAIN)
+    return ok, pts
+
+
+@nb.njit(cache=True, nogil=True)
+def _corner_glints(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: float,
+                   depth: float, max_tilt: float, eye: np.ndarray, light: np.ndarray,
+                   point: bool, ok: np.ndarray, pts: np.ndarray) -> None:
+    """:func:`corner_glints` of rows[lo:hi] into ok and pts."""
     cz = tool_radius - depth
     cos_tilt = math.cos(max_tilt)
-    for j in nb.prange(m):
+    for j in range(lo, hi):
         px, py, tx, ty = _at_row(geo, rows[j, 0], 1.0)
         qx, qy, nx, ny = _at_row(geo, rows[j, 1], 0.0)
         hx, hy, hz = _h(px, py, 0.0, eye, light, point)
@@ -198,7 +219,6 @@ def corner_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: 
         if fe * fs < 0.0 and _tilt_ok(hx, hy, hz, cos_tilt):
             ok[j] = True
             pts[j, 0], pts[j, 1], pts[j, 2] = gx, gy, gz
-    return ok, pts
 
 
 @nb.njit(cache=True, inline="always")

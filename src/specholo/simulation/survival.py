@@ -37,6 +37,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from specholo._threads import chunked
 from specholo.errors import SpecholoError
 from specholo.fabrication.tools import TILT_TOLERANCE, BallEnd, Laser, RoundCone, VBit
 from specholo.optics.normality import normality
@@ -259,9 +260,9 @@ def _visit(lo_x: float, lo_y: float, hi_x: float, hi_y: float, path: int, ax: fl
                     removed[g] = True
 
 
-@nb.njit(cache=True, parallel=True)
-def _sweep(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, first: int,
-           stop: int, qx: np.ndarray, qy: np.ndarray, qr: np.ndarray, qpath: np.ndarray,
+@nb.njit(cache=True, nogil=True)
+def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
+           offsets: np.ndarray, qx: np.ndarray, qy: np.ndarray, qr: np.ndarray, qpath: np.ndarray,
            ptr: np.ndarray, x0: float, y0: float, size: float, nx: int, ny: int, reach: float,
            removed: np.ndarray) -> None:
     """Mark every glint (sorted by grid cell) that the sweep of one of paths
@@ -270,9 +271,10 @@ def _sweep(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, first:
     Each arc is visited in pieces of at most ``size`` along it: a piece's box,
     grown by its sagitta and by ``reach`` (the largest removal radius), covers
     every glint the piece can remove, and the test itself is against the whole
-    arc. A flag is only ever set, so threads racing on one agree.
+    arc. A flag is only ever set, so threads racing on one agree: run over
+    chunks of the paths on threads (:func:`~specholo._threads.chunked`).
     """
-    for q in nb.prange(first, stop):
+    for q in range(first, stop):
         a, b = offsets[q], offsets[q + 1]
         if b - a == 1:  # a dot: one plunge
             vx, vy = vertices[a, 0], vertices[a, 1]
@@ -385,9 +387,9 @@ def survivors(grooves: Grooves, points: np.ndarray, path: np.ndarray, cutter: An
         ptr, order = _by_cell(cell[alive], nx * ny)
         live = alive[order]
         removed = np.zeros(len(live), dtype=np.bool_)
-        _sweep(vertices, bulges, offsets, first, stop, f(points[live, 0]), f(points[live, 1]),
-               f(radius[live]), f(path[live]), ptr, float(lo[0]), float(lo[1]), float(size),
-               nx, ny, reach, removed)
+        chunked(_sweep, first, stop, vertices, bulges, offsets, f(points[live, 0]),
+                f(points[live, 1]), f(radius[live]), f(path[live]), ptr, float(lo[0]),
+                float(lo[1]), float(size), nx, ny, reach, removed)
         alive = live[~removed]
         if alive.size == 0:
             break

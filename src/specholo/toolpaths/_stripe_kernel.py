@@ -15,6 +15,7 @@ import math
 import numba as nb
 import numpy as np
 
+from specholo._threads import chunked
 from specholo.toolpaths.arcs import _biarc
 from specholo.toolpaths.grooves import measure_paths
 
@@ -33,6 +34,8 @@ Solved = tuple[float, float, Vec, Vec, float, float, float, float, Vec, Vec, Vec
 # ~1e-7 mm). Not "nnan"/"ninf": the walk tests for non-finite values.
 _FAST = {"contract", "arcp", "nsz", "reassoc", "afn"}
 _ZERO = (0.0, 0.0, 0.0)
+#: Fewest runs per thread worth a thread's start (a run's walk takes microseconds).
+_GRAIN = 64
 _UP = (0.0, 0.0, 1.0)
 
 
@@ -187,7 +190,6 @@ def _path_slope(x_th: float, x_y: float, hx: float, hy: float) -> float:
     return -x_th * hx / (hy + x_y * hx)
 
 
-@nb.njit(fastmath=_FAST, cache=True, parallel=True)
 def start_offsets(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray,
                   w: float, min_light_tilt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Initial band offset, validity and a sample-count bound for each run.
@@ -199,14 +201,23 @@ def start_offsets(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: n
         u0 (r,), valid (r,) and capacity (r,) (an upper bound on samples).
     """
     n = start.size
-    params = _unpacked(packed)
     u0 = np.zeros(n)
     valid = np.ones(n, dtype=np.bool_)
     cap = np.zeros(n, dtype=np.int64)
-    for i in nb.prange(n):
+    chunked(_start_offsets, 0, n, start, end, pts, packed, w, min_light_tilt, u0, valid, cap,
+            grain=_GRAIN)
+    return u0, valid, cap
+
+
+@nb.njit(fastmath=_FAST, cache=True, nogil=True)
+def _start_offsets(lo: int, hi: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray,
+                   packed: np.ndarray, w: float, min_light_tilt: float, u0: np.ndarray,
+                   valid: np.ndarray, cap: np.ndarray) -> None:
+    """:func:`start_offsets` of runs lo .. hi - 1."""
+    params = _unpacked(packed)
+    for i in range(lo, hi):
         u0[i], valid[i], cap[i] = _offset(start[i], end[i], pts[i, 0], pts[i, 1], pts[i, 2],
                                           params, w, min_light_tilt)
-    return u0, valid, cap
 
 
 @nb.njit(fastmath=_FAST, cache=True)
@@ -304,7 +315,6 @@ def _put(s: Solved, slot: int, point_out: np.ndarray,
     return k1, dx, dc
 
 
-@nb.njit(fastmath=_FAST, cache=True, parallel=True)
 def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarray,
               packed: np.ndarray, w: float, spacing: float, offsets: np.ndarray,
               stripe_out: np.ndarray, point_out: np.ndarray,
@@ -320,13 +330,23 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
         (r,) number of samples written per run, or -1 where the slots ran out.
     """
     n = start.size
-    params = _unpacked(packed)
     count = np.zeros(n, dtype=np.int64)
-    for i in nb.prange(n):
+    chunked(_integrate, 0, n, start, end, pts, u0, packed, w, spacing, offsets, stripe_out,
+            point_out, tangent_out, count, grain=_GRAIN)
+    return count
+
+
+@nb.njit(fastmath=_FAST, cache=True, nogil=True)
+def _integrate(lo: int, hi: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray,
+               u0: np.ndarray, packed: np.ndarray, w: float, spacing: float,
+               offsets: np.ndarray, stripe_out: np.ndarray, point_out: np.ndarray,
+               tangent_out: np.ndarray, count: np.ndarray) -> None:
+    """:func:`integrate` of runs lo .. hi - 1."""
+    params = _unpacked(packed)
+    for i in range(lo, hi):
         count[i] = _walk(start[i], end[i], pts[i, 0], pts[i, 1], pts[i, 2], u0[i], params, w,
                          spacing, offsets[i], offsets[i + 1], stripe_out, point_out,
                          tangent_out)
-    return count
 
 
 @nb.njit(fastmath=_FAST, cache=True)
@@ -438,7 +458,6 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
     return -1 if k < 0 else k - first
 
 
-@nb.njit(fastmath=_FAST, cache=True, parallel=True)
 def chain_counts(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point: np.ndarray,
                  min_spacing: float, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Which samples each run keeps once slivers are gone.
@@ -459,7 +478,17 @@ def chain_counts(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, poi
     n = count.size
     kept = np.zeros(n, dtype=np.int64)
     paths = np.zeros(n, dtype=np.int64)
-    for r in nb.prange(n):
+    chunked(_chain_counts, 0, n, offsets, count, stripe, point, min_spacing, keep, kept, paths,
+            grain=_GRAIN)
+    return kept, paths
+
+
+@nb.njit(fastmath=_FAST, cache=True, nogil=True)
+def _chain_counts(lo: int, hi: int, offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray,
+                  point: np.ndarray, min_spacing: float, keep: np.ndarray, kept: np.ndarray,
+                  paths: np.ndarray) -> None:
+    """:func:`chain_counts` of runs lo .. hi - 1."""
+    for r in range(lo, hi):
         a0 = offsets[r]
         stop = a0 + count[r]
         a = a0
@@ -485,10 +514,8 @@ def chain_counts(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, poi
                 kept[r] += k
                 paths[r] += 1
             a = b
-    return kept, paths
 
 
-@nb.njit(fastmath=_FAST, cache=True, parallel=True)
 def chain_fill(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point: np.ndarray,
                tangent: np.ndarray, keep: np.ndarray, ids: np.ndarray, vertex_base: np.ndarray,
                path_base: np.ndarray, first_vertex: int, vertices: np.ndarray,
@@ -505,8 +532,19 @@ def chain_fill(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point
     goes to ``box[r]`` (r, 4) and its paths' total length to ``length[r]``,
     measured as :meth:`Grooves.measure` does while the run's arcs are in cache.
     """
-    n = count.size
-    for r in nb.prange(n):
+    chunked(_chain_fill, 0, count.size, offsets, count, stripe, point, tangent, keep, ids,
+            vertex_base, path_base, first_vertex, vertices, bulges, path_offsets, path_ids, box,
+            length, grain=_GRAIN)
+
+
+@nb.njit(fastmath=_FAST, cache=True, nogil=True)
+def _chain_fill(lo: int, hi: int, offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray,
+                point: np.ndarray, tangent: np.ndarray, keep: np.ndarray, ids: np.ndarray,
+                vertex_base: np.ndarray, path_base: np.ndarray, first_vertex: int,
+                vertices: np.ndarray, bulges: np.ndarray, path_offsets: np.ndarray,
+                path_ids: np.ndarray, box: np.ndarray, length: np.ndarray) -> None:
+    """:func:`chain_fill` of runs lo .. hi - 1."""
+    for r in range(lo, hi):
         s = vertex_base[r]
         p = path_base[r]
         stop = offsets[r] + count[r]

@@ -19,6 +19,7 @@ import numba as nb
 import numpy as np
 
 from specholo._pages import small_pages
+from specholo._threads import chunked
 from specholo.errors import SpecholoError
 
 #: Largest coordinate of a groove vertex, mm, as :func:`read_gcode` accepts:
@@ -29,7 +30,6 @@ MAX_COORDINATE = 1e9
 MAX_BULGE = 1e17
 
 
-@nb.njit(cache=True, parallel=True)
 def _arc_geometry(start: np.ndarray, end: np.ndarray,
                   bulge: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Centres (k, 2), radii, start angles and sweeps (k,) of arcs given by bulge."""
@@ -38,7 +38,17 @@ def _arc_geometry(start: np.ndarray, end: np.ndarray,
     radius = np.empty(k)
     start_angle = np.empty(k)
     sweep = np.empty(k)
-    for i in nb.prange(k):
+    chunked(_arc_geometry_of, 0, k, start, end, bulge, centre, radius, start_angle, sweep,
+            grain=4096)
+    return centre, radius, start_angle, sweep
+
+
+@nb.njit(cache=True, nogil=True)
+def _arc_geometry_of(lo: int, hi: int, start: np.ndarray, end: np.ndarray, bulge: np.ndarray,
+                     centre: np.ndarray, radius: np.ndarray, start_angle: np.ndarray,
+                     sweep: np.ndarray) -> None:
+    """:func:`_arc_geometry` of arcs lo .. hi - 1."""
+    for i in range(lo, hi):
         b = bulge[i]
         sweep[i] = 4.0 * math.atan(b)
         if b == 0.0:
@@ -53,7 +63,6 @@ def _arc_geometry(start: np.ndarray, end: np.ndarray,
         centre[i, 1] = 0.5 * (start[i, 1] + end[i, 1]) + cx * offset
         radius[i] = math.sqrt(cx * cx + cy * cy) * (1.0 + b * b) / (4.0 * abs(b))
         start_angle[i] = math.atan2(start[i, 1] - centre[i, 1], start[i, 0] - centre[i, 0])
-    return centre, radius, start_angle, sweep
 
 
 @nb.njit(cache=True, inline="always")
@@ -144,18 +153,21 @@ def measure_paths(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
     return lo_x, lo_y, hi_x, hi_y, total
 
 
-@nb.njit(cache=True, parallel=True)
-def _extent(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
-            chunks: int, lengths: np.ndarray) -> np.ndarray:
-    """(2, 2) corners of the centrelines, arcs counted where they bulge past their ends.
+@nb.njit(cache=True, nogil=True)
+def _extent(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
+            offsets: np.ndarray, box: np.ndarray, lengths: np.ndarray) -> None:
+    """Corners of the centrelines of chunks first .. stop - 1 of the paths (of
+    box.shape[0]), arcs counted where they bulge past their ends: lo x, lo y,
+    hi x, hi y to ``box`` (chunks, 4).
 
-    One pass over the vertices in a few parallel chunks (:func:`grow_box`). Each
-    path's length goes to ``lengths`` (n_paths,) on the way, unless it is empty.
+    One pass over the vertices (:func:`grow_box`), chunks run on threads
+    (:meth:`Grooves.measure`). Each path's length goes to ``lengths``
+    (n_paths,) on the way, unless it is empty.
     """
     n_paths = offsets.size - 1
-    box = np.empty((chunks, 4))
+    chunks = box.shape[0]
     measure = lengths.size > 0
-    for c in nb.prange(chunks):
+    for c in range(first, stop):
         lo_x = lo_y = math.inf
         hi_x = hi_y = -math.inf
         for j in range(c * n_paths // chunks, (c + 1) * n_paths // chunks):
@@ -167,10 +179,6 @@ def _extent(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
                 lo_y, hi_y = min(lo_y, vertices[i, 1]), max(hi_y, vertices[i, 1])
             lo_x, lo_y, hi_x, hi_y = grow_box(vertices, bulges, a, b, lo_x, lo_y, hi_x, hi_y)
         box[c, 0], box[c, 1], box[c, 2], box[c, 3] = lo_x, lo_y, hi_x, hi_y
-    out = np.empty((2, 2))
-    out[0, 0], out[0, 1] = box[:, 0].min(), box[:, 1].min()
-    out[1, 0], out[1, 1] = box[:, 2].max(), box[:, 3].max()
-    return out
 
 
 @dataclass(frozen=True)
@@ -335,8 +343,12 @@ class Grooves:
             return np.zeros((2, 2)), out
         f = np.ascontiguousarray
         chunks = max(1, min(4 * nb.get_num_threads(), self.n_paths))
-        return _extent(f(self.vertices, dtype=float), f(self.bulges, dtype=float),
-                       f(self.offsets, dtype=np.int64), chunks, out), out
+        box = np.empty((chunks, 4))
+        chunked(_extent, 0, chunks, f(self.vertices, dtype=float), f(self.bulges, dtype=float),
+                f(self.offsets, dtype=np.int64), box, out)
+        extent = np.array([[box[:, 0].min(), box[:, 1].min()],
+                           [box[:, 2].max(), box[:, 3].max()]])
+        return extent, out
 
     def take(self, paths: np.ndarray) -> Grooves:
         """The given paths (k,), in that order, as grooves of their own."""

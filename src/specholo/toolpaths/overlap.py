@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from specholo._threads import chunked
 from specholo.toolpaths.grooves import Grooves
 
 #: Samples per groove width along each centreline.
@@ -289,48 +290,55 @@ def _run(table: np.ndarray, gx: float, gy: float) -> tuple[int, int]:
 
 
 def _blocks(n_query: int) -> int:
-    """Parallel blocks for :func:`_crossed` and :func:`_intersections`, each with its
+    """Blocks for :func:`_crossed` and :func:`_intersections`, each with its
     own (n_query,) tallies: a few per thread, within ~64 MB of tallies."""
     return max(1, min(4 * nb.get_num_threads(), (1 << 23) // max(n_query, 1)))
 
 
-@nb.njit(cache=True, parallel=True)
 def _crossed(pts: np.ndarray, stipple: np.ndarray, width: float, query: np.ndarray,
              blocks: int) -> np.ndarray:
     """Whether each queried point lies within ``width`` of another stipple's centreline.
 
     The queries are few and the points many: the queries are bucketed, and every
-    point looks up the queries around it.
+    point looks up the queries around it, in ``blocks`` of points run on
+    threads (:func:`~specholo._threads.chunked`), each with its own tallies.
     """
     n, n_query = pts.shape[0], query.size
-    out = np.zeros(n_query, np.bool_)
     if n == 0 or n_query == 0:
-        return out
+        return np.zeros(n_query, np.bool_)
     order, table, marks, f, x0, y0, cell = _buckets(pts[query], width)
     # The queries copied out in bucket order, read one after another per cell.
-    qx, qy, own = np.empty(n_query), np.empty(n_query), np.empty(n_query, np.int64)
-    for q in range(n_query):
-        i = query[order[q]]
-        qx[q], qy[q], own[q] = pts[i, 0], pts[i, 1], stipple[i]
-    w2 = width * width
+    i = query[order]
+    qx, qy = np.ascontiguousarray(pts[i, 0]), np.ascontiguousarray(pts[i, 1])
+    own = np.ascontiguousarray(stipple[i], dtype=np.int64)
     found = np.zeros((blocks, n_query), np.bool_)
-    for blk in nb.prange(blocks):
+    chunked(_crossed_blocks, 0, blocks, pts, stipple, width * width, qx, qy, own, table,
+            marks, f, x0, y0, cell, found)
+    out = np.zeros(n_query, np.bool_)
+    out[order] = found.any(axis=0)
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _crossed_blocks(lo: int, hi: int, pts: np.ndarray, stipple: np.ndarray, w2: float,
+                    qx: np.ndarray, qy: np.ndarray, own: np.ndarray, table: np.ndarray,
+                    marks: np.ndarray, f: int, x0: float, y0: float, cell: float,
+                    found: np.ndarray) -> None:
+    """:func:`_crossed`'s blocks lo .. hi - 1 of the points (of found.shape[0])."""
+    n, blocks = pts.shape[0], found.shape[0]
+    for blk in range(lo, hi):
         for j in range(blk * n // blocks, (blk + 1) * n // blocks):
             px, py, sj = pts[j, 0], pts[j, 1], stipple[j]
             gx, gy = math.floor((px - x0) / cell), math.floor((py - y0) / cell)
             if not _marked(marks, f, gx, gy):
                 continue
             for a in range(9):
-                lo, hi = _run(table, gx + float(a % 3 - 1), gy + float(a // 3 - 1))
-                for q in range(lo, hi):
+                lo_q, hi_q = _run(table, gx + float(a % 3 - 1), gy + float(a // 3 - 1))
+                for q in range(lo_q, hi_q):
                     if not found[blk, q] and own[q] != sj:
                         dx, dy = px - qx[q], py - qy[q]
                         if dx * dx + dy * dy < w2:
                             found[blk, q] = True
-    for q in nb.prange(n_query):
-        for blk in range(blocks):
-            out[order[q]] |= found[blk, q]
-    return out
 
 
 @nb.njit(cache=True)
@@ -416,7 +424,6 @@ def _scan(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, stipple
     return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf, passes
 
 
-@nb.njit(cache=True, parallel=True)
 def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
                    reach: float, query: np.ndarray, blocks: int) -> np.ndarray:
     """Per queried chord (point i to i + 1 of one path), how many chords of other
@@ -424,15 +431,29 @@ def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
 
     Chords are at most ``reach`` / 2 long, so two that cross start within reach
     of each other: the queried chords are bucketed by their start, and every
-    chord looks up the queried ones starting around its own start.
+    chord looks up the queried ones starting around its own start, in
+    ``blocks`` of chords run on threads, each with its own tallies.
     """
     n, n_query = pts.shape[0], query.size
-    out = np.zeros(n_query, np.int64)
     if n < 2 or n_query == 0:
-        return out
+        return np.zeros(n_query, np.int64)
     order, table, marks, f, x0, y0, cell = _buckets(pts[query], reach)
-    # The queried chords copied out in bucket order, read one after another per
-    # cell; one that ends its path is no chord (a stipple of -1).
+    chord, own = _query_chords(pts, path, stipple, query, order)
+    hits = np.zeros((blocks, n_query), np.int64)
+    chunked(_intersection_blocks, 0, blocks, pts, path, stipple, chord, own, table, marks, f,
+            x0, y0, cell, hits)
+    out = np.zeros(n_query, np.int64)
+    out[order] = hits.sum(axis=0)
+    return out
+
+
+@nb.njit(cache=True)
+def _query_chords(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray, query: np.ndarray,
+                  order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The queried chords copied out in bucket order (n_query, 4), read one after
+    another per cell, and their stipples; one that ends its path is no chord (a
+    stipple of -1)."""
+    n, n_query = pts.shape[0], query.size
     chord = np.empty((n_query, 4))
     own = np.empty(n_query, np.int64)
     for q in range(n_query):
@@ -441,8 +462,17 @@ def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
         own[q] = stipple[path[i]] if valid else -1
         chord[q, 0], chord[q, 1] = pts[i, 0], pts[i, 1]
         chord[q, 2], chord[q, 3] = pts[i + 1, 0] if valid else 0.0, pts[i + 1, 1] if valid else 0.0
-    hits = np.zeros((blocks, n_query), np.int64)
-    for blk in nb.prange(blocks):
+    return chord, own
+
+
+@nb.njit(cache=True, nogil=True)
+def _intersection_blocks(lo: int, hi: int, pts: np.ndarray, path: np.ndarray,
+                         stipple: np.ndarray, chord: np.ndarray, own: np.ndarray,
+                         table: np.ndarray, marks: np.ndarray, f: int, x0: float, y0: float,
+                         cell: float, hits: np.ndarray) -> None:
+    """:func:`_intersections`' blocks lo .. hi - 1 of the chords (of hits.shape[0])."""
+    n, blocks = pts.shape[0], hits.shape[0]
+    for blk in range(lo, hi):
         for j in range(blk * n // blocks, (blk + 1) * n // blocks):
             if j + 1 >= n or path[j + 1] != path[j]:
                 continue
@@ -453,8 +483,8 @@ def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
                 continue
             sj = stipple[path[j]]
             for a in range(9):
-                lo, hi = _run(table, gx + float(a % 3 - 1), gy + float(a // 3 - 1))
-                for q in range(lo, hi):
+                lo_q, hi_q = _run(table, gx + float(a % 3 - 1), gy + float(a // 3 - 1))
+                for q in range(lo_q, hi_q):
                     # Chords of the same stipple (the queried one among them) never count.
                     if own[q] == sj or own[q] < 0:
                         continue
@@ -467,10 +497,6 @@ def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
                     if ((d1 < 0.0 <= d2) or (d2 < 0.0 <= d1)) and \
                             ((d3 < 0.0 <= d4) or (d4 < 0.0 <= d3)):
                         hits[blk, q] += 1
-    for q in nb.prange(n_query):
-        for blk in range(blocks):
-            out[order[q]] += hits[blk, q]
-    return out
 
 
 @nb.njit(cache=True, inline="always")

@@ -1,4 +1,4 @@
-"""Compiled set-up of the occlusion rays (numba, parallel over rays).
+"""Compiled set-up of the occlusion rays (numba, on threads over chunks of rays).
 
 Ray k joins point i to eye j: i = j = k when every point has its own eye
 (``grid`` 0), or i = k // grid, j = k % grid when every point is seen from the
@@ -14,30 +14,41 @@ import math
 import numba as nb
 import numpy as np
 
+from specholo._threads import chunked
+
 
 @nb.njit(cache=True, inline="always")
 def _pair(k: int, grid: int) -> tuple[np.int64, np.int64]:
-    q = np.int64(k)  # a prange index is unsigned: int64 // uint64 would be a float
+    q = np.int64(k)  # an unsigned index: int64 // uint64 would be a float
     if grid > 0:
         return q // grid, q % grid
     return q, q
 
 
-@nb.njit(cache=True, parallel=True)
+#: Fewest rays per thread worth a thread's start.
+_GRAIN = 4096
+
+
 def facing(points: np.ndarray, normals: np.ndarray, eyes: np.ndarray, grid: int,
            n_rays: int) -> np.ndarray:
     """(n_rays,) True where the eye is on the outer side of the point's face."""
     out = np.empty(n_rays, dtype=np.bool_)
-    for k in nb.prange(n_rays):
+    chunked(_facing, 0, n_rays, points, normals, eyes, grid, out, grain=_GRAIN)
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _facing(lo: int, hi: int, points: np.ndarray, normals: np.ndarray, eyes: np.ndarray,
+            grid: int, out: np.ndarray) -> None:
+    """:func:`facing` of rays lo .. hi - 1."""
+    for k in range(lo, hi):
         i, j = _pair(k, grid)
         dx = eyes[j, 0] - points[i, 0]
         dy = eyes[j, 1] - points[i, 1]
         dz = eyes[j, 2] - points[i, 2]
         out[k] = normals[i, 0] * dx + normals[i, 1] * dy + normals[i, 2] * dz > 0.0
-    return out
 
 
-@nb.njit(cache=True, parallel=True)
 def rays(points: np.ndarray, normals: np.ndarray, eyes: np.ndarray, grid: int,
          idx: np.ndarray, offset: float, origin: np.ndarray,
          scale: float) -> tuple[np.ndarray, np.ndarray]:
@@ -50,7 +61,17 @@ def rays(points: np.ndarray, normals: np.ndarray, eyes: np.ndarray, grid: int,
     k = idx.size
     o32 = np.empty((k, 3), dtype=np.float32)
     d32 = np.empty((k, 3), dtype=np.float32)
-    for q in nb.prange(k):
+    chunked(_rays, 0, k, points, normals, eyes, grid, idx, offset, origin, scale, o32, d32,
+            grain=_GRAIN)
+    return o32, d32
+
+
+@nb.njit(cache=True, nogil=True)
+def _rays(lo: int, hi: int, points: np.ndarray, normals: np.ndarray, eyes: np.ndarray,
+          grid: int, idx: np.ndarray, offset: float, origin: np.ndarray, scale: float,
+          o32: np.ndarray, d32: np.ndarray) -> None:
+    """:func:`rays` of rays idx[lo:hi]."""
+    for q in range(lo, hi):
         i, j = _pair(idx[q], grid)
         ox = points[i, 0] + offset * normals[i, 0]
         oy = points[i, 1] + offset * normals[i, 1]
@@ -67,4 +88,3 @@ def rays(points: np.ndarray, normals: np.ndarray, eyes: np.ndarray, grid: int,
         o32[q, 0] = (np.float64(np.float32(ox)) - origin[0]) * scale
         o32[q, 1] = (np.float64(np.float32(oy)) - origin[1]) * scale
         o32[q, 2] = (np.float64(np.float32(oz)) - origin[2]) * scale
-    return o32, d32

@@ -83,8 +83,9 @@ def visible(
     if mesh is None:
         return np.ones(len(np.asarray(points).reshape(-1, 3)), dtype=bool)
     points, normals = _check(points, normals)
-    eyes = np.ascontiguousarray(np.broadcast_to(np.asarray(eyes, dtype=np.float64),
-                                                points.shape))
+    # A copy, never the read-only broadcast view: a read-only array is another
+    # type to numba, and the ray kernels would be compiled twice.
+    eyes = np.array(np.broadcast_to(np.asarray(eyes, dtype=np.float64), points.shape))
     result = np.zeros(len(points), dtype=bool)
     # At least one chunk per worker once there are enough rays to share.
     chunk = min(_CHUNK, max(_MIN_SHARED, -(-len(points) // _WORKERS)))
