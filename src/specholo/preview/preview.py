@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import math
 import os
+from typing import Any
 
 import numpy as np
 
@@ -76,16 +77,23 @@ def render_field_preview(heights: HeightMap, setup: Setup, path: str | os.PathLi
     _draw_views(az, eyes, seen, lo, hi, path)
 
 
+def _figure(**kwargs: Any) -> Any:
+    """A matplotlib figure drawn by Agg, without pyplot: pyplot's import (its
+    backends and state) costs more than drawing a small design's preview."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(**kwargs)
+    FigureCanvasAgg(fig)
+    return fig
+
+
 def _draw_views(az: list[float], eyes: np.ndarray, seen: list[np.ndarray],
                 lo: np.ndarray, hi: np.ndarray, path: str | os.PathLike[str]) -> None:
     """One black panel per eye: the plate's outline and the glints it sees, in
     that eye's perspective."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, len(az), figsize=(4.2 * len(az), 4.4), facecolor="black")
+    fig = _figure(figsize=(4.2 * len(az), 4.4), facecolor="black")
+    axes = fig.subplots(1, len(az))
     axes = np.atleast_1d(axes)
     corners = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0],
                         [lo[0], hi[1], 0], [lo[0], lo[1], 0]])
@@ -103,7 +111,6 @@ def _draw_views(az: list[float], eyes: np.ndarray, seen: list[np.ndarray],
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, facecolor="black")
-    plt.close(fig)
     with atomic_open(path, "wb", encoding=None) as fh:
         fh.write(buf.getvalue())
 
@@ -111,13 +118,9 @@ def _draw_views(az: list[float], eyes: np.ndarray, seen: list[np.ndarray],
 def plot_verification(rows: list[dict[str, float]], path: str | os.PathLike[str],
                       title: str = "") -> None:
     """Write a PNG of error and visibility by azimuth (rows from verification)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     az = [r["azimuth"] for r in rows]
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    fig = _figure(figsize=(7, 6))
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
     ax1.plot(az, [r["median_error"] for r in rows], "o-", label="median")
     ax1.plot(az, [r["p95_error"] for r in rows], "s-", label="95th percentile")
     ax1.plot(az, [r["p95_depth_error"] for r in rows], "^--", label="95th pct, depth only")
@@ -135,7 +138,6 @@ def plot_verification(rows: list[dict[str, float]], path: str | os.PathLike[str]
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
     with atomic_open(path, "wb", encoding=None) as fh:
         fh.write(buf.getvalue())
 
