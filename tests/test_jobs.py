@@ -86,6 +86,11 @@ class DotsJob:
             raise SpecholoError(f"depth must be in (0, 0.1) mm, got {depth}")
         return depth
 
+    def check_options(self, config, options):  # type: ignore[no-untyped-def]
+        from specholo.jobs.base import refuse_formats
+
+        refuse_formats(self, options)
+
     def design(self, inputs, config, status):  # type: ignore[no-untyped-def]
         from specholo.jobs.base import Designed
 
@@ -136,10 +141,11 @@ def test_a_sixth_kind_is_one_class_and_a_line_in_the_registry(tmp_path, monkeypa
     assert json.loads((out / "hologram.json").read_text())["step_deg"] == 10.0  # its default
     # bad settings and steps are refused before anything is designed or written
     for values, options, why in (({"depth": 0.5}, None, "depth must be"),
-                                 ({}, WriteOptions(step_deg=90.0), "step must be in")):
+                                 ({}, WriteOptions(step_deg=90.0), "step must be in"),
+                                 ({}, WriteOptions(formats=("svg",)), "writes its own files")):
         with pytest.raises(SpecholoError, match=why):
             run(DotsJob(), [model], values, tmp_path / "never", options, seen.append)
-    assert not (tmp_path / "never").exists() and len(seen) == 1
+    assert not (tmp_path / "never").exists() and len(seen) == 1  # never designed
     # a dot deeper than its limits: refused, the folder as it was
     before = (out / "hologram.gcode").read_bytes()
     monkeypatch.setattr(DotsJob, "overcut", 0.01)

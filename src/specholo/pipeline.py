@@ -222,6 +222,7 @@ class DesignConfig:
     order: bool = True
     plate_width: float | None = None
     plate_height: float | None = None
+    fit: bool = False
     stock_thickness: float = 3.0
     feed: float = 300.0
     plunge: float = 100.0
@@ -292,6 +293,9 @@ class DesignConfig:
             raise SpecholoError(f"band must be positive, got {self.band}")
         if not self.size > 0:
             raise SpecholoError(f"size must be a positive number of mm, got {self.size}")
+        if self.fit and (self.plate_width is None or self.plate_height is None):
+            raise SpecholoError("fit scales the model to a plate: give plate-width and "
+                                "plate-height")
         for name in ("plate_width", "plate_height"):
             v = getattr(self, name)
             if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v)
@@ -623,12 +627,14 @@ def design_runs(runs: Runs, config: DesignConfig,
 
 
 def stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
-                   rng: np.random.Generator | None, timings: dict[str, float]) -> tuple[Any, Any]:
+                  rng: np.random.Generator | None, timings: dict[str, float]
+                  ) -> tuple[Any, Any, DesignConfig]:
     """Load and place the model and stipple it; refuse what would not fit in memory or
     could not be seen through the plate.
 
     Returns:
-        The placed model and its stipples (``timings["stippling"]`` is set).
+        The placed model, its stipples (``timings["stippling"]`` is set) and the
+        config, whose size is the fitted one with ``config.fit``.
     """
     from specholo.scene.loading import load_model
     from specholo.scene.placement import place
@@ -641,8 +647,10 @@ def stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
         check_memory(count)  # stipples = 10**9 is refused before any work
     t0 = time.perf_counter()
     pose = config.pose()
-    model = place(load_model(model_path), config.size, config.center_z, pose.rotation(),
-                  pose.offset)
+    loaded = load_model(model_path)
+    if config.fit:
+        config = dataclasses.replace(config, size=fitted_size(loaded, config))
+    model = place(loaded, config.size, config.center_z, pose.rotation(), pose.offset)
     st = stipple(model, rng, count=count, spacing=config.spacing)
     check_points(st.points, setup)
     mesh = model.mesh
@@ -651,7 +659,24 @@ def stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
                  request=None if count is not None else
                  f"spacing = {config.spacing:g} mm ({len(st.points)} stipples)")
     timings["stippling"] = time.perf_counter() - t0
-    return model, st
+    return model, st, config
+
+
+def fitted_size(model: Any, config: DesignConfig) -> float:
+    """The largest size (mm) at which the model's grooves, as posed, lie on the
+    plate ``config`` gives, within its blank border (:mod:`specholo.scene.fit`)."""
+    from specholo.scene.fit import fit_size
+    from specholo.scene.placement import place
+
+    pose = config.pose()
+    unit = place(model, 1.0, 0.0, pose.rotation())  # size 1 about its box centre
+    half_width = 0.5 * config.cutter().section(config.depth_mm).width
+    reach = (half_width, half_width + (config.band or 0.0))
+    size = fit_size(unit.points, np.array([*pose.offset, config.center_z]),
+                    (float(config.plate_width or 0.0), float(config.plate_height or 0.0)),
+                    config.setup().viewer, reach, PLATE_MARGIN)
+    # Recorded with the design, so rounded (down: the rounded size still fits).
+    return math.floor(min(size, 10_000.0) * 1e3) / 1e3
 
 
 def design(model_path: str | os.PathLike[str], config: DesignConfig,
@@ -678,7 +703,7 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
         raise SpecholoError("a ridged design is made by design_ridged_model, not design")
     setup = config.setup()
     timings: dict[str, float] = {}
-    model, st = stipple_model(model_path, config, rng, timings)
+    model, st, config = stipple_model(model_path, config, rng, timings)
     points = st.points
     t0 = time.perf_counter()
     iv = visible_intervals(model.mesh, points, st.normals, setup.viewer)

@@ -116,7 +116,7 @@ def design_ridged_model(model_path: str | os.PathLike[str], config: DesignConfig
     options = ridge_options(config)
     plate_rect = _ridged_plate_rect(config)
     timings: dict[str, float] = {}
-    model, st = stipple_model(model_path, config, rng, timings)
+    model, st, config = stipple_model(model_path, config, rng, timings)
     t0 = time.perf_counter()
     try:
         plate = design_ridged(st.points, st.normals, model.mesh, setup, options, plate_rect,

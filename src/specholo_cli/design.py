@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +32,10 @@ from specholo_cli.app import (
               help="TOML file with any of these options (same names).")
 @click.option("--strict", is_flag=True,
               help="Refuse a design whose tool cannot serve every view.")
+@click.option("--fit", is_flag=True,
+              help="Scale the model (instead of --size) to the largest whose grooves lie "
+                   "on the plate given by --plate-width and --plate-height, 5 mm in from "
+                   "its edges.")
 @click.option("--no-order", is_flag=True,
               help="Keep the paths in design order (default: ordered to cut air travel).")
 @click.option("--formats", default=None,
@@ -42,18 +45,11 @@ from specholo_cli.app import (
                    "(16-bit height maps), stl, gcode [all four].")
 @_design_options
 def design(model: Path, out: Path, method: str | None, config_path: Path | None,
-           strict: bool, no_order: bool, formats: str | None, **options: Any) -> None:
+           strict: bool, fit: bool, no_order: bool, formats: str | None, **options: Any) -> None:
     """Design a hologram of MODEL (OBJ, STL, PLY, OFF, GLB; PLY/XYZ/CSV point clouds)."""
-    from rich.console import Console
-
-    from specholo.pipeline import (
-        DEFAULT_FORMATS,
-        DesignConfig,
-        check_formats,
-        write_design,
-    )
-    from specholo.pipeline import design as run_design
-    from specholo.ridged import DEFAULT_RIDGED_FORMATS
+    from specholo.jobs.base import WriteOptions, run
+    from specholo.jobs.flat import FlatJob
+    from specholo.jobs.ridged import RidgedJob
 
     _check_out(out, [model, config_path])
     values = _read_config(config_path)
@@ -63,48 +59,14 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
         options["strict"] = True
     if no_order:
         options["order"] = False
+    if fit:
+        options["fit"] = True
     values.update({k: v for k, v in options.items() if v is not None})
-    config = DesignConfig.from_dict(values)
-    ridged = config.method == "ridged"
-    wanted: tuple[str, ...]
-    if formats is None:
-        wanted = DEFAULT_RIDGED_FORMATS if ridged else DEFAULT_FORMATS
-    else:
-        wanted = tuple(f.strip().lower() for f in formats.split(",") if f.strip())
-    check_formats(wanted, config.method)
-    if ridged:
-        _design_ridged(model, out, config, wanted, [model, config_path])
-        return
-    console = Console(stderr=True)
-    if config.visibility is not None:
-        from specholo.density import design_for_visibility
-
-        def tried(n: int, v: float) -> None:
-            console.print(f"{n} stipples: as cut, {v:.0%} in both eyes at the lowest view")
-
-        with _status(f"finding the most stipples that keep {config.visibility:.0%} "
-                     "as cut...", "design"):
-            d = design_for_visibility(model, config, tried)
-    else:
-        with _status("designing...", "design"):
-            d = run_design(model, config)
-    with _status("writing...", "design"):
-        written = write_design(d, out, wanted, command=_command_line(),
-                               inputs=[model, config_path])
-    from specholo.jobs.flat import design_summary
-
-    _print_summary(design_summary(d, written, out))
-
-
-def _design_ridged(model: Path, out: Path, config: Any, formats: tuple[str, ...],
-                   inputs: Sequence[Path | None]) -> None:
-    """The design command for a ridged (full-parallax) plate."""
-    from specholo.ridged import design_ridged_model, write_ridged_design
-
-    with _status("designing the ridged plate..."):
-        d = design_ridged_model(model, config)
-    with _status("writing..."):
-        written = write_ridged_design(d, out, formats, inputs)
-    from specholo.jobs.ridged import design_summary
-
-    _print_summary(design_summary(d, written, out))
+    job = RidgedJob() if values.get("method") == "ridged" else FlatJob()
+    wanted = None if formats is None else \
+        tuple(f.strip().lower() for f in formats.split(",") if f.strip())
+    with _status("designing...", "design") as status:
+        summary = run(job, [model], values, out,
+                      WriteOptions(formats=wanted, command=_command_line()), status.update,
+                      other_inputs=[config_path])
+    _print_summary(summary)

@@ -14,6 +14,7 @@ from specholo_cli.app import (
     _pose_options,
     _print_summary,
     _print_verification,
+    _status,
     cli,
 )
 
@@ -136,12 +137,10 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
 def _run(job: Any, inputs: list[Path], values: dict[str, Any], out: Path,
          options: WriteOptions) -> None:
     """Run a job with a status line, then print what it says."""
-    from rich.console import Console
-
     from specholo.jobs.base import run
 
     _check_out(out, inputs)
-    with Console(stderr=True).status("starting...") as status:
+    with _status("starting...") as status:
         summary = run(job, inputs, values, out, options, status.update)
     if summary.table is not None:
         _print_verification(summary)

@@ -147,6 +147,11 @@ class Job(Protocol):
         (degrees, converted here once), checked; ``inputs`` are the model files."""
         ...
 
+    def check_options(self, config: Any, options: WriteOptions) -> None:
+        """Refuse, before the design runs, write options the kind cannot honour
+        (a format it does not write)."""
+        ...
+
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
         """Design the hologram of ``inputs``; nothing is written."""
         ...
@@ -216,10 +221,18 @@ def run(job: Job, inputs: Sequence[Path], values: Mapping[str, Any], out: Path,
 
     options = write_options(job, options or WriteOptions())
     config = job.configure(values, inputs)
+    job.check_options(config, options)
     every = [*inputs, *other_inputs]
     check_out(out, every)
     designed = job.design(inputs, config, status)
     return job.write(designed, out, every, options, status)
+
+
+def refuse_formats(job: Job, options: WriteOptions) -> None:
+    """Refuse ``formats`` for a kind that always writes the same files."""
+    if options.formats is not None:
+        raise SpecholoError(f"{job.title} writes its own files; formats are for "
+                            "`specholo design`")
 
 
 def write_options(job: Job, options: WriteOptions) -> WriteOptions:

@@ -18,6 +18,7 @@ from specholo.jobs.base import (
     VerifyOptions,
     WriteOptions,
     refuse_cut_options,
+    refuse_formats,
 )
 
 
@@ -56,6 +57,9 @@ class ComposedJob:
         if len(inputs) != 1:
             raise SpecholoError(f"a design is composed from one TOML file, got {len(inputs)}")
         return read_composition(inputs[0])
+
+    def check_options(self, config: Any, options: WriteOptions) -> None:
+        refuse_formats(self, options)
 
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
         from specholo.compose import design_composition

@@ -99,6 +99,12 @@ class FlatJob:
 
         return DesignConfig.from_dict(dict(values))
 
+    def check_options(self, config: Any, options: WriteOptions) -> None:
+        from specholo.pipeline import check_formats
+
+        if options.formats is not None:
+            check_formats(options.formats, config.method)
+
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
         from specholo.pipeline import design
 

@@ -68,6 +68,12 @@ class RidgedJob:
 
         return DesignConfig.from_dict({**values, "method": "ridged"})
 
+    def check_options(self, config: Any, options: WriteOptions) -> None:
+        from specholo.pipeline import check_formats
+
+        if options.formats is not None:
+            check_formats(options.formats, "ridged")
+
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
         from specholo.ridged import design_ridged_model
 

@@ -17,6 +17,7 @@ from specholo.jobs.base import (
     VerifyOptions,
     WriteOptions,
     refuse_cut_options,
+    refuse_formats,
 )
 
 
@@ -50,6 +51,9 @@ class SteadyJob:
         given = {k: v for k, v in values.items() if v is not None}
         pose = Pose.from_options(**{k: given.pop(k) for k in POSE_OPTIONS if k in given})
         return SteadyConfig.from_options(pose=pose, **given)
+
+    def check_options(self, config: Any, options: WriteOptions) -> None:
+        refuse_formats(self, options)
 
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
         from specholo.steady import design_steady_job
