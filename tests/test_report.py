@@ -43,6 +43,8 @@ def test_report_is_self_contained_and_matches_the_files(verified: Path):
     assert f"{info['stats']['hidden_stipples']:,} stipples (no groove)" in page
     mean = info["expected"]["as_cut_stereo_visibility"]["mean"]
     assert f"about {mean:.0%} of the stipples" in page
+    steps = page.split("<h2>What to do next</h2>")[1].split("</ol>")[0]
+    assert "specholo verify" not in steps  # verified already
 
 
 def test_report_before_verification_says_so(tmp_path: Path):
@@ -50,6 +52,15 @@ def test_report_before_verification_says_so(tmp_path: Path):
     assert main(["design", str(BUNNY), "--out", str(out), "--stipples", "30"]) == 0
     page = write_report(out, None).read_text()
     assert "Not verified yet" in page
+    steps = page.split("<h2>What to do next</h2>")[1].split("</ol>")[0]
+    assert "specholo verify" in steps and "hologram.gcode" in steps
+    # a plate whose glints mostly do not survive the cutting: the report says what to do
+    info = json.loads((out / "hologram.json").read_text())
+    lowest = info["expected"]["as_cut_stereo_visibility"]["lowest"]
+    assert ("--visibility 0.6" in steps) == (lowest < 0.6)
+    info["expected"]["as_cut_stereo_visibility"]["lowest"] = 0.3
+    (out / "hologram.json").write_text(json.dumps(info))
+    assert "Only about 30% of the stipples survive" in write_report(out, None).read_text()
 
 
 def test_report_command(verified: Path, capsys):

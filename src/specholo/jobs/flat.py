@@ -80,7 +80,21 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
     elif d.coverage is not None:
         lines.append(f"hidden: {d.coverage.hidden} of {d.coverage.stipples} stipples are "
                      "hidden from every view (no groove)")
+    lines.append(next_steps(out))
     return Summary(lines, warnings)
+
+
+def next_steps(out: Path) -> str:
+    """What a maker does with a written flat-plate folder, in one line: look,
+    check by simulation, then cut or scribe what the folder holds."""
+    steps = [f"open {out / 'preview.png'}",
+             f"`specholo verify {out}` simulates both eyes (`--cut`: the plate as cut)"]
+    if (out / "hologram.gcode").is_file():
+        steps.append(f"cut {out / 'hologram.gcode'} (its header names the plate, the zero and "
+                     "the limits `specholo check` reads)")
+    if (out / "pattern.pdf").is_file():
+        steps.append(f"print {out / 'pattern.pdf'} at 100% to scribe by hand")
+    return "next: " + "; ".join(steps)
 
 
 class FlatJob:

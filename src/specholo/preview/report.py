@@ -112,6 +112,36 @@ def write_report(folder: str | os.PathLike[str], verify: dict[str, Any] | None) 
     return out
 
 
+def _next_steps(folder: Path, info: Any, verify: Any) -> str:
+    """The steps from this folder to a plate, as a list: verify if not yet,
+    fewer stipples if little survives the cutting, then cut or scribe."""
+    steps = []
+    if verify is None:
+        steps.append("Check it by simulating both eyes: <code>specholo verify "
+                     f"{html.escape(str(folder))}</code> (<code>--cut</code> for the plate as "
+                     "cut).")
+    expected = (info.get("expected") or {}).get("as_cut_stereo_visibility")
+    if isinstance(expected, dict) and expected.get("lowest", 1.0) < 0.6:
+        steps.append(f"Only about {expected['lowest']:.0%} of the stipples survive the cutting "
+                     "at the worst view: design again with <code>--visibility 0.6</code> (or "
+                     "more) for the most stipples that keep that share.")
+    if (folder / "hologram.gcode").is_file():
+        steps.append("Fix the plate, zero the machine on it as the comment block at the top "
+                     "of <code>hologram.gcode</code> says, and run the program (already read "
+                     "back by the safety check; <code>specholo check "
+                     f"{html.escape(str(folder / 'hologram.gcode'))}</code> re-checks it "
+                     "against its own header).")
+    if (folder / "hologram.svg").is_file():
+        steps.append("For a laser or plotter: <code>hologram.svg</code> at 1:1, its PLATE "
+                     "layer's outline and marks to align the plate.")
+    if (folder / "pattern.pdf").is_file():
+        steps.append("By hand: print <code>pattern.pdf</code> at 100% (its 50 mm bars check "
+                     "the scale) and scribe each stroke or arc.")
+    steps.append("Light the plate with one small light from the design's elevation and "
+                 "walk past it.")
+    return "<ol>" + "".join(f"<li>{s}</li>" for s in steps) + "</ol>"
+
+
 def _page(folder: Path, info: Any, verify: Any) -> str:
     """The report's HTML from hologram.json and verify.json (None: not verified)."""
     settings = info["settings"]
@@ -167,6 +197,7 @@ figcaption {{ color: #666; font-size: .9em; }}
 <h2>Design</h2><table>{_rows(setup_rows)}</table>
 <h2>Fabrication</h2><table>{_rows(fabrication_figures(info))}</table>
 <h2>Accuracy, by head azimuth</h2>{accuracy}
+<h2>What to do next</h2>{_next_steps(folder, info, verify)}
 <h2>Pictures</h2>{pictures}
 </body></html>
 """
