@@ -196,7 +196,7 @@ def test_compose_cli_writes_a_verified_folder(tmp_path: Path) -> None:
     out = tmp_path / "out"
     assert main(["compose", str(comp), "--out", str(out), "--step", "15"]) == 0
     meta = json.loads((out / "hologram.json").read_text())
-    assert meta["design"] == "conforming" and meta["host"]["kind"] == "cylinder"
+    assert meta["design"] == "composition" and meta["host"]["kind"] == "cylinder"
     ver = json.loads((out / "verify.json").read_text())
     assert ver["summary"]["worst_p95_error"] < 0.35
     assert main(["verify", str(out), "--step", "5"]) == 0

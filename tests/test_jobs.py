@@ -23,7 +23,9 @@ def folder_of(tmp_path: Path, design: str | None) -> Path:
 
 
 @pytest.mark.parametrize("design, kind", [
-    ("spinning", "spinning"), ("steady", "steady"), ("conforming", "composed"),
+    ("spin", "spin"), ("steady", "steady"), ("composition", "composition"),
+    # as folders written before the kinds took their commands' names say it
+    ("spinning", "spin"), ("conforming", "composition"),
     ("ridged", "ridged"), ("striped", "flat"), ("arc", "flat"), (None, "flat")])
 def test_each_folder_has_one_owner(tmp_path, design, kind):
     folder = folder_of(tmp_path, design)
@@ -54,7 +56,7 @@ def test_a_flat_folder_missing_its_files_says_so(tmp_path):
         job_of(folder_of(tmp_path, None)).verify(tmp_path / "none", VerifyOptions(), quiet)
 
 
-@pytest.mark.parametrize("design", ["spinning", "steady", "conforming", "ridged"])
+@pytest.mark.parametrize("design", ["spin", "steady", "composition", "ridged"])
 @pytest.mark.parametrize("command", sorted(PICTURE_COMMANDS))
 def test_every_picture_command_serves_a_kind_or_says_why(tmp_path, capsys, design, command):
     folder = folder_of(tmp_path, design)

@@ -86,6 +86,12 @@ def test_gcode_passes_the_safety_check(designed: Path):
                          spindle_range=(s["spindle"], s["spindle"]))
     assert report.ok, report.summary()
     assert report.moves["cutting"] > 100_000
+    # the header names the plate the program was made for, as a grooved plate's does
+    head = (designed / "hologram.gcode").read_text().split("G21", 1)[0]
+    thick = s["stock_thickness"]
+    assert (f"(plate: {x1 - x0:g} x {y1 - y0:g} mm, {thick:g} mm thick, corners "
+            f"X{x0:g} Y{y0:g} to X{x1:g} Y{y1:g})") in head
+    assert "(plate zero: X0 Y0 on the origin mark at the plate centre" in head
 
 
 @pytest.mark.slow

@@ -185,7 +185,7 @@ def test_cli_writes_a_verified_folder(tmp_path: Path, capsys: pytest.CaptureFixt
     assert rc == 0
     meta = json.loads((out / "hologram.json").read_text())
     ver = json.loads((out / "verify.json").read_text())
-    assert meta["design"] == "spinning" and len(ver["angles"]) == 12
+    assert meta["design"] == "spin" and len(ver["angles"]) == 12
     assert ver["summary"]["stray"] == 0
     assert (out / "preview.gif").stat().st_size > 0
     assert (out / "relief.gcode").exists()

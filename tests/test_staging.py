@@ -84,7 +84,7 @@ def test_every_kind_writes_one_verify_schema(tmp_path: Path) -> None:
     flat = {"worst_p95_error": 0.157, "min_visibility": 0.98, "max_false_glints": 0.0}
     spin = {"worst_p95_mm": 0.31, "lowest_visibility": 0.9, "stray": 2}
     rows = [{"azimuth": -5.0}, {"azimuth": 0.0}, {"azimuth": 5.0}]
-    for kind, summary, key in (("flat", flat, "azimuths"), ("spinning", spin, "angles")):
+    for kind, summary, key in (("flat", flat, "azimuths"), ("spin", spin, "angles")):
         write_verify_json(tmp_path, kind, 5.0, summary, key, rows, {"source": "x"})
         record = json.loads((tmp_path / "verify.json").read_text())
         assert record["schema"] == VERIFY_SCHEMA and record["kind"] == kind

@@ -602,7 +602,7 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
         # read back by the safety check every program passes, before it is kept
         check = stage.check("hologram.gcode", check=lambda path: check_surface_program(
             path, d.grooves, comp.host, comp.tool, comp.machining, comp.axes))
-        meta = {"design": "conforming", "composition": comp.settings,
+        meta = {"design": "composition", "composition": comp.settings,
                 "host": comp.host.describe(), "mode": comp.motion.mode,
                 "tool": {"radius": comp.tool.radius, "depth": comp.tool.depth,
                          "width": comp.tool.width},
@@ -620,7 +620,8 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
 def is_composed_folder(folder: str | os.PathLike[str]) -> bool:
     from specholo.folder import design_kind
 
-    return design_kind(folder) == "conforming"
+    # "conforming": the name folders written before the job names were one
+    return design_kind(folder) in ("composition", "conforming")
 
 
 def load_composition_folder(folder: str | os.PathLike[str]) -> ComposedDesign:

@@ -1183,7 +1183,7 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
 
     folder = Path(folder)
     info = design_json(folder)
-    if info.get("design") == "conforming":
+    if info.get("design") in ("composition", "conforming"):
         raise SpecholoError(f"{folder} holds a composed design (specholo compose): verify "
                             "reads it, and its pictures are preview.png and preview.gif")
     config = settings_of(folder, info)

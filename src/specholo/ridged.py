@@ -226,6 +226,7 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
         (``machining``, empty without G-code).
     """
     from specholo.fabrication.heightmap import RIDGED_FILES, write_raster_gcode, write_ridged_files
+    from specholo.fabrication.plate import Plate
     from specholo.preview.preview import render_field_preview
     from specholo.staging import stage_design
 
@@ -245,7 +246,9 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
             stats = write_raster_gcode(
                 path, d.plate.heights, d.config.ball_radius, setup.machining,
                 header={"design": "ridged", "stipples": str(len(d.points)),
-                        "cutter": info["tool"]["description"], **ridged_limits(d).header()})
+                        "cutter": info["tool"]["description"], **ridged_limits(d).header()},
+                plate=Plate.from_corners(plate_edges(d.plate.heights),
+                                         d.config.stock_thickness))
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = stage.check(path.name, ridged_limits(d))

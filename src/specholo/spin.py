@@ -339,7 +339,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                              header={**header, **limits.header()}, plate=plate)
         safety = stage.check("hologram.gcode", limits)
         meta: dict[str, Any] = {
-            "design": "spinning", "config": cfg.as_dict(),
+            "design": "spin", "config": cfg.as_dict(),
             "tilts_deg": [math.degrees(t) for t in d.tilts],
             "relief_tilt_deg": math.degrees(d.relief_tilt),
             "paths": d.grooves.n_paths, "groove_length_mm": d.grooves.total_length(),
@@ -382,7 +382,7 @@ def write_spin_verification(reports: list[SpinReport], folder: str | os.PathLike
     from specholo.folder import write_verify_json
 
     summary = summarise(reports)
-    write_verify_json(folder, "spinning", step_deg, summary, "angles",
+    write_verify_json(folder, "spin", step_deg, summary, "angles",
                       [r.as_dict() for r in reports])
     return summary
 
@@ -391,7 +391,8 @@ def is_spin_folder(folder: str | os.PathLike[str]) -> bool:
     """True if ``folder`` holds a turning-plate design written by :func:`write_spin`."""
     from specholo.folder import design_kind
 
-    return design_kind(folder) == "spinning"
+    # "spinning": the name folders written before the job names were one
+    return design_kind(folder) in ("spin", "spinning")
 
 
 def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:

@@ -31,9 +31,9 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
     """Design a hologram from a TOML composition: any host (plane, cylinder, sphere,
     height field, mesh, panels), a walking viewer or a moving light, one or more
     scenes keyed to the motion; then verify it."""
-    from specholo.jobs.composed import ComposedJob
+    from specholo.jobs.composition import CompositionJob
 
-    _run(ComposedJob(), [composition], {}, out, WriteOptions(step_deg=step, frames=frames))
+    _run(CompositionJob(), [composition], {}, out, WriteOptions(step_deg=step, frames=frames))
 
 
 @cli.command()

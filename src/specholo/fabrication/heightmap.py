@@ -30,7 +30,15 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
-from specholo.fabrication.gcode import DECIMALS, SCALE, TextRows, format_number
+from specholo.fabrication.gcode import (
+    DECIMALS,
+    SCALE,
+    GcodeOptions,
+    TextRows,
+    format_number,
+    plate_lines,
+)
+from specholo.fabrication.plate import Plate
 from specholo.setup import Machining
 from specholo.toolpaths.heightmap import HeightMap as HeightMap
 from specholo.toolpaths.ridged import RidgedPlate
@@ -389,7 +397,8 @@ class RasterStats:
 def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: float,
                        machining: Machining, stepover: float | None = None,
                        tolerance: float = 5e-4, dwell: float = 2.0,
-                       header: dict[str, str] | None = None) -> RasterStats:
+                       header: dict[str, str] | None = None,
+                       plate: Plate | None = None) -> RasterStats:
     """Write a ball-end raster finishing program for the surface, atomically.
 
     Passes run along x, alternating direction, one every ``stepover`` in y,
@@ -411,6 +420,9 @@ def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: floa
         tolerance: largest height error of the thinned profile, mm.
         dwell: seconds to wait after starting the spindle.
         header: extra ``key: value`` comment lines.
+        plate: the plate the header's plate block names (its size, corners,
+            marks and zero, as a grooved plate's program gives them), or None
+            for no block.
 
     Returns:
         Counts, length, deepest tip and time.
@@ -444,7 +456,8 @@ def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: floa
         f"pass rows: {rows.size} along X, stepover {format_number(step_mm)} mm, "
         f"chord tolerance {format_number(tolerance)} mm",
         f"deepest tip: {format_number(float(tip.min()))} mm",
-        *(f"{k}: {v}" for k, v in (header or {}).items()))]
+        *(f"{k}: {v}" for k, v in (header or {}).items()),
+        *([] if plate is None else plate_lines(plate, GcodeOptions())))]
     head.append("G21 G90 G17 G94 G40")
     if machining.spindle > 0:
         head.append(f"M3 S{round(machining.spindle)}")

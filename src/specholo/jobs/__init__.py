@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from specholo.jobs.base import Job, Table, Verification, VerifyOptions, publish_verification
-from specholo.jobs.composed import ComposedJob
+from specholo.jobs.composition import CompositionJob
 from specholo.jobs.flat import FlatJob
 from specholo.jobs.ridged import RidgedJob
 from specholo.jobs.spin import SpinJob
@@ -19,7 +19,7 @@ from specholo.jobs.steady import SteadyJob
 
 #: The kinds of folder, in the order they are told apart: the first whose
 #: :meth:`~.base.Job.holds` is true owns the folder; a flat design is the rest.
-JOBS: tuple[Job, ...] = (SpinJob(), SteadyJob(), ComposedJob(), RidgedJob(), FlatJob())
+JOBS: tuple[Job, ...] = (SpinJob(), SteadyJob(), CompositionJob(), RidgedJob(), FlatJob())
 
 
 def job_of(folder: Path) -> Job:

@@ -36,7 +36,7 @@ def design_summary(job: Any, summary: dict[str, Any], out: Path, step_deg: float
 class SpinJob:
     """A turning-plate design."""
 
-    kind = "spinning"
+    kind = "spin"
     title = "a turning-plate design"
     verified_on = "its grooves"
     pictures: frozenset[str] = frozenset()

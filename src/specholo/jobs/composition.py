@@ -23,7 +23,7 @@ from specholo.jobs.base import (
 
 
 def design_summary(d: Any, check: dict[str, Any]) -> Summary:
-    """What a composed design (``compose.ComposedDesign``) says once its G-code is
+    """What a composition (``compose.ComposedDesign``) says once its G-code is
     checked: its stripes and groove, and the stipple-views it could not serve."""
     lines = [f"{d.stats['stripes']} stripes, {d.stats['groove_length_mm'] / 1000:.2f} m of "
              f"groove; G-code checked: {check['cutting_moves']} cutting moves, deepest "
@@ -39,11 +39,11 @@ def design_summary(d: Any, check: dict[str, Any]) -> Summary:
     return Summary(lines, warnings)
 
 
-class ComposedJob:
-    """A composed design (``specholo compose``)."""
+class CompositionJob:
+    """A composition (``specholo compose``): a host, a motion and scenes from a TOML file."""
 
-    kind = "composed"
-    title = "a composed design"
+    kind = "composition"
+    title = "a composition"
     verified_on = "its grooves"
     pictures: frozenset[str] = frozenset()
     own_pictures = "preview.png and preview.gif"
