@@ -292,7 +292,7 @@ def test_a_steady_design_over_a_flat_ones_folder_keeps_none_of_its_files(
     assert code == 0, err
     names = {p.name for p in design_folder.iterdir()}
     assert names == {"hologram.gcode", "hologram.json", "stipples.npz", "verify.json",
-                     "preview.png", "notes.txt", "sub"}
+                     "preview.png", "run.json", "notes.txt", "sub"}
     assert json.loads((design_folder / "hologram.json").read_text())["design"] == "steady"
     assert (design_folder / "sub" / "a.txt").read_bytes() == b"mine too"
     assert hidden(design_folder.parent) == []
@@ -307,10 +307,10 @@ def test_each_kind_over_another_s_folder_leaves_only_its_own_files(
     for argv, files in (
             (["compose", comp, "--step", "15", "--frames", "2"],
              {"hologram.json", "grooves.npz", "stipples.npz", "scene_0.ply", "hologram.gcode",
-              "verify.json", "preview.png", "preview.gif"}),
+              "verify.json", "preview.png", "preview.gif", "run.json"}),
             (["spin", BUNNY, "--stipples", "20", "--step", "30", "--frames", "2"],
              {"hologram.json", "grooves.npz", "stipples.npz", "model.ply", "hologram.gcode",
-              "relief.gcode", "hologram.svg", "verify.json", "preview.gif"}),
+              "relief.gcode", "hologram.svg", "verify.json", "preview.gif", "run.json"}),
             (["design", BUNNY, *TINY, "--formats", "gcode,dxf"],
              {"hologram.json", "grooves.npz", "stipples.npz", "model.ply", "hologram.gcode",
               "hologram.dxf", "preview.png", "run.json"})):

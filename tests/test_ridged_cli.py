@@ -48,7 +48,7 @@ def designed(tmp_path_factory) -> Path:
 
 def test_design_writes_every_file(designed: Path):
     names = {p.name for p in designed.iterdir()}
-    assert FILES <= names and names - FILES <= {"verify.json", "verify.png"}
+    assert FILES <= names and names - FILES <= {"verify.json", "verify.png", "run.json"}
     # Staged beside the folder and moved in: nothing left over.
     assert [p.name for p in designed.parent.iterdir()] == [designed.name]
     info = json.loads((designed / "hologram.json").read_text())

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import dataclasses
+import json
 from pathlib import Path
 
 import pytest
@@ -47,7 +48,9 @@ def test_checked_programs_are_published_and_unsafe_ones_are_not(tmp_path: Path) 
         (stage.path / "hologram.json").write_text('{"design": "new"}')
     assert report.ok and report.moves["G1"] == 7
     assert sorted(p.name for p in out.iterdir()) == ["hologram.gcode", "hologram.json",
-                                                     "notes.txt"]
+                                                     "notes.txt", "run.json"]
+    run = json.loads((out / "run.json").read_text())  # the file every kind shares
+    assert run["kind"] == "flat" and run["software"]["specholo"] and run["seconds"]["writing"] >= 0
     # deeper than its limits allow: refused, the folder as it was
     before = (out / "hologram.gcode").read_bytes()
     with pytest.raises(SpecholoError, match="failed its safety check"), \

@@ -586,7 +586,7 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
     inputs = [*inputs, *composition_files(comp)]
     check_out(out, inputs)  # before the G-code is made and checked
     program = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, comp.axes)
-    with stage_design(out, inputs) as stage:
+    with stage_design(out, inputs, kind="composition") as stage:
         tmp = stage.path
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
             d.grooves.save(fh)

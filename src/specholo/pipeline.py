@@ -880,46 +880,14 @@ def hologram_json(d: Design) -> dict[str, Any]:
     }
 
 
-def software_versions() -> dict[str, str]:
-    """Versions of specholo, Python and the libraries a design's numbers depend on."""
-    import platform
-    from importlib import metadata
-
-    versions = {"specholo": __version__, "python": platform.python_version()}
-    for name in ("numpy", "scipy", "numba", "trimesh", "embreex", "ezdxf", "matplotlib",
-                 "pillow"):
-        try:
-            versions[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            continue
-    return versions
-
-
 def run_record(config: DesignConfig, command: list[str] | None,
                seconds: dict[str, Any]) -> dict[str, Any]:
-    """What ``run.json`` records of one run: when, how it was asked for, with which
-    software, and how long each stage took. It is the one file of a design
-    folder that differs between two runs of the same design."""
-    import sys
+    """What a flat or ridged design's ``run.json`` records
+    (:func:`specholo.staging.run_record`), with its settings."""
+    from specholo.staging import run_record as record
 
-    return {
-        "specholo_version": __version__,
-        "command": list(sys.argv if command is None else command),
-        "settings": asdict(config),
-        "software": software_versions(),
-        "platform": {"system": __import__("platform").platform(),
-                     "numba_threads": _numba_threads()},
-        "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "seconds": seconds,
-    }
-
-
-def _numba_threads() -> int | None:
-    try:
-        import numba
-    except ImportError:
-        return None
-    return int(getattr(numba.config, "NUMBA_NUM_THREADS"))  # noqa: B009 - set at run time
+    return record("ridged" if config.method == "ridged" else "flat", command, seconds,
+                  asdict(config))
 
 
 def drop_reasons(points: np.ndarray, dropped: np.ndarray, setup: Setup) -> dict[str, str]:

@@ -235,7 +235,7 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
     info = ridged_json(d)
     timings: dict[str, float] = {}
     machining: dict[str, Any] = {}
-    with stage_design(out, inputs) as stage:
+    with stage_design(out, inputs, kind="ridged") as stage:
         tmp = stage.path
         images = tuple(f for f in formats if f != "gcode")
         timings.update(write_ridged_files(d.plate, tmp, setup.machining, d.config.ball_radius,

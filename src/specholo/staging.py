@@ -6,13 +6,18 @@ every older specholo file goes, the user's files stay), and before the folder
 is published it looks at every machine program the job wrote: each must have
 been read back by its safety check through :meth:`Stage.check`. A job that
 writes a program and forgets its check publishes nothing, so no kind of
-hologram can keep a program no check has read.
+hologram can keep a program no check has read. It also writes the one file
+every kind shares, ``run.json`` (:func:`run_record`): when and how the design
+was made, with which software; a job may write a fuller one itself.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
+import sys
+import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -74,9 +79,59 @@ class Stage:
                       if p.suffix.lower() in PROGRAM_SUFFIXES and p.name not in self.checked)
 
 
+def software_versions() -> dict[str, str]:
+    """Versions of specholo, Python and the libraries a design's numbers depend on."""
+    import platform
+    from importlib import metadata
+
+    from specholo import __version__
+
+    versions = {"specholo": __version__, "python": platform.python_version()}
+    for name in ("numpy", "scipy", "numba", "trimesh", "embreex", "ezdxf", "matplotlib",
+                 "pillow"):
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return versions
+
+
+def numba_threads() -> int | None:
+    """The threads numba's kernels run on, or None without numba."""
+    try:
+        import numba
+    except ImportError:
+        return None
+    return int(getattr(numba.config, "NUMBA_NUM_THREADS"))  # noqa: B009 - set at run time
+
+
+def run_record(kind: str, command: list[str] | None, seconds: dict[str, Any],
+               settings: dict[str, Any] | None = None) -> dict[str, Any]:
+    """What ``run.json`` records of one run: the kind, when, how it was asked
+    for, with which software and threads, and how long each stage took. It is
+    the one file of a design folder that differs between two runs of the same
+    design."""
+    import platform
+
+    from specholo import __version__
+
+    record: dict[str, Any] = {
+        "kind": kind, "specholo_version": __version__,
+        "command": list(sys.argv if command is None else command)}
+    if settings is not None:
+        record["settings"] = settings
+    record.update({
+        "software": software_versions(),
+        "platform": {"system": platform.platform(), "numba_threads": numba_threads()},
+        "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "seconds": seconds})
+    return record
+
+
 @contextlib.contextmanager
 def stage_design(out: str | os.PathLike[str],
-                 inputs: Iterable[str | os.PathLike[str] | None] = ()) -> Iterator[Stage]:
+                 inputs: Iterable[str | os.PathLike[str] | None] = (),
+                 kind: str = "flat", command: list[str] | None = None) -> Iterator[Stage]:
     """A :class:`Stage` that replaces ``out`` whole once the block succeeds and
     every program in it has passed its check.
 
@@ -84,13 +139,17 @@ def stage_design(out: str | os.PathLike[str],
         out: the output folder.
         inputs: the job's input files, which ``out`` must not hold as files a
             design writes.
+        kind: the kind of hologram, for ``run.json``.
+        command: the command line, for ``run.json`` (None: ``sys.argv``).
 
     Raises:
         SpecholoError: a program in the stage was not checked (nothing is
             published), or see :func:`specholo.folders.publish`.
     """
+    from specholo.fabrication.atomic import atomic_open
     from specholo.folders import publish
 
+    started = time.perf_counter()
     with publish(out, inputs) as tmp:
         stage = Stage(Path(tmp))
         yield stage
@@ -98,3 +157,7 @@ def stage_design(out: str | os.PathLike[str],
         if missed:
             raise SpecholoError(f"{missed[0]} was written but not read back by the safety "
                                 "check: nothing written")
+        if not (stage.path / "run.json").exists():
+            with atomic_open(stage.path / "run.json") as fh:
+                json.dump(run_record(kind, command,
+                                     {"writing": time.perf_counter() - started}), fh, indent=1)
