@@ -285,3 +285,42 @@ def test_a_big_design_is_searched_a_run_of_paths_at_a_time(loaded: Loaded,
     for w, p in zip(whole, parts, strict=True):
         assert len(w) > 20  # there are glints to compare
         np.testing.assert_allclose(np.unique(p, axis=0), np.unique(w, axis=0), atol=1e-9)
+
+
+def test_preview_dots_are_the_glints_each_eye_sees(small_design: Path, tmp_path: Path) -> None:
+    """preview.png: in each panel, a dot wherever that eye's glint projects, and
+    nothing lit inside the plate where no glint is."""
+    import math
+
+    from PIL import Image
+
+    from specholo.pipeline import load_design
+    from specholo.preview.preview import PANEL, panel_transform, project, render_preview
+    from specholo.preview.render import glints_seen
+
+    loaded = load_design(small_design)
+    setup = loaded.config.setup()
+    out = tmp_path / "preview.png"
+    render_preview(loaded.grooves, setup, out)
+    img = np.asarray(Image.open(out).convert("L"))
+    w, h, title = PANEL
+    az = [-30.0, 0.0, 30.0]
+    assert img.shape == (h, w * len(az))
+    eyes = setup.viewer.eye(np.radians(az))
+    lo, hi = loaded.grooves.bounds()
+    corners = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0],
+                        [lo[0], hi[1], 0]])
+    for k, (eye, points) in enumerate(zip(eyes, glints_seen(loaded.grooves, setup.tool,
+                                                            eyes, setup.light), strict=True)):
+        assert len(points) > 20
+        offset, scale = panel_transform(project(corners, eye), k)
+        uv = offset + scale * project(points, eye) * np.array([1.0, -1.0])
+        lit = img[np.floor(uv[:, 1]).astype(int), np.floor(uv[:, 0]).astype(int)]
+        assert np.all(lit > 200)
+        # away from every glint (3 px), inside the plate's outline: dark
+        rows, cols = np.nonzero(img[title:, k * w:(k + 1) * w] > 200)
+        rows, cols = rows + title, cols + k * w
+        near = np.min(np.hypot(rows[:, None] - uv[None, :, 1], cols[:, None] - uv[None, :, 0]),
+                      axis=1)
+        inside = (cols > uv[:, 0].min() - 3) & (cols < uv[:, 0].max() + 3)
+        assert np.all(near[inside] < 3.0) or math.isclose(len(points), 0)

@@ -88,29 +88,74 @@ def _figure(**kwargs: Any) -> Any:
     return fig
 
 
+#: One panel of the preview, pixels: wide, high, and the title's band above the plate.
+PANEL = (462, 484, 34)
+#: Blank pixels around the plate's outline in its panel.
+_PANEL_MARGIN = 12
+
+
+def panel_transform(frame: np.ndarray, panel: int) -> tuple[np.ndarray, float]:
+    """Where projected points go in the preview: pixel = offset + scale * (u, -v).
+
+    Args:
+        frame: (k, 2) the plate outline's projected corners (they set the scale,
+            the same in u and v, so the plate keeps its shape).
+        panel: the panel's index from the left.
+
+    Returns:
+        (2,) the pixel offset and the scale, pixels per projected unit.
+    """
+    w, h, title = PANEL
+    lo, hi = frame.min(axis=0), frame.max(axis=0)
+    span = np.maximum(hi - lo, 1e-12)
+    scale = float(min((w - 2 * _PANEL_MARGIN) / span[0],
+                      (h - title - 2 * _PANEL_MARGIN) / span[1]))
+    mid = 0.5 * (lo + hi)
+    centre = np.array([panel * w + 0.5 * w, title + 0.5 * (h - title)])
+    return centre - scale * np.array([mid[0], -mid[1]]), scale
+
+
 def _draw_views(az: list[float], eyes: np.ndarray, seen: list[np.ndarray],
                 lo: np.ndarray, hi: np.ndarray, path: str | os.PathLike[str]) -> None:
     """One black panel per eye: the plate's outline and the glints it sees, in
-    that eye's perspective."""
-    fig = _figure(figsize=(4.2 * len(az), 4.4), facecolor="black")
-    axes = fig.subplots(1, len(az))
-    axes = np.atleast_1d(axes)
+    that eye's perspective. Drawn with Pillow: a design's first picture should
+    not wait for a plotting library's import."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    w, h, _ = PANEL
+    img = Image.new("RGB", (w * len(az), h))
+    draw = ImageDraw.Draw(img)
+    try:
+        font: Any = ImageFont.load_default(size=14)
+    except TypeError:  # Pillow before 10.1: the bitmap font, one size
+        font = ImageFont.load_default()
     corners = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0],
                         [lo[0], hi[1], 0], [lo[0], lo[1], 0]])
-    for ax, a, eye, points in zip(axes, az, eyes, seen, strict=True):
-        ax.set_facecolor("black")
+    rows, cols = [], []
+    for k, (a, eye, points) in enumerate(zip(az, eyes, seen, strict=True)):
         frame = project(corners, eye)
-        ax.plot(frame[:, 0], frame[:, 1], color="#333333", lw=0.8)
+        offset, scale = panel_transform(frame, k)
+        outline = offset + scale * frame * np.array([1.0, -1.0])
+        draw.line([tuple(p) for p in outline], fill=(70, 70, 70), width=1)
+        draw.text((k * w + 0.5 * w, 10), f"azimuth {a:+.0f}\u00b0  ({len(points)} glints)",
+                  fill=(187, 187, 187), font=font, anchor="mt")
         if len(points):
-            uv = project(points, eye)
-            ax.scatter(uv[:, 0], uv[:, 1], s=2.0, c="white", linewidths=0, alpha=0.9)
-        ax.set_aspect("equal")
-        ax.set_axis_off()
-        ax.set_title(f"azimuth {a:+.0f}°  ({len(points)} glints)", color="#bbbbbb",
-                     fontsize=10)
-    fig.tight_layout()
+            # each glint a 2 x 2 pixel dot, its top left at the glint, over the outline
+            uv = offset + scale * project(points, eye) * np.array([1.0, -1.0])
+            col = np.floor(uv[:, 0]).astype(np.int64)
+            row = np.floor(uv[:, 1]).astype(np.int64)
+            for dr in (0, 1):
+                for dc in (0, 1):
+                    r, c = row + dr, col + dc
+                    ok = (r >= 0) & (r < h) & (c >= k * w) & (c < (k + 1) * w)
+                    rows.append(r[ok])
+                    cols.append(c[ok])
+    pixels = np.array(img)
+    if rows:
+        pixels[np.concatenate(rows), np.concatenate(cols)] = 235
+    img = Image.fromarray(pixels, "RGB")
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, facecolor="black")
+    img.save(buf, format="PNG", optimize=False)
     with atomic_open(path, "wb", encoding=None) as fh:
         fh.write(buf.getvalue())
 
