@@ -68,3 +68,75 @@ def test_design_fit_puts_the_grooves_on_the_plate(tmp_path: Path, capsys) -> Non
     capsys.readouterr()
     assert main(["design", str(BUNNY), "--out", str(tmp_path / "x"), "--fit"]) == 1
     assert "give plate-width and plate-height" in capsys.readouterr().err
+
+
+def test_the_eyes_are_any_array() -> None:
+    from specholo.scene.fit import crossing_extent_from, eyes_of, fit_size_from
+
+    viewer = Viewer()
+    p = np.array([[10.0, 5.0, -40.0], [-3.0, 2.0, 12.0]])
+    assert crossing_extent_from(p, eyes_of(viewer)) == pytest.approx(crossing_extent(p, viewer))
+    # two eyes straight in front: a point behind the plate crosses it nearer the middle
+    eyes = np.array([[-32.0, 0.0, 600.0], [32.0, 0.0, 600.0]])
+    lo, hi = crossing_extent_from(np.array([[0.0, 0.0, -60.0]]), eyes)
+    assert lo[0] == pytest.approx(-32.0 * 60.0 / 660.0) and hi[0] == pytest.approx(-lo[0])
+    # the same eyes fit a larger model than the whole arc
+    center = np.array([0.0, 0.0, -30.0])
+    assert fit_size_from(CUBE, center, (100.0, 80.0), eyes, (0.1, 0.1), 5.0) > \
+        fit_size(CUBE, center, (100.0, 80.0), viewer, (0.1, 0.1), 5.0)
+
+
+def _one_line(err: str) -> bool:
+    return len([line for line in err.splitlines() if line.strip()]) == 1
+
+
+@pytest.mark.parametrize("kind", ["steady", "spin"])
+def test_steady_and_spin_fit_put_the_cuts_on_the_plate(kind: str, tmp_path: Path,
+                                                       capsys) -> None:
+    from specholo.steady import load_steady_folder
+    from specholo.toolpaths.steady import tool_tips
+
+    plate = ["--plate-width", "90", "--plate-height", "70"]
+    # spin: whole grooves (no occlusion crop), so a few dozen stipples reach
+    # near the model's outline and a larger size shows
+    extra = {"steady": ["--center-z", "-20", "--stipples", "40"],
+             "spin": ["--stipples", "40", "--no-occlusion", "--frames", "0"]}[kind]
+
+    def reach(folder: Path) -> np.ndarray:
+        """How far the cuts reach from the plate centre in x and y, the tool's edge in."""
+        if kind == "steady":
+            design, config = load_steady_folder(folder)
+            return np.abs(tool_tips(design, config.tool)[:, :2]).max(axis=0) \
+                + 0.5 * config.tool.width
+        info = json.loads((folder / "hologram.json").read_text())
+        tool = info["config"]["tool"]
+        r, d = tool["radius"], tool["depth"]
+        xy = np.load(folder / "grooves.npz")["vertices"]
+        return np.abs(xy).max(axis=0) + math.sqrt(r * r - (r - d) ** 2)
+
+    out = tmp_path / kind
+    assert main([kind, str(BUNNY), "--out", str(out), *plate, "--fit", *extra]) == 0
+    info = json.loads((out / "hologram.json").read_text())
+    size = info["config"]["size"]
+    assert info["config"]["fit"] is True and info["config"]["plate_width"] == 90.0
+    assert 5.0 < size < 200.0 and size == round(size, 3)
+    room = np.array([45.0 - 5.0, 35.0 - 5.0])
+    assert np.all(reach(out) <= room + 1e-6)
+    # the program names the given plate
+    assert "(plate: 90 x 70 mm, corners X-45 Y-35 to X45 Y35)" in \
+        (out / "hologram.gcode").read_text()
+    capsys.readouterr()
+    assert main(["verify", str(out), "--step", "5"]) == 0
+    # near the largest: 15% larger, the cuts leave the border or the plate
+    bigger = tmp_path / "bigger"
+    code = main([kind, str(BUNNY), "--out", str(bigger), *plate, "--size",
+                 f"{1.15 * size:.3f}", *extra])
+    if code == 0:
+        assert np.any(reach(bigger) > room)
+    else:
+        assert code == 1 and "smaller than the design" in capsys.readouterr().err
+    # fit needs a plate
+    capsys.readouterr()
+    assert main([kind, str(BUNNY), "--out", str(tmp_path / "x"), "--fit"]) == 1
+    err = capsys.readouterr().err
+    assert "give plate-width and plate-height" in err and _one_line(err)

@@ -56,6 +56,10 @@ class SpinConfig:
         setup: the viewer, light and groove shape.
         tool: the ball-end cutter.
         machining: feeds and heights.
+        plate_width, plate_height: the plate, mm, centred on the turning axis
+            (both or neither); without them the plate fitted to the grooves.
+        fit: ``size`` is the largest whose grooves lie on the plate, 5 mm in
+            from its edges, for eyes all round the axis (:func:`design_spin`).
     """
 
     size: float = 40.0
@@ -68,8 +72,15 @@ class SpinConfig:
     setup: SpinSetup = field(default_factory=SpinSetup)
     tool: Tool = field(default_factory=Tool)
     machining: Machining = field(default_factory=Machining)
+    # after the rest: folders written before plates were settings lack them
+    plate_width: float | None = None
+    plate_height: float | None = None
+    fit: bool = False
 
     def __post_init__(self) -> None:
+        from specholo.fabrication.plate import check_plate_options
+
+        check_plate_options(self.plate_width, self.plate_height, self.fit)
         if not (math.isfinite(self.size) and self.size > 0):
             raise SpecholoError(f"size must be positive, got {self.size}")
         if not math.isfinite(self.center_z):
@@ -85,7 +96,8 @@ class SpinConfig:
                      view_distance: float = 600.0, view_elevation: float = 45.0,
                      ipd: float = 64.0, light_height: float | None = None, walls: str = "one",
                      occlusion: bool = True, tool_radius: float = 0.25, depth: float = 0.08,
-                     pose: Pose | None = None) -> SpinConfig:
+                     pose: Pose | None = None, plate_width: float | None = None,
+                     plate_height: float | None = None, fit: bool = False) -> SpinConfig:
         """The settings from the command's names and units (degrees, converted here
         once); ``turns`` defaults to the number of models."""
         setup = SpinSetup(distance=view_distance, elevation=math.radians(view_elevation),
@@ -93,7 +105,15 @@ class SpinConfig:
         return cls(size=size, center_z=center_z, stipples=stipples, seed=seed,
                    pose=pose or Pose(), occlusion=occlusion,
                    turns=models if turns is None else turns, setup=setup,
-                   tool=Tool(tool_radius, depth))
+                   tool=Tool(tool_radius, depth), plate_width=plate_width,
+                   plate_height=plate_height, fit=fit)
+
+    @property
+    def plate(self) -> tuple[float, float] | None:
+        """The given plate's width and height, mm, or None."""
+        if self.plate_width is None or self.plate_height is None:
+            return None
+        return (float(self.plate_width), float(self.plate_height))
 
     def as_dict(self) -> dict[str, Any]:
         """The settings as ``hologram.json`` records them (angles in degrees)."""
@@ -142,19 +162,91 @@ def design_spin(model_path: str | os.PathLike[str] | list[str | os.PathLike[str]
 
     With ``config.turns`` > 1, ``model_path`` may list one model per circuit of
     the view; the stipples then slide over the turning scenes.
+
+    With ``config.fit`` the size is first fitted to the plate: the largest whose
+    grooves lie on it, 5 mm in from its edges. Over a turn the eyes go all round
+    the axis, so the crossings are those of both eyes at every plate angle
+    (:data:`FIT_STEP_DEG` apart); a closed groove is a curve fitted through
+    them that strays a little past them, which
+    :func:`specholo.scene.fit.fit_design` measures on a first design and fits
+    again. The job's config then holds the fitted size.
     """
     from specholo.scene.loading import load_model
-    from specholo.scene.placement import place
-    from specholo.scene.stippling import stipple
 
     paths = list(model_path) if isinstance(model_path, list | tuple) else [model_path]
-    rng = rng if rng is not None else np.random.default_rng(config.seed)
     if config.turns == 1 and len(paths) != 1:
         raise SpecholoError(f"one model for a single turn of the view, got {len(paths)}; "
                             "several models need --turns equal to their number")
+    if config.turns > 1 and len(paths) not in (1, config.turns):
+        raise SpecholoError(f"give one model, or one per turn of the view ({config.turns}); "
+                            f"got {len(paths)}")
+    models = [load_model(p) for p in paths]
+    plate = config.plate
+    if config.fit and plate is not None:
+        return _design_fitted(models, config, plate, rng)
+    return _design_loaded(models, config, rng)
+
+
+#: Plate angles between the eyes a fit to the plate samples, degrees: a groove's
+#: crossings run round a curve, whose extent the samples miss by under a
+#: thousandth of its size at this step.
+FIT_STEP_DEG = 2.0
+
+
+def _design_fitted(models: list[Any], config: SpinConfig, plate: tuple[float, float],
+                   rng: np.random.Generator | None) -> SpinJob:
+    """:func:`design_spin` with the size fitted to the given plate."""
+    import copy
+    import dataclasses
+
+    from specholo.fabrication.plate import PLATE_MARGIN
+    from specholo.scene.fit import (
+        crossing_extent_from,
+        fit_design,
+        fit_size_from,
+        plate_room,
+        round_size,
+    )
+    from specholo.scene.placement import place
+
+    phi = np.radians(np.arange(0.0, 360.0, FIT_STEP_DEG))
+    eyes = config.setup.eyes(phi).reshape(-1, 3)  # both eyes all round the axis
+    # every model at size 1 about its box centre: one size serves them all
+    unit = np.vstack([place(m, 1.0, 0.0, config.pose.rotation()).points for m in models])
+    center = np.array([*config.pose.offset, config.center_z])
+    half = 0.5 * config.tool.width
+
+    def size_with(reach: np.ndarray) -> float:
+        return round_size(fit_size_from(unit, center, plate, eyes, reach, PLATE_MARGIN))
+
+    def design_at(size: float) -> SpinJob:
+        # each try from the same stippling seed: the kept design is the one a
+        # design at the recorded size gives
+        fresh = copy.deepcopy(rng) if rng is not None else None
+        return _design_loaded(models, dataclasses.replace(config, size=size), fresh)
+
+    def spread(job: SpinJob) -> tuple[np.ndarray, np.ndarray]:
+        d = job.design
+        if d.grooves.n_paths == 0:
+            return np.zeros(2), np.zeros(2)
+        cuts = np.abs(d.grooves.extent()).max(axis=0) + half
+        return cuts, np.abs(crossing_extent_from(d.points, eyes)).max(axis=0)
+
+    size, job = fit_design(size_with, design_at, spread, plate_room(plate, PLATE_MARGIN),
+                           np.array([half, half]))
+    return dataclasses.replace(job, config=dataclasses.replace(config, size=size))
+
+
+def _design_loaded(models: list[Any], config: SpinConfig,
+                   rng: np.random.Generator | None) -> SpinJob:
+    """:func:`design_spin` for models already loaded, at ``config.size``."""
+    from specholo.scene.placement import place
+    from specholo.scene.stippling import stipple
+
+    rng = rng if rng is not None else np.random.default_rng(config.seed)
     if config.turns > 1:
-        return _design_sliding(paths, config, rng)
-    model = place(load_model(paths[0]), config.size, config.center_z,
+        return _design_sliding(models, config, rng)
+    model = place(models[0], config.size, config.center_z,
                   config.pose.rotation(), config.pose.offset)
     st = stipple(model, rng, count=config.stipples)
     setup = config.setup
@@ -173,17 +265,13 @@ def design_spin(model_path: str | os.PathLike[str] | list[str | os.PathLike[str]
     return SpinJob(config, design, model.mesh, st.normals, keep)
 
 
-def _design_sliding(paths: list[str | os.PathLike[str]], config: SpinConfig,
+def _design_sliding(models: list[Any], config: SpinConfig,
                     rng: np.random.Generator) -> SpinJob:
-    from specholo.scene.loading import load_model
     from specholo.scene.placement import place
     from specholo.toolpaths.sliding import design_sliding, slide_tracks
 
-    if len(paths) not in (1, config.turns):
-        raise SpecholoError(f"give one model, or one per turn of the view ({config.turns}); "
-                            f"got {len(paths)}")
-    meshes = [place(load_model(p), config.size, config.center_z, config.pose.rotation(),
-                    config.pose.offset).mesh for p in paths]
+    meshes = [place(m, config.size, config.center_z, config.pose.rotation(),
+                    config.pose.offset).mesh for m in models]
     tracks = slide_tracks(meshes, config.setup, config.turns, config.stipples, rng,
                           occlusion=config.occlusion)
     if not len(tracks):
@@ -268,8 +356,8 @@ def preview_frames(job: SpinJob, frames: int, size: tuple[int, int] = (360, 360)
 def spin_limits(grooves: Any, depth: float, machining: Machining) -> Any:
     """What a turning plate's program of ``grooves`` cut ``depth`` mm deep may do
     (``fabrication.check.Limits``), from the design's settings: the tool centre
-    inside the grooves' extent plus a blank border (the plate has no size
-    setting, as a flat design's without one), no deeper than the cut, rapids at
+    inside the grooves' extent plus a blank border (within the plate, given or
+    fitted to the grooves, :func:`spin_plate`), no deeper than the cut, rapids at
     the safe height, hops as set, every cut in X/Y at the cut's depth, feeds and
     spindle as set."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
@@ -281,6 +369,18 @@ def spin_limits(grooves: Any, depth: float, machining: Machining) -> Any:
     return Limits(Stock(float(x0), float(y0), float(x1), float(y1), depth), depth, m.safe_z,
                   (min(m.feed, m.plunge), max(m.feed, m.plunge)), (m.spindle, m.spindle),
                   tool_kind("ball", m.spindle), hop_max=m.hop_max, hop=m.hop, groove_depth=depth)
+
+
+def spin_plate(job: SpinJob) -> Any:
+    """The plate (``fabrication.plate.Plate``) a turning plate's files name: the
+    one given, centred on the axis, or the grooves' with a 5 mm border.
+
+    Raises:
+        SpecholoError: a given plate is smaller than the grooves.
+    """
+    from specholo.fabrication.plate import job_plate
+
+    return job_plate(job.design.grooves.extent(), job.config.tool.width, job.config.plate)
 
 
 def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
@@ -296,7 +396,6 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
     """
     from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.gcode import write_gcode
-    from specholo.fabrication.plate import Plate
     from specholo.fabrication.svg import write_svg
     from specholo.folders import check_out
     from specholo.preview.motion import write_animation
@@ -307,6 +406,9 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
         raise SpecholoError("no stipple is visible at any plate angle: nothing to cut")
     inputs = list(inputs)
     check_out(out, inputs)  # before the verification
+    # one plate for the program, the relief cut and the drawing: the one given,
+    # centred on the axis, or the grooves' (a plate too small refused here)
+    plate = spin_plate(job)
     reports = verify_spin(job, step_deg)
     summary = summarise(reports)
     with stage_design(out, inputs) as stage:
@@ -333,8 +435,6 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                   f"turning plate, open grooves: the view circles the scene {cfg.turns} "
                   "times per turn", "walls": cfg.setup.walls}
         limits = spin_limits(d.grooves, cfg.tool.depth, cfg.machining)
-        # one plate for the program, the relief cut and the drawing: the grooves'
-        plate = Plate.fitted(d.grooves.extent(), cfg.tool.width)
         gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
                              header={**header, **limits.header()}, plate=plate)
         safety = stage.check("hologram.gcode", limits)
@@ -345,7 +445,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
             "paths": d.grooves.n_paths, "groove_length_mm": d.grooves.total_length(),
             "gcode": {"lines": gstats.lines, "paths": gstats.paths,
                       "safety_check": {"moves": safety.moves, "violations": 0}},
-            "verify": summary,
+            "verify": summary, "plate_mm": plate.box.tolist(),
         }
         if d.tracks is not None:
             per = d.tracks.shown.sum(axis=0) if d.tracks.shown is not None else \

@@ -41,6 +41,10 @@ class SteadyConfig:
         setup: the viewer and the light's range.
         tool: the ball-end cutter.
         machining: feeds and heights.
+        plate_width, plate_height: the plate, mm, centred on the origin (both or
+            neither); without them the plate fitted to the cuts.
+        fit: ``size`` is the largest whose cuts lie on the plate, 5 mm in from
+            its edges (:func:`design_steady_sized`).
     """
 
     size: float = 40.0
@@ -52,27 +56,43 @@ class SteadyConfig:
     setup: SteadySetup = field(default_factory=SteadySetup)
     tool: Tool = field(default_factory=lambda: Tool(0.05, 0.02))
     machining: Machining = field(default_factory=Machining)
+    # after the rest: folders written before plates were settings lack them
+    plate_width: float | None = None
+    plate_height: float | None = None
+    fit: bool = False
 
     def __post_init__(self) -> None:
+        from specholo.fabrication.plate import check_plate_options
+
         if not (math.isfinite(self.size) and self.size > 0):
             raise SpecholoError(f"size must be positive, got {self.size}")
         if not math.isfinite(self.center_z):
             raise SpecholoError(f"center z must be finite, got {self.center_z}")
         if not 1 <= self.stipples <= 200_000:
             raise SpecholoError(f"stipples must be in [1, 200000], got {self.stipples}")
+        check_plate_options(self.plate_width, self.plate_height, self.fit)
 
     @classmethod
     def from_options(cls, size: float = 40.0, center_z: float = -20.0, stipples: int = 300,
                      seed: int = 0, view_distance: float = 600.0, ipd: float = 64.0,
                      light_elevation: float = 45.0, light_range: float = 5.0,
                      shape: str = "scoop", tool_radius: float = 0.05, depth: float = 0.02,
-                     pose: Pose | None = None) -> SteadyConfig:
+                     pose: Pose | None = None, plate_width: float | None = None,
+                     plate_height: float | None = None, fit: bool = False) -> SteadyConfig:
         """The settings from the command's names and units (degrees, converted here once)."""
         setup = SteadySetup(distance=view_distance, ipd=ipd,
                             elevation=math.radians(light_elevation),
                             half_range=math.radians(light_range))
         return cls(size=size, center_z=center_z, stipples=stipples, seed=seed,
-                   pose=pose or Pose(), shape=shape, setup=setup, tool=Tool(tool_radius, depth))
+                   pose=pose or Pose(), shape=shape, setup=setup, tool=Tool(tool_radius, depth),
+                   plate_width=plate_width, plate_height=plate_height, fit=fit)
+
+    @property
+    def plate(self) -> tuple[float, float] | None:
+        """The given plate's width and height, mm, or None."""
+        if self.plate_width is None or self.plate_height is None:
+            return None
+        return (float(self.plate_width), float(self.plate_height))
 
     def as_dict(self) -> dict[str, Any]:
         """The settings as ``hologram.json`` records them (angles in degrees)."""
@@ -83,14 +103,82 @@ class SteadyConfig:
 
 def design_steady_job(model_path: str | os.PathLike[str], config: SteadyConfig,
                       rng: np.random.Generator | None = None) -> SteadyDesign:
-    """Stipple the model, keep the stipples both eyes see, and design their cuts."""
+    """Stipple the model, keep the stipples both eyes see, and design their cuts
+    (at ``config.size``: :func:`design_steady_sized` fits it to the plate)."""
     from specholo.scene.loading import load_model
+
+    return _design_loaded(load_model(model_path), config, rng)
+
+
+def design_steady_sized(model_path: str | os.PathLike[str], config: SteadyConfig,
+                        rng: np.random.Generator | None = None
+                        ) -> tuple[SteadyDesign, SteadyConfig]:
+    """:func:`design_steady_job`, and with ``config.fit`` first the size: the
+    largest whose cuts lie on the given plate, 5 mm in from its edges.
+
+    The viewer stands still, so the cuts' crossings are those of the two eyes
+    straight in front (the light's motion slides no glint: that is what the
+    scoops are for). A scoop runs a few mm along the plate past its crossing,
+    which no formula gives beforehand: :func:`specholo.scene.fit.fit_design`
+    measures it on a first design and fits again.
+
+    Returns:
+        The design and its settings, whose size is the fitted one with ``fit``.
+    """
+    import copy
+    import dataclasses
+
+    from specholo.fabrication.plate import PLATE_MARGIN
+    from specholo.scene.fit import (
+        crossing_extent_from,
+        fit_design,
+        fit_size_from,
+        plate_room,
+        round_size,
+    )
+    from specholo.scene.loading import load_model
+    from specholo.scene.placement import place
+
+    loaded = load_model(model_path)
+    plate = config.plate
+    if not config.fit or plate is None:
+        return _design_loaded(loaded, config, rng), config
+    eyes = config.setup.eyes()
+    unit = place(loaded, 1.0, 0.0, config.pose.rotation()).points  # size 1 about its box centre
+    center = np.array([*config.pose.offset, config.center_z])
+    half = 0.5 * config.tool.width
+
+    def size_with(reach: np.ndarray) -> float:
+        # the design refuses stipples this near the eyes (design_steady)
+        return round_size(fit_size_from(unit, center, plate, eyes, reach, PLATE_MARGIN,
+                                        0.9 * config.setup.distance))
+
+    def design_at(size: float) -> SteadyDesign:
+        # each try from the same stippling seed: the kept design is the one a
+        # design at the recorded size gives
+        fresh = copy.deepcopy(rng) if rng is not None else None
+        return _design_loaded(loaded, dataclasses.replace(config, size=size), fresh)
+
+    def spread(d: SteadyDesign) -> tuple[np.ndarray, np.ndarray]:
+        if not len(d.points):
+            return np.zeros(2), np.zeros(2)
+        cuts = np.abs(tool_tips(d, config.tool)[:, :2]).max(axis=0) + half
+        return cuts, np.abs(crossing_extent_from(d.points, eyes)).max(axis=0)
+
+    size, design = fit_design(size_with, design_at, spread, plate_room(plate, PLATE_MARGIN),
+                              np.array([half, half]))
+    return design, dataclasses.replace(config, size=size)
+
+
+def _design_loaded(loaded: Any, config: SteadyConfig,
+                   rng: np.random.Generator | None) -> SteadyDesign:
+    """:func:`design_steady_job` for a model already loaded."""
     from specholo.scene.placement import place
     from specholo.scene.stippling import stipple
     from specholo.visibility.occlusion import visible
 
-    model = place(load_model(model_path), config.size, config.center_z,
-                  config.pose.rotation(), config.pose.offset)
+    model = place(loaded, config.size, config.center_z, config.pose.rotation(),
+                  config.pose.offset)
     rng = rng if rng is not None else np.random.default_rng(config.seed)
     st = stipple(model, rng, count=config.stipples)
     keep = np.ones(len(st.points), dtype=bool)
@@ -121,11 +209,28 @@ def summarise(reports: list[SteadyReport]) -> dict[str, float]:
             "stray": int(sum(r.stray for r in reports))}
 
 
+def steady_plate(design: SteadyDesign, config: SteadyConfig) -> Any:
+    """The plate (``fabrication.plate.Plate``) the program names: the one given,
+    or the one fitted to the cuts' tool tips with a 5 mm border.
+
+    Raises:
+        SpecholoError: a given plate is smaller than the cuts.
+    """
+    from specholo.fabrication.plate import job_plate
+
+    tips = tool_tips(design, config.tool)[:, :2] if len(design.centres) else np.zeros((1, 2))
+    return job_plate(np.stack([tips.min(axis=0), tips.max(axis=0)]), config.tool.width,
+                     config.plate)
+
+
 def write_path_gcode(path: Path, design: SteadyDesign, tool: Tool, machining: Machining,
-                     header: dict[str, str]) -> int:
+                     header: dict[str, str], plate: Any = None) -> int:
     """G-code for the cuts, atomically: a vertical ball-end tool whose tip follows
-    each cut's centre path R lower, in X, Y and Z. Returns the number of lines."""
+    each cut's centre path R lower, in X, Y and Z; ``plate``
+    (``fabrication.plate.Plate``), if given, named in the header as a flat
+    design's program names it. Returns the number of lines."""
     from specholo.fabrication.atomic import atomic_open
+    from specholo.fabrication.gcode import GcodeOptions, plate_lines
 
     def f(v: float) -> str:
         s = f"{v:.5f}"
@@ -134,6 +239,8 @@ def write_path_gcode(path: Path, design: SteadyDesign, tool: Tool, machining: Ma
     tips = tool_tips(design, tool)
     lines = ["(specholo: scoops for a steady image under a moving light)"]
     lines += [f"({k}: {v})" for k, v in header.items()]
+    if plate is not None:  # mm, a mill's words for setting the origin
+        lines += [f"({text})" for text in plate_lines(plate, GcodeOptions())]
     lines.append("G21 G90 G17 G94")
     if machining.spindle > 0:
         lines.append(f"M3 S{machining.spindle:.0f}")
@@ -157,8 +264,8 @@ def write_path_gcode(path: Path, design: SteadyDesign, tool: Tool, machining: Ma
 
 def steady_limits(design: SteadyDesign, config: SteadyConfig) -> Any:
     """What a steady design's G-code may do (``fabrication.check.Limits``), from its
-    settings: the tip inside the cuts' extent plus a blank border (the plate has no
-    size setting, as a flat design's without one), no deeper than the depth, rapids
+    settings: the tip inside the cuts' extent plus a blank border (within the plate,
+    given or fitted to the cuts, :func:`steady_plate`), no deeper than the depth, rapids
     at the safe height, feeds and spindle as set."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
     from specholo.pipeline import PLATE_MARGIN
@@ -186,6 +293,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
 
     inputs = list(inputs)
     check_out(out, inputs)  # before the verification
+    plate = steady_plate(design, config)  # a plate too small is refused before it too
     reports = verify_steady(design, config.tool, light_steps(config.setup, step_deg))
     summary = summarise(reports)
     if design.n_cuts == 0:
@@ -196,7 +304,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
         lines = write_path_gcode(tmp / "hologram.gcode", design, config.tool, config.machining,
                                  {"design": f"{design.shape}s, one per stipple and eye",
                                   "tool": f"ball end, radius {config.tool.radius:g} mm",
-                                  **limits.header()})
+                                  **limits.header()}, plate=plate)
         safety = stage.check("hologram.gcode", limits)
         with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
             np.savez_compressed(fh, points=design.points, centres=design.centres,
@@ -207,7 +315,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
         steady_preview(design, config.tool, tmp / "preview.png")
         meta = {"design": "steady", "config": config.as_dict(), "cuts": design.n_cuts,
                 "stipples": len(design.points), "stipples_dropped": design.dropped,
-                "gcode_lines": lines, "verify": summary,
+                "gcode_lines": lines, "verify": summary, "plate_mm": plate.box.tolist(),
                 "safety_check": {"moves": safety.moves, "violations": 0,
                                  "deepest_cut_mm": safety.deepest},
                 "scoop_radius_mm": {"median": float(np.median(design.radius))}

@@ -69,12 +69,21 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
               help="Step between verified plate angles, degrees.")
 @click.option("--frames", type=int, default=48, show_default=True,
               help="Frames of preview.gif over one turn (0 for none).")
+@click.option("--plate-width", type=float, default=None,
+              help="Plate width, mm [the grooves' extent plus 5 mm each side].")
+@click.option("--plate-height", type=float, default=None,
+              help="Plate height, mm [the grooves' extent plus 5 mm each side].")
+@click.option("--fit", is_flag=True,
+              help="Scale the model (instead of --size) to the largest whose grooves lie "
+                   "on the plate given by --plate-width and --plate-height, 5 mm in from "
+                   "its edges.")
 @_pose_options
 def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns: int | None,
          stipples: int, seed: int,
          view_distance: float, view_elevation: float, ipd: float, light_height: float | None,
          walls: str, no_occlusion: bool, tool_radius: float, depth: float, step: float,
-         frames: int, **pose: Any) -> None:
+         frames: int, plate_width: float | None, plate_height: float | None, fit: bool,
+         **pose: Any) -> None:
     """Design a hologram of MODEL for a plate turning about its normal (a turntable or
     wall spinner) under a light on the axis, then verify it over the turn.
 
@@ -88,7 +97,8 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
         "size": size, "center_z": center_z, "turns": turns, "stipples": stipples, "seed": seed,
         "view_distance": view_distance, "view_elevation": view_elevation, "ipd": ipd,
         "light_height": light_height, "walls": walls, "occlusion": not no_occlusion,
-        "tool_radius": tool_radius, "depth": depth, **pose}, out,
+        "tool_radius": tool_radius, "depth": depth, "plate_width": plate_width,
+        "plate_height": plate_height, "fit": fit, **pose}, out,
         WriteOptions(step_deg=step, frames=frames))
 
 
@@ -118,10 +128,20 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
 @click.option("--depth", type=float, default=0.02, show_default=True, help="Cut depth, mm.")
 @click.option("--step", type=float, default=1.0, show_default=True,
               help="Step between verified light elevations, degrees.")
+@click.option("--plate-width", type=float, default=None,
+              help="Plate width, mm [the grooves' extent plus 5 mm each side].")
+@click.option("--plate-height", type=float, default=None,
+              help="Plate height, mm [the grooves' extent plus 5 mm each side].")
+@click.option("--fit", is_flag=True,
+              help="Scale the model (instead of --size) to the largest whose grooves lie "
+                   "on the plate given by --plate-width and --plate-height, 5 mm in from "
+                   "its edges.")
 @_pose_options
 def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, seed: int,
            view_distance: float, ipd: float, light_elevation: float, light_range: float,
-           shape: str, tool_radius: float, depth: float, step: float, **pose: Any) -> None:
+           shape: str, tool_radius: float, depth: float, step: float,
+           plate_width: float | None, plate_height: float | None, fit: bool,
+           **pose: Any) -> None:
     """Design a hologram of MODEL for a viewer standing still whose image stays put
     while the sun moves a little in elevation: for each stipple and eye, a scoop
     whose glint does not move with the light. Then verify it over the range."""
@@ -131,7 +151,8 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
         "size": size, "center_z": center_z, "stipples": stipples, "seed": seed,
         "view_distance": view_distance, "ipd": ipd, "light_elevation": light_elevation,
         "light_range": light_range, "shape": shape, "tool_radius": tool_radius,
-        "depth": depth, **pose}, out, WriteOptions(step_deg=step))
+        "depth": depth, "plate_width": plate_width, "plate_height": plate_height, "fit": fit,
+        **pose}, out, WriteOptions(step_deg=step))
 
 
 def _run(job: Any, inputs: list[Path], values: dict[str, Any], out: Path,

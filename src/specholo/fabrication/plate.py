@@ -139,3 +139,48 @@ class Plate:
         inner = self.corners() + inset * np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]])
         return np.vstack([inner, np.zeros((1, 2))])
 
+
+
+def check_plate_options(width: float | None, height: float | None, fit: bool) -> None:
+    """Refuse a job's plate settings that do not make a plate: a size needs both
+    sides, each a positive number of mm, and ``fit`` needs the size.
+
+    Raises:
+        SpecholoError: in one line, naming the options.
+    """
+    if fit and (width is None or height is None):
+        raise SpecholoError("fit scales the model to a plate: give plate-width and "
+                            "plate-height")
+    if (width is None) != (height is None):
+        raise SpecholoError("plate-width and plate-height go together: give both or neither")
+    for name, v in (("plate-width", width), ("plate-height", height)):
+        if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool)
+                                  and math.isfinite(v) and v > 0):
+            raise SpecholoError(f"{name} must be a positive number of mm, got {v}")
+
+
+def job_plate(extent: np.ndarray, width: float, size: tuple[float, float] | None,
+              thickness: float | None = None) -> Plate:
+    """The plate a job's writers name: ``size`` (width, height) centred on the
+    origin, or without one the plate fitted to the cuts (:func:`fit_plate`).
+
+    Args:
+        extent: (2, 2) corners of the cuts' centrelines, mm.
+        width: the cuts' width, mm (they reach half of it past their centrelines).
+        size: the plate's width and height, mm, or None.
+        thickness: the blank's thickness, if known.
+
+    Raises:
+        SpecholoError: a given plate is smaller than the cuts (one line).
+    """
+    if size is None:
+        return Plate.fitted(extent, width, thickness)
+    lo, hi = np.asarray(extent, dtype=float)
+    reach = np.maximum(np.abs(lo), np.abs(hi)) + 0.5 * float(width)
+    for axis, name in ((0, "width"), (1, "height")):
+        if size[axis] < 2.0 * reach[axis]:
+            raise SpecholoError(
+                f"plate {name} {size[axis]:g} mm is smaller than the design, which needs "
+                f"{2.0 * reach[axis]:.1f} mm (cuts reach +-{reach[axis]:.1f} mm from the centre)")
+    half = 0.5 * np.asarray(size, dtype=float)
+    return Plate.from_corners(np.stack([-half, half]), thickness)

@@ -58,8 +58,11 @@ class SpinJob:
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
         from specholo.spin import design_spin
 
-        status("designing closed grooves..." if config.turns == 1 else
-               "designing stipples sliding over the turning scene...")
+        if config.fit:
+            status("fitting the model to the plate and designing its grooves...")
+        else:
+            status("designing closed grooves..." if config.turns == 1 else
+                   "designing stipples sliding over the turning scene...")
         return Designed(design_spin(list(inputs), config))
 
     def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],

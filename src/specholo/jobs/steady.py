@@ -56,12 +56,14 @@ class SteadyJob:
         refuse_formats(self, options)
 
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
-        from specholo.steady import design_steady_job
+        from specholo.steady import design_steady_sized
 
         if len(inputs) != 1:
             raise SpecholoError(f"a steady image is of one model, got {len(inputs)}")
-        status("designing a scoop for each stipple and eye...")
-        return Designed((design_steady_job(inputs[0], config), config))
+        status("fitting the model to the plate and designing its scoops..." if config.fit
+               else "designing a scoop for each stipple and eye...")
+        # with fit the size is the plate's: the config that says so is the one written
+        return Designed(design_steady_sized(inputs[0], config))
 
     def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
               options: WriteOptions, status: Status) -> Summary:
