@@ -411,7 +411,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
     plate = spin_plate(job)
     reports = verify_spin(job, step_deg)
     summary = summarise(reports)
-    with stage_design(out, inputs) as stage:
+    with stage_design(out, inputs, kind="spin") as stage:
         tmp = stage.path
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
             g = d.grooves

@@ -298,7 +298,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
     summary = summarise(reports)
     if design.n_cuts == 0:
         raise SpecholoError("no stipple can be given a scoop: nothing to cut")
-    with stage_design(out, inputs) as stage:
+    with stage_design(out, inputs, kind="steady") as stage:
         tmp = stage.path
         limits = steady_limits(design, config)
         lines = write_path_gcode(tmp / "hologram.gcode", design, config.tool, config.machining,
