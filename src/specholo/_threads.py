@@ -35,9 +35,24 @@ def concurrent_kernels_safe() -> bool:
     try:
         layer = nb.threading_layer()
     except ValueError:  # no parallel kernel has run yet: the layer is chosen at the first
-        _start_layer(np.zeros(2))
+        _choose_layer()
         layer = nb.threading_layer()
     return layer != "workqueue"
+
+
+def _choose_layer() -> None:
+    """Have numba choose its threading layer, as the first parallel kernel run does.
+
+    numba's own starter when it has one: running :func:`_start_layer` instead
+    would compile a parallel kernel on a first run (a second or more), and most
+    commands run no other parallel kernel.
+    """
+    try:
+        from numba.np.ufunc.parallel import _launch_threads
+    except ImportError:  # another numba: a parallel kernel starts the layer as well
+        _start_layer(np.zeros(2))
+    else:
+        _launch_threads()
 
 
 #: Threads that run chunks of a serial kernel together (see :func:`chunked`),

@@ -62,7 +62,7 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from specholo._threads import concurrent_kernels_safe
+from specholo._threads import chunked, concurrent_kernels_safe
 from specholo.errors import SpecholoError
 from specholo.fabrication import _check_kernel
 
@@ -546,15 +546,16 @@ def _arc_bounds(m: np.ndarray) -> tuple[np.ndarray, ...]:
     """
     m = np.ascontiguousarray(m, dtype=float)
     out = np.empty((6, len(m)))
-    _arc_bounds_rows(m, out)
+    chunked(_arc_bounds_rows, 0, len(m), m, out, grain=1024)
     return tuple(out)
 
 
-@nb.njit(cache=True, parallel=True)
-def _arc_bounds_rows(m: np.ndarray, out: np.ndarray) -> None:
-    """:func:`_arc_bounds` row by row (compiled, both cores), into out (6, k)."""
+@nb.njit(cache=True, nogil=True)
+def _arc_bounds_rows(first: int, stop: int, m: np.ndarray, out: np.ndarray) -> None:
+    """:func:`_arc_bounds` of rows first .. stop - 1 (compiled, on every
+    thread), into out (6, k)."""
     two_pi = 2.0 * math.pi
-    for i in nb.prange(m.shape[0]):
+    for i in range(first, stop):
         sx, sy, ex, ey = m[i, _X0], m[i, _Y0], m[i, _X1], m[i, _Y1]
         cx, cy = m[i, _CX], m[i, _CY]
         r0 = math.hypot(sx - cx, sy - cy)

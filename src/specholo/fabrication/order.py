@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from specholo._threads import chunked
 from specholo.errors import SpecholoError
 from specholo.toolpaths.grooves import Grooves
 
@@ -139,7 +140,8 @@ def reorder(grooves: Grooves, order: np.ndarray, flip: np.ndarray) -> Grooves:
                    np.asarray(grooves.stipple, dtype=np.int64)[order])
 
 
-#: Held while a parallel kernel runs, when tiles are toured from two threads.
+#: Held while the neighbours are found on every thread, when tiles are toured
+#: from two threads.
 _PARALLEL = threading.Lock()
 
 #: Grooves larger than this (bytes of vertices and bulges) are reordered in
@@ -200,7 +202,6 @@ def reorder_in_place(grooves: Grooves, order: np.ndarray, flip: np.ndarray,
     return grooves
 
 
-@nb.njit(cache=True, parallel=True)
 def _reordered(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
                order: np.ndarray, flip: np.ndarray,
                new_offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -209,7 +210,17 @@ def _reordered(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
     them); ``new_offsets`` (len(order) + 1,) are where each path starts."""
     out_v = np.empty((new_offsets[-1], 2))
     out_b = np.empty(new_offsets[-1])
-    for k in nb.prange(order.size):
+    chunked(_reordered_paths, 0, order.size, vertices, bulges, offsets, order, flip,
+            new_offsets, out_v, out_b, grain=1024)
+    return out_v, out_b
+
+
+@nb.njit(cache=True, nogil=True)
+def _reordered_paths(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray,
+                     offsets: np.ndarray, order: np.ndarray, flip: np.ndarray,
+                     new_offsets: np.ndarray, out_v: np.ndarray, out_b: np.ndarray) -> None:
+    """:func:`_reordered` of new paths lo .. hi - 1 into out_v and out_b."""
+    for k in range(lo, hi):
         a, b, dst = offsets[order[k]], offsets[order[k] + 1], new_offsets[k]
         size = b - a
         for i in range(size):
@@ -222,7 +233,6 @@ def _reordered(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
             else:
                 out_v[dst + i, 0], out_v[dst + i, 1] = vertices[a + i, 0], vertices[a + i, 1]
                 out_b[dst + i] = bulges[a + i]
-    return out_v, out_b
 
 
 # ---------------------------------------------------------------------------
@@ -258,7 +268,7 @@ def _select(key: np.ndarray, other: np.ndarray, perm: np.ndarray, lo: int, hi: i
             return
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _build_tree(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                           np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Balanced kd-tree over pts (n, 2), nodes in heap order (children 2i+1, 2i+2).
@@ -358,7 +368,6 @@ def _nearest_live(x: float, y: float, xs: np.ndarray, ys: np.ndarray, alive: np.
     return best_p
 
 
-@nb.njit(cache=True, parallel=True, nogil=True)
 def _knn(pts: np.ndarray, out: np.ndarray, shift: int) -> None:
     """The k nearest other points of every point, nearest first.
 
@@ -367,52 +376,60 @@ def _knn(pts: np.ndarray, out: np.ndarray, shift: int) -> None:
         out: (n, k) filled with the indices into pts (plus ``shift``); k < n.
         shift: added to every index written.
     """
-    n = len(pts)
-    k = out.shape[1]
     perm, xs, ys, lo, hi, box, _, _, first_leaf = _build_tree(pts)
-    chunk = 1024  # queries per task, in tree order so each task stays in one region
-    for c in nb.prange((n + chunk - 1) // chunk):
-        best_d = np.empty(k)
-        best_p = np.empty(k, dtype=np.int64)
-        stack = np.empty(2 * 64 + 4, dtype=np.int64)
-        for q in range(c * chunk, min(n, (c + 1) * chunk)):
-            x, y = xs[q], ys[q]
-            best_d[:] = np.inf
-            best_p[:] = -1
-            stack[0] = 0
-            top = 1
-            while top:
-                top -= 1
-                node = stack[top]
-                if _box_dist2(box, node, x, y) >= best_d[k - 1]:
-                    continue
-                if node >= first_leaf:
-                    for p in range(lo[node], hi[node]):
-                        dx = xs[p] - x
-                        dy = ys[p] - y
-                        d = dx * dx + dy * dy
-                        if p == q or d >= best_d[k - 1]:
-                            continue
-                        j = k - 1  # insertion into the sorted short list
-                        while j > 0 and best_d[j - 1] > d:
-                            best_d[j] = best_d[j - 1]
-                            best_p[j] = best_p[j - 1]
-                            j -= 1
-                        best_d[j] = d
-                        best_p[j] = p
-                    continue
-                left = 2 * node + 1
-                right = left + 1
-                if _box_dist2(box, left, x, y) <= _box_dist2(box, right, x, y):
-                    stack[top] = right
-                    stack[top + 1] = left
-                else:
-                    stack[top] = left
-                    stack[top + 1] = right
-                top += 2
-            row = perm[q]
-            for j in range(k):
-                out[row, j] = perm[best_p[j]] + shift
+    # Queries in tree order, so each chunk of them stays in one region.
+    chunked(_knn_of, 0, len(pts), perm, xs, ys, lo, hi, box, first_leaf, out, shift,
+            grain=1024)
+
+
+@nb.njit(cache=True, nogil=True)
+def _knn_of(q0: int, q1: int, perm: np.ndarray, xs: np.ndarray, ys: np.ndarray,
+            lo: np.ndarray, hi: np.ndarray, box: np.ndarray, first_leaf: int, out: np.ndarray,
+            shift: int) -> None:
+    """:func:`_knn` of the points at tree positions q0 .. q1 - 1 (each writes
+    only its own row of out)."""
+    k = out.shape[1]
+    best_d = np.empty(k)
+    best_p = np.empty(k, dtype=np.int64)
+    stack = np.empty(2 * 64 + 4, dtype=np.int64)
+    for q in range(q0, q1):
+        x, y = xs[q], ys[q]
+        best_d[:] = np.inf
+        best_p[:] = -1
+        stack[0] = 0
+        top = 1
+        while top:
+            top -= 1
+            node = stack[top]
+            if _box_dist2(box, node, x, y) >= best_d[k - 1]:
+                continue
+            if node >= first_leaf:
+                for p in range(lo[node], hi[node]):
+                    dx = xs[p] - x
+                    dy = ys[p] - y
+                    d = dx * dx + dy * dy
+                    if p == q or d >= best_d[k - 1]:
+                        continue
+                    j = k - 1  # insertion into the sorted short list
+                    while j > 0 and best_d[j - 1] > d:
+                        best_d[j] = best_d[j - 1]
+                        best_p[j] = best_p[j - 1]
+                        j -= 1
+                    best_d[j] = d
+                    best_p[j] = p
+                continue
+            left = 2 * node + 1
+            right = left + 1
+            if _box_dist2(box, left, x, y) <= _box_dist2(box, right, x, y):
+                stack[top] = right
+                stack[top + 1] = left
+            else:
+                stack[top] = left
+                stack[top + 1] = right
+            top += 2
+        row = perm[q]
+        for j in range(k):
+            out[row, j] = perm[best_p[j]] + shift
 
 
 @nb.njit(cache=True)
@@ -754,7 +771,7 @@ def _improve_order(starts: np.ndarray, ends: np.ndarray, order: np.ndarray, flip
     cand = np.empty((len(pts), k + 1), dtype=np.int64)
     cand[0] = -1
     cand[1:, 0] = 0
-    with _PARALLEL:  # both cores already; numba's workqueue layer allows one at a time
+    with _PARALLEL:  # both cores already: one tile's neighbours at a time
         _knn(pts[1:], cand[1:, 1:], 1)
     tour = np.arange(n + 1)
     flips = np.zeros(n + 1, dtype=np.int64)  # by node, not by tour position

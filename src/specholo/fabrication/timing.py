@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from specholo._threads import chunked
 from specholo.errors import SpecholoError
 from specholo.fabrication.order import HOPS, hop_lengths
 from specholo.setup import Machining
@@ -136,7 +137,6 @@ def _plan(length: np.ndarray, cap: np.ndarray, junction: np.ndarray, k: int, acc
         leave[i] = cur
 
 
-@nb.njit(cache=True, parallel=True)
 def _cutting_time(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, feed: float,
                   accel: float, delta: float) -> float:
     """Seconds of feed moves along every path: each path's arcs planned through
@@ -148,12 +148,27 @@ def _cutting_time(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
         feed: mm/s; accel: mm/s^2; delta: junction deviation, mm.
     """
     n = offsets.size - 1
-    longest = 1
-    for p in range(n):
-        longest = max(longest, offsets[p + 1] - offsets[p])
+    longest = max(1, int(np.diff(offsets).max())) if n > 0 else 1
+    # Blocks fixed by the paths alone, summed in order below: the same grooves
+    # give the same last bits however many threads ran the blocks.
     blocks = min(n, 256)
     total = np.zeros(max(blocks, 1))
-    for blk in nb.prange(blocks):
+    chunked(_cutting_blocks, 0, blocks, vertices, bulges, offsets, feed, accel, delta,
+            longest, total)
+    seconds = 0.0
+    for blk in range(total.size):
+        seconds += float(total[blk])
+    return seconds
+
+
+@nb.njit(cache=True, nogil=True)
+def _cutting_blocks(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray,
+                    offsets: np.ndarray, feed: float, accel: float, delta: float, longest: int,
+                    total: np.ndarray) -> None:
+    """:func:`_cutting_time` of blocks lo .. hi - 1 (of total.size) of the paths,
+    each into its total."""
+    n, blocks = offsets.size - 1, total.size
+    for blk in range(lo, hi):
         length, cap, junction = np.empty(longest), np.empty(longest), np.empty(longest)
         entry, leave = np.empty(longest), np.empty(longest)
         part = 0.0
@@ -183,12 +198,6 @@ def _cutting_time(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
             for i in range(k):
                 part += _trapezoid(length[i], cap[i], accel, entry[i], leave[i])
         total[blk] = part
-    # Summed in a plain loop: numba would split total.sum() across the threads,
-    # and the same grooves would give other last bits on another machine.
-    seconds = 0.0
-    for blk in range(total.size):
-        seconds += total[blk]
-    return seconds
 
 
 def _distinct(ids: np.ndarray) -> int:

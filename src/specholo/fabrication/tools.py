@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from specholo._threads import chunked
 from specholo.errors import SpecholoError
 from specholo.errors import positive as _positive
 from specholo.setup import Light, Tool, Viewer
@@ -322,7 +323,6 @@ class ViewCheck:
         }
 
 
-@nb.njit(cache=True, parallel=True)
 def _sampled_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray,
                    end: np.ndarray, count: np.ndarray, first: np.ndarray, light: np.ndarray,
                    point_light: bool, radius: float, height: float) -> np.ndarray:
@@ -332,7 +332,17 @@ def _sampled_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray,
     ~10^8 samples.
     """
     out = np.empty(first[-1])
-    for i in nb.prange(start.size):
+    chunked(_tilts_of, 0, start.size, points, stipple, start, end, count, first, light,
+            point_light, radius, height, out, grain=256)
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _tilts_of(lo: int, hi: int, points: np.ndarray, stipple: np.ndarray, start: np.ndarray,
+              end: np.ndarray, count: np.ndarray, first: np.ndarray, light: np.ndarray,
+              point_light: bool, radius: float, height: float, out: np.ndarray) -> None:
+    """:func:`_sampled_tilts` of runs lo .. hi - 1 into out."""
+    for i in range(lo, hi):
         p = stipple[i]
         px, py, pz = points[p, 0], points[p, 1], points[p, 2]
         last = max(count[i] - 1, 1)
@@ -352,7 +362,6 @@ def _sampled_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray,
             hx, hy, hz = lx + ux * inv, ly + uy * inv, lz + uz * inv
             c = hz / math.sqrt(hx * hx + hy * hy + hz * hz)
             out[first[i] + k] = math.acos(min(max(c, -1.0), 1.0))
-    return out
 
 
 def needed_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray, end: np.ndarray,

@@ -243,20 +243,31 @@ def _arc(sx: float, sy: float, ex: float, ey: float, b: float,
     return ox, oy, r, a0, 4.0 * math.atan(b), dx, dy, n, a0 + 0.5 * math.pi
 
 
-@nb.njit(cache=True, parallel=True)
 def _corners(t_start: np.ndarray, sweep: np.ndarray, path: np.ndarray, wide: float,
              turn: np.ndarray) -> np.ndarray:
     """Whether the path turns at the end of each arc (k,); sets ``turn`` to
     infinity for arcs at a corner wider than ``wide``."""
+    kinked = np.zeros(t_start.size, np.bool_)
+    chunked(_corners_of, 0, t_start.size, t_start, sweep, path, wide, turn, kinked,
+            grain=_GRAIN)
+    return kinked
+
+
+@nb.njit(cache=True, nogil=True)
+def _corners_of(lo: int, hi: int, t_start: np.ndarray, sweep: np.ndarray, path: np.ndarray,
+                wide: float, turn: np.ndarray, kinked: np.ndarray) -> None:
+    """:func:`_corners` of arcs lo .. hi - 1 (each writes only its own kinked
+    and turn)."""
     # A corner sweeps every direction between its arcs' tangents: arcs at a
     # corner wider than the index's margin are always tested.
     k = t_start.size
-    kinked = np.zeros(k, np.bool_)
-    for i in nb.prange(k - 1):
-        d = t_start[i + 1] - (t_start[i] + sweep[i])
-        d = (d + 0.5 * math.pi) % math.pi - 0.5 * math.pi
-        kinked[i] = path[i + 1] == path[i] and abs(d) > SMOOTH
-        corner = path[i + 1] == path[i] and abs(d) > wide
+    for i in range(lo, hi):
+        corner = False
+        if i < k - 1:
+            d = t_start[i + 1] - (t_start[i] + sweep[i])
+            d = (d + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+            kinked[i] = path[i + 1] == path[i] and abs(d) > SMOOTH
+            corner = path[i + 1] == path[i] and abs(d) > wide
         prev = False
         if i > 0:
             e = t_start[i] - (t_start[i - 1] + sweep[i - 1])
@@ -264,15 +275,8 @@ def _corners(t_start: np.ndarray, sweep: np.ndarray, path: np.ndarray, wide: flo
             prev = path[i] == path[i - 1] and abs(e) > wide
         if corner or prev:
             turn[i] = math.inf
-    if k > 1:
-        e = t_start[k - 1] - (t_start[k - 2] + sweep[k - 2])
-        e = (e + 0.5 * math.pi) % math.pi - 0.5 * math.pi
-        if path[k - 1] == path[k - 2] and abs(e) > wide:
-            turn[k - 1] = math.inf
-    return kinked
 
 
-@nb.njit(cache=True, parallel=True)
 def prepare(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np.ndarray,
             line_bulge: float, wide: float) -> tuple[np.ndarray, ...]:
     """Per-arc geometry for glint finding, in one pass.
@@ -299,14 +303,25 @@ def prepare(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np.ndar
     turn = np.empty(k)
     chord = np.empty(k)
     t_start = np.empty(k)
-    for i in nb.prange(k):
+    chunked(_prepare, 0, k, start, end, bulge, line_bulge, centre, radius, start_angle, sweep,
+            direction, mid_tangent, turn, chord, t_start, grain=_GRAIN)
+    kinked = _corners(t_start, sweep, path, wide, turn)
+    return centre, radius, start_angle, sweep, direction, mid_tangent, turn, chord, kinked
+
+
+@nb.njit(cache=True, nogil=True)
+def _prepare(lo: int, hi: int, start: np.ndarray, end: np.ndarray, bulge: np.ndarray,
+             line_bulge: float, centre: np.ndarray, radius: np.ndarray,
+             start_angle: np.ndarray, sweep: np.ndarray, direction: np.ndarray,
+             mid_tangent: np.ndarray, turn: np.ndarray, chord: np.ndarray,
+             t_start: np.ndarray) -> None:
+    """:func:`prepare` of arcs lo .. hi - 1, before the corners."""
+    for i in range(lo, hi):
         (centre[i, 0], centre[i, 1], radius[i], start_angle[i], sweep[i], direction[i, 0],
          direction[i, 1], chord[i], t_start[i]) = _arc(start[i, 0], start[i, 1], end[i, 0],
                                                         end[i, 1], bulge[i], line_bulge)
         mid_tangent[i] = t_start[i] + 0.5 * sweep[i]
         turn[i] = 0.5 * abs(sweep[i])
-    kinked = _corners(t_start, sweep, path, wide, turn)
-    return centre, radius, start_angle, sweep, direction, mid_tangent, turn, chord, kinked
 
 
 @nb.njit(cache=True)
@@ -331,7 +346,6 @@ def arcs_of(offsets: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     return first, path
 
 
-@nb.njit(cache=True, parallel=True)
 def index_arcs(vertices: np.ndarray, bulges: np.ndarray, first: np.ndarray, path: np.ndarray,
                line_bulge: float, wide: float, mid: np.ndarray,
                geo: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -358,7 +372,19 @@ def index_arcs(vertices: np.ndarray, bulges: np.ndarray, first: np.ndarray, path
     chord = np.empty(k)
     t_start = np.empty(k)
     sweep = np.empty(k)
-    for i in nb.prange(k):
+    chunked(_index_arcs, 0, k, vertices, bulges, first, line_bulge, mid, geo, mid_tangent,
+            turn, chord, t_start, sweep, grain=_GRAIN)
+    kinked = _corners(t_start, sweep, path, wide, turn)
+    return mid_tangent, turn, chord, kinked
+
+
+@nb.njit(cache=True, nogil=True)
+def _index_arcs(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray, first: np.ndarray,
+                line_bulge: float, mid: np.ndarray, geo: np.ndarray, mid_tangent: np.ndarray,
+                turn: np.ndarray, chord: np.ndarray, t_start: np.ndarray,
+                sweep: np.ndarray) -> None:
+    """:func:`index_arcs` of arcs lo .. hi - 1, before the corners."""
+    for i in range(lo, hi):
         v = first[i]
         sx, sy, ex, ey = vertices[v, 0], vertices[v, 1], vertices[v + 1, 0], vertices[v + 1, 1]
         ox, oy, r, a0, sw, dx, dy, chord[i], t_start[i] = _arc(sx, sy, ex, ey, bulges[v],
@@ -373,11 +399,8 @@ def index_arcs(vertices: np.ndarray, bulges: np.ndarray, first: np.ndarray, path
         mid[i, 0], mid[i, 1] = 0.5 * (sx + ex), 0.5 * (sy + ey)
         mid_tangent[i] = t_start[i] + 0.5 * sw
         turn[i] = 0.5 * abs(sw)
-    kinked = _corners(t_start, sweep, path, wide, turn)
-    return mid_tangent, turn, chord, kinked
 
 
-@nb.njit(cache=True, parallel=True)
 def extent(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Lower-left and upper-right corners (2,) of points (k, 2), k > 0, as
     numpy's min and max along axis 0 give them (NaN if any coordinate is)."""
@@ -385,7 +408,22 @@ def extent(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     chunks = min(k, 64)
     lo = np.empty((chunks, 2))
     hi = np.empty((chunks, 2))
-    for c in nb.prange(chunks):
+    chunked(_extent, 0, chunks, xy, lo, hi)
+    out_lo, out_hi = lo[0].copy(), hi[0].copy()
+    for c in range(1, chunks):
+        for d in range(2):
+            if out_lo[d] == out_lo[d] and not lo[c, d] >= out_lo[d]:
+                out_lo[d] = lo[c, d]
+            if out_hi[d] == out_hi[d] and not hi[c, d] <= out_hi[d]:
+                out_hi[d] = hi[c, d]
+    return out_lo, out_hi
+
+
+@nb.njit(cache=True, nogil=True)
+def _extent(first: int, stop: int, xy: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+    """:func:`extent` of chunks first .. stop - 1 of lo.shape[0] into lo and hi."""
+    k, chunks = xy.shape[0], lo.shape[0]
+    for c in range(first, stop):
         a, b = c * k // chunks, (c + 1) * k // chunks
         for d in range(2):
             x0 = x1 = xy[a, d]
@@ -397,27 +435,23 @@ def extent(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 if x1 == x1 and not x <= x1:
                     x1 = x
             lo[c, d], hi[c, d] = x0, x1
-    out_lo, out_hi = lo[0].copy(), hi[0].copy()
-    for c in range(1, chunks):
-        for d in range(2):
-            if out_lo[d] == out_lo[d] and not lo[c, d] >= out_lo[d]:
-                out_lo[d] = lo[c, d]
-            if out_hi[d] == out_hi[d] and not hi[c, d] <= out_hi[d]:
-                out_hi[d] = hi[c, d]
-    return out_lo, out_hi
 
 
-@nb.njit(cache=True, parallel=True)
 def gather_rows(src: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
     """out[p] = src[rows[p]] for (n,) rows of a (k, c) array."""
+    chunked(_gather_rows, 0, rows.size, src, rows, out, grain=_GRAIN)
+
+
+@nb.njit(cache=True, nogil=True)
+def _gather_rows(lo: int, hi: int, src: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
+    """:func:`gather_rows` of rows lo .. hi - 1."""
     c = src.shape[1]
-    for p in nb.prange(rows.size):
+    for p in range(lo, hi):
         i = rows[p]
         for q in range(c):
             out[p, q] = src[i, q]
 
 
-@nb.njit(cache=True, parallel=True)
 def cell_keys(mid: np.ndarray, tangent: np.ndarray, narrow: np.ndarray, origin: np.ndarray,
               size: float) -> tuple[np.ndarray, np.ndarray, int, int]:
     """Grid cell and tangent angle mod pi of arcs ``narrow`` (n,), with the
@@ -426,10 +460,25 @@ def cell_keys(mid: np.ndarray, tangent: np.ndarray, narrow: np.ndarray, origin: 
     ix = np.empty(n, np.int64)
     cell = np.empty(n, np.int64)
     angle = np.empty(n)
-    for j in nb.prange(n):
+    chunked(_cell_keys, 0, n, mid, tangent, narrow, origin, size, ix, cell, angle,
+            grain=_GRAIN)
+    nx = ny = 1
+    if n:
+        nx = int(ix.max()) + 1
+        ny = int(cell.max()) + 1
+    cell += ix * ny
+    return cell, angle, nx, ny
+
+
+@nb.njit(cache=True, nogil=True)
+def _cell_keys(lo: int, hi: int, mid: np.ndarray, tangent: np.ndarray, narrow: np.ndarray,
+               origin: np.ndarray, size: float, ix: np.ndarray, iy: np.ndarray,
+               angle: np.ndarray) -> None:
+    """:func:`cell_keys`' column, row and angle of arcs narrow[lo:hi]."""
+    for j in range(lo, hi):
         i = narrow[j]
         ix[j] = np.int64(math.floor((mid[i, 0] - origin[0]) / size))
-        cell[j] = np.int64(math.floor((mid[i, 1] - origin[1]) / size))
+        iy[j] = np.int64(math.floor((mid[i, 1] - origin[1]) / size))
         # numpy's float mod: fmod, then shifted into [0, pi).
         a = np.fmod(tangent[i], math.pi)
         if a != 0.0:
@@ -438,29 +487,31 @@ def cell_keys(mid: np.ndarray, tangent: np.ndarray, narrow: np.ndarray, origin: 
         else:
             a = 0.0
         angle[j] = a
-    nx = 1
-    ny = 1
-    if n:
-        nx = int(ix.max()) + 1
-        ny = int(cell.max()) + 1
-    for j in nb.prange(n):
-        cell[j] += ix[j] * ny
-    return cell, angle, nx, ny
 
 
-@nb.njit(cache=True, parallel=True)
 def sort_by_cell(cell: np.ndarray, angle: np.ndarray,
                  n_cells: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Sort (m,) by cell, then by angle in [0, pi).
 
-    A counting sort over cells, then in each cell (the cells shared between
-    cores) a counting sort over as many angle buckets as the cell has arcs and
-    a small sort per bucket: linear time however many arcs a cell holds.
+    A counting sort over cells, then in each cell (chunks of the cells on
+    threads) a counting sort over as many angle buckets as the cell has arcs
+    and a small sort per bucket: linear time however many arcs a cell holds.
 
     Returns:
         order (m,), keys (m,) cell * 4 + angle in that order, and the distinct
         cells ascending.
     """
+    first, order = _by_cell(cell, n_cells)
+    keys = np.empty(cell.size)
+    chunked(_sort_cells, 0, n_cells, first, order, angle, keys, grain=64)
+    cells = np.flatnonzero(first[1:] > first[:-1]).astype(np.int64)
+    return order, keys, cells
+
+
+@nb.njit(cache=True)
+def _by_cell(cell: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
+    """Where each cell's items start (n_cells + 1,) and the items (m,) ordered by
+    cell, in order within a cell (a counting sort)."""
     m = cell.size
     count = np.zeros(n_cells + 1, np.int64)
     for i in range(m):
@@ -472,8 +523,15 @@ def sort_by_cell(cell: np.ndarray, angle: np.ndarray,
         c = cell[i]
         order[fill[c]] = i
         fill[c] += 1
-    keys = np.empty(m)
-    for c in nb.prange(n_cells):
+    return first, order
+
+
+@nb.njit(cache=True, nogil=True)
+def _sort_cells(c0: int, c1: int, first: np.ndarray, order: np.ndarray, angle: np.ndarray,
+                keys: np.ndarray) -> None:
+    """:func:`sort_by_cell` within cells c0 .. c1 - 1: each rewrites only its own
+    part of order and keys."""
+    for c in range(c0, c1):
         lo, hi = first[c], first[c + 1]
         n = hi - lo
         if n == 0:
@@ -517,17 +575,6 @@ def sort_by_cell(cell: np.ndarray, angle: np.ndarray,
         for t in range(n):
             order[lo + t] = si[t]
             keys[lo + t] = c * 4.0 + sa[t]
-    n_used = 0
-    for c in range(n_cells):
-        if first[c + 1] > first[c]:
-            n_used += 1
-    cells = np.empty(n_used, np.int64)
-    q = 0
-    for c in range(n_cells):
-        if first[c + 1] > first[c]:
-            cells[q] = c
-            q += 1
-    return order, keys, cells
 
 
 @nb.njit(cache=True)
@@ -561,15 +608,20 @@ def merge_ranges(i0: np.ndarray, i1: np.ndarray, tail0: int,
     return starts[:q], ends[:q]
 
 
-@nb.njit(cache=True, parallel=True)
 def expand(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     """All rows of the ranges [starts, ends) (r,), in order."""
     r = starts.size
     at = np.zeros(r + 1, np.int64)
-    for t in range(r):
-        at[t + 1] = at[t] + ends[t] - starts[t]
+    np.cumsum(ends - starts, out=at[1:])
     rows = np.empty(at[r], np.int64)
-    for t in nb.prange(r):
+    chunked(_expand, 0, r, starts, ends, at, rows, grain=16)
+    return rows
+
+
+@nb.njit(cache=True, nogil=True)
+def _expand(lo: int, hi: int, starts: np.ndarray, ends: np.ndarray, at: np.ndarray,
+            rows: np.ndarray) -> None:
+    """:func:`expand` of ranges lo .. hi - 1."""
+    for t in range(lo, hi):
         for q in range(ends[t] - starts[t]):
             rows[at[t] + q] = starts[t] + q
-    return rows

@@ -237,7 +237,10 @@ def _arc_distance(px: float, py: float, ax: float, ay: float, bx: float, by: flo
     return math.sqrt(min(ex * ex + ey * ey, fx * fx + fy * fy))
 
 
-@nb.njit(cache=True, inline="always")
+# Not inline="always": numba would type and compile it again at each of
+# _sweep's three calls (seconds on a first run), and a call per box costs
+# nothing beside the cells it scans.
+@nb.njit(cache=True)
 def _visit(lo_x: float, lo_y: float, hi_x: float, hi_y: float, path: int, ax: float,
            ay: float, bx: float, by: float, bulge: float, qx: np.ndarray, qy: np.ndarray,
            qr: np.ndarray, qpath: np.ndarray, ptr: np.ndarray, x0: float, y0: float,

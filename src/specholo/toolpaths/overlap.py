@@ -90,7 +90,6 @@ class Overlaps:
         }
 
 
-@nb.njit(cache=True, parallel=True)
 def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, path: np.ndarray,
                  step: float, dots: np.ndarray, dot_path: np.ndarray, u0: np.ndarray,
                  u1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -111,10 +110,31 @@ def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, pat
         for (s,), the arcs' in order and then the dots (no length).
     """
     k = arcs.size
-    whole = u0.size == 0
     count = np.empty(k, np.int64)
     length = np.empty(k)
-    for i in nb.prange(k):
+    chunked(_arc_counts, 0, k, vertices, bulges, arcs, path, step, u0, u1, count, length,
+            grain=1024)
+    first = np.cumsum(count) - count
+    total = int(first[-1] + count[-1]) if k else 0
+    # Written once, dots included: fresh pages are slow to fault, so no second copy.
+    pts = np.empty((total + dots.size, 2))
+    owner = np.empty(total + dots.size, np.int64)
+    share = np.zeros(total + dots.size)
+    pts[total:] = vertices[dots]
+    owner[total:] = dot_path
+    chunked(_arc_points, 0, k, vertices, bulges, arcs, path, u0, u1, count, length, first,
+            pts, owner, share, grain=1024)
+    return pts, owner, share
+
+
+@nb.njit(cache=True, nogil=True)
+def _arc_counts(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray,
+                path: np.ndarray, step: float, u0: np.ndarray, u1: np.ndarray,
+                count: np.ndarray, length: np.ndarray) -> None:
+    """:func:`_sample_arcs`' points (count) and length of arcs lo .. hi - 1."""
+    k = arcs.size
+    whole = u0.size == 0
+    for i in range(lo, hi):
         a = arcs[i]
         cx, cy = vertices[a + 1, 0] - vertices[a, 0], vertices[a + 1, 1] - vertices[a, 1]
         chord = math.sqrt(cx * cx + cy * cy)
@@ -125,16 +145,17 @@ def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, pat
         last = i == k - 1 or path[i + 1] != path[i]
         # Points of the arc, and its path's end point after the last arc.
         count[i] = max(1, int(math.ceil(length[i] / step))) + (1 if last else 0)
-    first = np.cumsum(count) - count
-    total = first[-1] + count[-1] if k else 0
-    # Written once, dots included: fresh pages are slow to fault, so no second copy.
-    pts = np.empty((total + dots.size, 2))
-    owner = np.empty(total + dots.size, np.int64)
-    share = np.zeros(total + dots.size)
-    for i in nb.prange(dots.size):
-        pts[total + i, 0], pts[total + i, 1] = vertices[dots[i], 0], vertices[dots[i], 1]
-        owner[total + i] = dot_path[i]
-    for i in nb.prange(k):
+
+
+@nb.njit(cache=True, nogil=True)
+def _arc_points(i0: int, i1: int, vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray,
+                path: np.ndarray, u0: np.ndarray, u1: np.ndarray, count: np.ndarray,
+                length: np.ndarray, first: np.ndarray, pts: np.ndarray, owner: np.ndarray,
+                share: np.ndarray) -> None:
+    """:func:`_sample_arcs`' points of arcs i0 .. i1 - 1, from first[i] on."""
+    k = arcs.size
+    whole = u0.size == 0
+    for i in range(i0, i1):
         a = arcs[i]
         b = bulges[a]
         sx, sy, ex, ey = vertices[a, 0], vertices[a, 1], vertices[a + 1, 0], vertices[a + 1, 1]
@@ -156,7 +177,6 @@ def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, pat
             owner[q] = path[i]
             share[q] = length[i] / n if j < n else 0.0
             q += 1
-    return pts, owner, share
 
 
 @nb.njit(cache=True, inline="always")
@@ -380,7 +400,6 @@ def _tally(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, p: int, budg
             near[b] += 1
 
 
-@nb.njit(cache=True, parallel=True)
 def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, limit: float,
                     min_pairs: int = MIN_PAIRS) -> tuple[int, float]:
     """Closest distance between each path's points and the next path's, when both
@@ -394,13 +413,21 @@ def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, lim
     blocks = min(n_pairs, 4096)
     near = np.zeros(blocks, np.int64)
     closest = np.full(blocks, np.inf)
-    for b in nb.prange(blocks):
-        for p in range(b * n_pairs // blocks, (b + 1) * n_pairs // blocks):
-            _tally(pts, first, stipple, p, budget, limit, near, closest, b)
+    chunked(_gap_blocks, 0, blocks, pts, first, stipple, n_pairs, budget, limit, near, closest)
     return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True)
+def _gap_blocks(lo: int, hi: int, pts: np.ndarray, first: np.ndarray, stipple: np.ndarray,
+                n_pairs: int, budget: int, limit: float, near: np.ndarray,
+                closest: np.ndarray) -> None:
+    """:func:`_neighbour_gaps`' blocks lo .. hi - 1 (of near.size) of the pairs."""
+    blocks = near.size
+    for b in range(lo, hi):
+        for p in range(b * n_pairs // blocks, (b + 1) * n_pairs // blocks):
+            _tally(pts, first, stipple, p, budget, limit, near, closest, b)
+
+
 def _scan(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, stipple: np.ndarray,
           limit: float, chosen: np.ndarray, x0: float, y0: float, side: float,
           reach: float) -> tuple[int, float, np.ndarray]:
@@ -415,13 +442,25 @@ def _scan(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, stipple
     near = np.zeros(blocks, np.int64)
     closest = np.full(blocks, np.inf)
     passes = np.zeros(n_paths, np.bool_)
-    for b in nb.prange(blocks):
+    chunked(_scan_blocks, 0, blocks, vertices, bulges, offsets, stipple, n_pairs, budget, limit,
+            chosen, x0, y0, side, reach, near, closest, passes)
+    return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf, passes
+
+
+@nb.njit(cache=True, nogil=True)
+def _scan_blocks(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray,
+                 offsets: np.ndarray, stipple: np.ndarray, n_pairs: int, budget: int,
+                 limit: float, chosen: np.ndarray, x0: float, y0: float, side: float,
+                 reach: float, near: np.ndarray, closest: np.ndarray,
+                 passes: np.ndarray) -> None:
+    """:func:`_scan` of blocks lo .. hi - 1 (of near.size) of the paths."""
+    n_paths, blocks = offsets.size - 1, near.size
+    for b in range(lo, hi):
         for p in range(b * n_paths // blocks, (b + 1) * n_paths // blocks):
             passes[p] = _path_near(vertices, bulges, offsets[p], offsets[p + 1], chosen, x0,
                                    y0, side, reach)
             if p < n_pairs:
                 _tally(vertices, offsets, stipple, p, budget, limit, near, closest, b)
-    return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf, passes
 
 
 def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
