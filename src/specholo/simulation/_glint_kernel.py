@@ -13,6 +13,7 @@ import math
 import numba as nb
 import numpy as np
 
+from specholo._sort import stable_argsort
 from specholo._threads import chunked
 
 #: Screen tolerance: an end within this fraction of |h| of a root is kept.
@@ -560,7 +561,7 @@ def _sort_cells(c0: int, c1: int, first: np.ndarray, order: np.ndarray, angle: n
         for q in range(n):
             a, b = at[q], at[q + 1]
             if b - a > 32:
-                o = np.argsort(sa[a:b], kind="mergesort")
+                o = stable_argsort(sa[a:b])
                 ta, ti = sa[a:b][o], si[a:b][o]
                 sa[a:b] = ta
                 si[a:b] = ti

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from specholo._sort import stable_argsort
 from specholo._threads import chunked
 from specholo.toolpaths.grooves import Grooves
 
@@ -253,7 +254,7 @@ def _buckets(pts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.
     key = np.empty(n, np.int64)
     for i in range(n):
         key[i] = (int((pts[i, 0] - x0) / cell) << _ROW_BITS) | int((pts[i, 1] - y0) / cell)
-    order = np.argsort(key, kind="mergesort")
+    order = stable_argsort(key)
     size = 16
     while size < 2 * n:
         size *= 2
