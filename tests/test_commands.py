@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from specholo.errors import SpecholoError
 from specholo_cli.app import cli
 from specholo_cli.cli import main
 
@@ -86,3 +87,34 @@ def test_every_command_runs(command: str, design: Path, tmp_path: Path, capsys) 
             assert (where / item).is_file(), f"{command} did not write {item}"
         else:
             assert item in printed.out + printed.err
+
+
+@pytest.mark.parametrize("command", ["design", "compose", "steady"])
+def test_each_kind_draws_its_preview_again_from_its_folder(command: str, design: Path,
+                                                            tmp_path: Path) -> None:
+    """A job loads the folder it wrote and draws the same preview from it, byte
+    for byte: the folder holds everything its picture needs."""
+    from specholo.jobs import job_of
+    from specholo.jobs.base import publish_files, quiet
+
+    toml = tmp_path / "scene.toml"
+    toml.write_text(COMPOSITION)
+    out = tmp_path / "out"
+    args, _ = COMMANDS[command]
+    assert main([command, *(a.format(design=design, out=out, toml=toml) for a in args)]) == 0
+    job = job_of(out)
+    assert job.kind == {"design": "flat", "compose": "composition"}.get(command, command)
+    job.load(out)
+    files = job.preview(out, quiet)
+    before = {name: (out / name).read_bytes() for name in files if (out / name).is_file()}
+    assert "preview.png" in before
+    again = tmp_path / "again"
+    again.mkdir()
+    for write in files.values():
+        write(again)
+    for name, data in before.items():
+        assert (again / name).read_bytes() == data, name
+    publish_files(out, {"preview.png": files["preview.png"]})  # published whole, the same
+    assert (out / "preview.png").read_bytes() == before["preview.png"]
+    with pytest.raises(SpecholoError, match="published with its design"):
+        publish_files(out, {"hologram.gcode": lambda into: None})

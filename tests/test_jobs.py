@@ -123,6 +123,12 @@ class DotsJob:
 
         return design_kind(folder) == "dots"
 
+    def load(self, folder):  # type: ignore[no-untyped-def]
+        return json.loads((folder / "hologram.json").read_text())
+
+    def preview(self, folder, status):  # type: ignore[no-untyped-def]
+        return {}
+
     def verify(self, folder, options, status):  # type: ignore[no-untyped-def]
         raise SpecholoError("not verified")
 

@@ -166,6 +166,17 @@ class Job(Protocol):
         """Whether ``folder`` holds a design of this kind."""
         ...
 
+    def load(self, folder: Path) -> Any:
+        """The design in ``folder``, read back and checked (one line on a bad file)."""
+        ...
+
+    def preview(self, folder: Path, status: Status) -> dict[str, Callable[[Path], object]]:
+        """The pictures the kind draws when it is designed, drawn again from the
+        folder's files: name -> a function writing it into a given folder (see
+        :func:`publish_files`). The same bytes as the design wrote, with its
+        default settings."""
+        ...
+
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         """Simulate the viewers of the design in ``folder``; nothing is written."""
         ...
@@ -194,10 +205,22 @@ def refuse_cut_options(job: Job, options: VerifyOptions) -> None:
 
 def publish_verification(folder: str | os.PathLike[str], v: Verification) -> None:
     """Publish a verification's files into ``folder`` together (all or none)."""
-    from specholo.folders import publish
+    publish_files(folder, v.files)
 
-    with publish(folder, replaces=set(v.files)) as stage:
-        v.write(stage)
+
+def publish_files(folder: str | os.PathLike[str],
+                  files: Mapping[str, Callable[[Path], object]]) -> None:
+    """Write files (name -> a function writing it into a folder) into a design's
+    folder together: all or none, the rest of the folder kept as it was. Never
+    a machine program: those go with their design (:mod:`specholo.staging`)."""
+    from specholo.folders import publish
+    from specholo.staging import PROGRAM_SUFFIXES
+
+    if any(Path(name).suffix.lower() in PROGRAM_SUFFIXES for name in files):
+        raise SpecholoError("a machine program is published with its design, not alone")
+    with publish(folder, replaces=set(files)) as stage:
+        for write in files.values():
+            write(stage)
 
 
 def run(job: Job, inputs: Sequence[Path], values: Mapping[str, Any], out: Path,

@@ -4,7 +4,7 @@ or the light, along its motion."""
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -100,6 +100,27 @@ class CompositionJob:
         from specholo.compose import is_composed_folder
 
         return is_composed_folder(folder)
+
+    def load(self, folder: Path) -> Any:
+        from specholo.compose import load_composition_folder
+
+        return load_composition_folder(folder)
+
+    def preview(self, folder: Path, status: Status) -> dict[str, Callable[[Path], object]]:
+        """preview.png, and preview.gif if the folder had one (its default frames)."""
+        from specholo.preview.composed import write_previews
+
+        d = self.load(folder)
+        frames = (self.preview_frames or 48) if (folder / "preview.gif").is_file() else 0
+
+        def both(into: Path) -> None:
+            status("rendering the previews...")
+            write_previews(d, into, frames)
+
+        files: dict[str, Callable[[Path], object]] = {"preview.png": both}
+        if frames:
+            files["preview.gif"] = lambda into: None  # written with preview.png
+        return files
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.compose import load_composition_folder, verify_composition

@@ -150,6 +150,19 @@ class FlatJob:
     def holds(self, folder: Path) -> bool:
         return True
 
+    def load(self, folder: Path) -> Any:
+        from specholo.pipeline import load_design
+
+        return load_design(folder)
+
+    def preview(self, folder: Path, status: Status) -> dict[str, Callable[[Path], object]]:
+        from specholo.preview.preview import render_preview
+
+        loaded = self.load(folder)
+        status("finding the glints of the preview's eyes...")
+        return {"preview.png": lambda into: render_preview(
+            loaded.grooves, loaded.config.setup(), into / "preview.png")}
+
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.folder import write_verify_json
         from specholo.pipeline import (

@@ -4,7 +4,7 @@ verified by heads over azimuth and elevation on its exact heights."""
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -93,6 +93,19 @@ class RidgedJob:
         from specholo.ridged import is_ridged_folder
 
         return is_ridged_folder(folder)
+
+    def load(self, folder: Path) -> Any:
+        from specholo.ridged import load_ridged_design
+
+        return load_ridged_design(folder)
+
+    def preview(self, folder: Path, status: Status) -> dict[str, Callable[[Path], object]]:
+        from specholo.preview.preview import render_field_preview
+
+        loaded = self.load(folder)
+        status("finding the glints of the preview's eyes...")
+        return {"preview.png": lambda into: render_field_preview(
+            loaded.heights, loaded.config.setup(), into / "preview.png")}
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.folder import write_verify_json

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -78,6 +78,24 @@ class SpinJob:
         from specholo.spin import is_spin_folder
 
         return is_spin_folder(folder)
+
+    def load(self, folder: Path) -> Any:
+        from specholo.spin import load_spin_folder
+
+        return load_spin_folder(folder)
+
+    def preview(self, folder: Path, status: Status) -> dict[str, Callable[[Path], object]]:
+        from specholo.preview.motion import write_animation
+        from specholo.spin import preview_frames
+
+        job = self.load(folder)
+
+        def gif(into: Path) -> None:
+            status("turning the plate for preview.gif...")
+            write_animation(preview_frames(job, self.preview_frames or 48),
+                            into / "preview.gif", fps=12)
+
+        return {"preview.gif": gif}
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.spin import load_spin_folder, summarise, verify_spin, write_spin_verification

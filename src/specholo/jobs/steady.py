@@ -4,7 +4,7 @@ light's range."""
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +79,18 @@ class SteadyJob:
         from specholo.steady import is_steady_folder
 
         return is_steady_folder(folder)
+
+    def load(self, folder: Path) -> Any:
+        from specholo.steady import load_steady_folder
+
+        return load_steady_folder(folder)
+
+    def preview(self, folder: Path, status: Status) -> dict[str, Callable[[Path], object]]:
+        from specholo.preview.steady import steady_preview
+
+        design, config = self.load(folder)
+        return {"preview.png": lambda into: steady_preview(design, config.tool,
+                                                           into / "preview.png")}
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.steady import (
