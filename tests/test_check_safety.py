@@ -479,9 +479,9 @@ def test_steady_cuts_no_deeper_than_its_depth_and_is_checked(
 
     writer = steady.write_path_gcode
 
-    def deeper(path, design, tool, machining, header):  # type: ignore[no-untyped-def]
+    def deeper(path, design, tool, machining, header, **more):  # type: ignore[no-untyped-def]
         deep = dataclasses.replace(design, centres=design.centres - np.array([0, 0, 0.05]))
-        return writer(path, deep, tool, machining, header)
+        return writer(path, deep, tool, machining, header, **more)
 
     monkeypatch.setattr(steady, "write_path_gcode", deeper)
     bad = tmp_path / "bad"

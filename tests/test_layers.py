@@ -26,6 +26,8 @@ LAYERS: list[set[str]] = [
     {"specholo.simulation"},
     {"specholo.preview"},
     {"specholo.folder", "specholo.folders", "specholo.staging"},
+    {"specholo.settings"},
+    {"specholo.flat"},
     {"specholo.pipeline"},
     {"specholo.density", "specholo.ridged", "specholo.compose", "specholo.spin",
      "specholo.steady"},

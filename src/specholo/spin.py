@@ -361,7 +361,8 @@ def spin_limits(grooves: Any, depth: float, machining: Machining) -> Any:
     the safe height, hops as set, every cut in X/Y at the cut's depth, feeds and
     spindle as set."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
-    from specholo.pipeline import PLATE_MARGIN, groove_extent
+    from specholo.fabrication.plate import PLATE_MARGIN
+    from specholo.flat import groove_extent
 
     m = machining
     (x0, y0), (x1, y1) = groove_extent(grooves) + np.array([[-PLATE_MARGIN], [PLATE_MARGIN]])

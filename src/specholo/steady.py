@@ -268,7 +268,7 @@ def steady_limits(design: SteadyDesign, config: SteadyConfig) -> Any:
     given or fitted to the cuts, :func:`steady_plate`), no deeper than the depth, rapids
     at the safe height, feeds and spindle as set."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
-    from specholo.pipeline import PLATE_MARGIN
+    from specholo.fabrication.plate import PLATE_MARGIN
 
     m, tool = config.machining, config.tool
     tips = tool_tips(design, tool)[:, :2] if len(design.centres) else np.zeros((1, 2))

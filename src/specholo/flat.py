@@ -1,0 +1,494 @@
+"""A flat plate's design: the model placed and stippled, occlusion, the tool
+check, the grooves, and what will survive the cutting (model -> stipples ->
+optics -> toolpaths). Its folder is written and read by
+:mod:`specholo.pipeline`."""
+
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import time
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from specholo import __version__
+from specholo.errors import SpecholoError
+from specholo.fabrication.plate import PLATE_MARGIN, fit_plate
+from specholo.fabrication.tools import (
+    Cutter,
+    ViewCheck,
+    check_views,
+    depth_for,
+    needed_tilts,
+)
+from specholo.setup import (
+    Setup,
+)
+from specholo.toolpaths.common import Runs, make_runs
+from specholo.toolpaths.grooves import Grooves
+from specholo.toolpaths.overlap import Overlaps, groove_overlaps
+
+if TYPE_CHECKING:
+    from specholo.simulation.survival import AsCut
+
+from specholo.settings import (
+    BAND,
+    DEFAULT_STIPPLES,
+    TILT_MARGIN,
+    DesignConfig,
+)
+
+
+@dataclass
+class Design:
+    """A designed hologram: the placed model, its stipples, and the grooves."""
+
+    config: DesignConfig
+    model: Any  # scene.loading.Model
+    points: np.ndarray  # (n, 3)
+    normals: np.ndarray | None  # (n, 3)
+    runs: Runs
+    grooves: Grooves
+    dropped: np.ndarray  # stipple ids that could not be designed
+    timings: dict[str, float]
+    views: ViewCheck | None = None  # the tool's walls against the tilts needed
+    overlaps: Overlaps | None = None  # where grooves cut into each other
+    plate: np.ndarray | None = None  # (2, 2) plate corners, mm
+    coverage: Coverage | None = None  # which stipples got a groove
+    as_cut: AsCut | None = None  # what survives the cutting, per azimuth
+    placement: dict[str, str] | None = None  # striped: "placement" used, "fallback" why
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """How many stipples got a groove, and why the others did not.
+
+    Attributes:
+        stipples: stipples of the design.
+        hidden: stipples no eye in the viewing range sees (the model hides them
+            or they face away from every eye): they get no groove.
+        dropped: stipples seen but whose groove the method could not design.
+        grooved: stipples with at least one path.
+    """
+
+    stipples: int
+    hidden: int
+    dropped: int
+    grooved: int
+
+    @property
+    def ungrooved(self) -> int:
+        """Stipples without a groove."""
+        return self.stipples - self.grooved
+
+    @property
+    def mostly_ungrooved(self) -> bool:
+        """Whether most stipples have no groove: the plate shows little of the model."""
+        return 2 * self.ungrooved > self.stipples
+
+    def reasons(self, dropped_why: str = "") -> str:
+        """Why the stipples without a groove have none, e.g. "120 are hidden from
+        every view (...), 30 could not be designed" (``dropped_why`` follows the latter)."""
+        parts = []
+        if self.hidden:
+            parts.append(f"{self.hidden} {'is' if self.hidden == 1 else 'are'} hidden from "
+                         f"every view ({_HIDDEN_WHY})")
+        if self.dropped:
+            parts.append(f"{self.dropped} could not be designed{dropped_why}")
+        rest = self.ungrooved - self.hidden - self.dropped
+        if rest > 0:
+            parts.append(f"{rest} got no path")
+        return ", ".join(parts)
+
+    def describe(self) -> str:
+        """One line: how many stipples have no groove, and why."""
+        if self.ungrooved == self.hidden:
+            return (f"{self.hidden} of {self.stipples} stipples are hidden from every view "
+                    f"and have no groove ({_HIDDEN_WHY})")
+        return f"{self.ungrooved} of {self.stipples} stipples have no groove: {self.reasons()}"
+
+
+#: Why a stipple is hidden from every view.
+_HIDDEN_WHY = "the model hides them or they face away from every eye"
+
+
+def coverage(n: int, runs: Runs, grooves: Grooves, dropped: np.ndarray) -> Coverage:
+    """Count the stipples with a groove, those hidden from every view and those dropped.
+
+    One pass over the runs and the paths (no sort): cheap beside the design.
+    """
+    seen = np.zeros(n, dtype=bool)
+    seen[runs.stipple] = True
+    has = np.zeros(n, dtype=bool)
+    ids = np.asarray(grooves.stipple)
+    has[ids[(ids >= 0) & (ids < n)]] = True
+    return Coverage(n, n - int(np.count_nonzero(seen)), int(len(dropped)),
+                    int(np.count_nonzero(has)))
+
+
+def groove_extent(grooves: Grooves) -> np.ndarray:
+    """(2, 2) corners of the grooves' centrelines, arcs included where they bulge
+    past their end points (the tool follows the arc, not its chord)."""
+    return grooves.extent()
+
+
+def plate_rect(grooves: Grooves, width: float, config: DesignConfig,
+               extent: np.ndarray | None = None) -> np.ndarray:
+    """The plate's corners (2, 2), centred on the plate origin; refuse one too small.
+
+    Args:
+        grooves: the design's grooves.
+        width: groove width, mm (grooves reach half of it past their centrelines).
+        config: plate_width / plate_height, or None to fit the grooves with a margin.
+        extent: the grooves' :func:`groove_extent`, if already known.
+    """
+    lo, hi = groove_extent(grooves) if extent is None else extent
+    reach = np.maximum(np.abs(lo), np.abs(hi)) + 0.5 * width
+    need = 2.0 * reach
+    size = np.array([config.plate_width or 0.0, config.plate_height or 0.0])
+    given = size > 0
+    for axis, name in ((0, "width"), (1, "height")):
+        if given[axis] and size[axis] < need[axis]:
+            raise SpecholoError(
+                f"plate {name} {size[axis]:g} mm is smaller than the design, which needs "
+                f"{need[axis]:.1f} mm (grooves reach +-{reach[axis]:.1f} mm from the centre)")
+    fitted = fit_plate(np.stack([lo, hi]), width, PLATE_MARGIN)
+    size = np.where(given, size, fitted[1] - fitted[0])
+    return np.stack([-0.5 * size, 0.5 * size])
+
+
+def check_points(points: np.ndarray, setup: Setup) -> None:
+    """Refuse points the viewer could not look at through the plate."""
+    v = setup.viewer
+    nearest_eye = v.distance * math.cos(v.design_range)
+    if len(points) and points[:, 2].max() >= 0.9 * nearest_eye:
+        raise SpecholoError(
+            f"model reaches z = {points[:, 2].max():.1f} mm, too close to the eyes "
+            f"(nearest eye depth {nearest_eye:.1f} mm); move it back with --center-z")
+
+
+def auto_depth(cutter: Cutter, config: DesignConfig, points: np.ndarray, runs: Runs,
+               tilts: np.ndarray | None = None) -> float:
+    """Shallowest depth, to the micrometre above, whose walls serve every view, plus
+    :data:`TILT_MARGIN`; the tool's fallback depth when no depth can (a V-bit).
+    ``tilts`` are the runs' :func:`needed_tilts`, if already known."""
+    if tilts is None:
+        setup = config.setup()
+        tilts, _ = needed_tilts(points, runs.stipple, runs.start, runs.end, setup.light,
+                                setup.viewer)
+    need = float(tilts.max()) + TILT_MARGIN if tilts.size else TILT_MARGIN
+    depth = depth_for(cutter, min(need, 0.5 * math.pi - 1e-6))
+    if depth is None:
+        return config.depth_mm
+    depth = math.ceil(depth * 1000.0) / 1000.0
+    # A ball or round tip shallower than its reach: beyond it the walls stop at the shank.
+    try:
+        cutter.check_depth(depth)
+    except SpecholoError:
+        return config.depth_mm
+    return depth
+
+
+def design_runs(runs: Runs, config: DesignConfig,
+                info: dict[str, str] | None = None) -> tuple[Grooves, np.ndarray]:
+    """Grooves for the given view intervals with the configured method.
+
+    ``info``, if given, gets the striped design's placement used and why "auto"
+    fell back (see :func:`~specholo.toolpaths.striped.design_striped`).
+    """
+    from specholo.toolpaths.classic import design_classic
+    from specholo.toolpaths.hyperbola import design_hyperbola
+    from specholo.toolpaths.striped import StripeOptions, design_striped
+
+    setup = config.setup()
+    if config.method == "striped":
+        return design_striped(runs, setup, StripeOptions(band=float(config.band or BAND),
+                                                         placement=config.placement), info=info)
+    if config.method == "hyperbola":
+        from specholo.toolpaths.hyperbola import serves
+
+        ok = serves(runs, setup)
+        dropped = np.setdiff1d(runs.stipple[~ok], runs.stipple[ok])
+        return design_hyperbola(runs.take(ok), setup), dropped.astype(np.int64)
+    return design_classic(runs, setup), np.zeros(0, dtype=np.int64)
+
+
+def stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
+                  rng: np.random.Generator | None, timings: dict[str, float]
+                  ) -> tuple[Any, Any, DesignConfig]:
+    """Load and place the model and stipple it; refuse what would not fit in memory or
+    could not be seen through the plate.
+
+    Returns:
+        The placed model, its stipples (``timings["stippling"]`` is set) and the
+        config, whose size is the fitted one with ``config.fit``.
+    """
+    from specholo.scene.loading import load_model
+    from specholo.scene.placement import place
+    from specholo.scene.stippling import check_memory, stipple
+
+    setup = config.setup()
+    rng = rng if rng is not None else np.random.default_rng(config.seed)
+    count = None if config.spacing is not None else (config.stipples or DEFAULT_STIPPLES)
+    if count is not None:
+        check_memory(count)  # stipples = 10**9 is refused before any work
+    t0 = time.perf_counter()
+    pose = config.pose()
+    loaded = load_model(model_path)
+    if config.fit:
+        config = dataclasses.replace(config, size=fitted_size(loaded, config))
+    model = place(loaded, config.size, config.center_z, pose.rotation(), pose.offset)
+    st = stipple(model, rng, count=count, spacing=config.spacing)
+    check_points(st.points, setup)
+    mesh = model.mesh
+    check_memory(len(st.points), 0 if mesh is None else len(mesh.faces),
+                 0 if mesh is None else len(mesh.vertices),
+                 request=None if count is not None else
+                 f"spacing = {config.spacing:g} mm ({len(st.points)} stipples)")
+    timings["stippling"] = time.perf_counter() - t0
+    return model, st, config
+
+
+def fitted_size(model: Any, config: DesignConfig) -> float:
+    """The largest size (mm) at which the model's grooves, as posed, lie on the
+    plate ``config`` gives, within its blank border (:mod:`specholo.scene.fit`)."""
+    from specholo.scene.fit import fit_size
+    from specholo.scene.placement import place
+
+    pose = config.pose()
+    unit = place(model, 1.0, 0.0, pose.rotation())  # size 1 about its box centre
+    half_width = 0.5 * config.cutter().section(config.depth_mm).width
+    reach = (half_width, half_width + (config.band or 0.0))
+    size = fit_size(unit.points, np.array([*pose.offset, config.center_z]),
+                    (float(config.plate_width or 0.0), float(config.plate_height or 0.0)),
+                    config.setup().viewer, reach, PLATE_MARGIN)
+    # Recorded with the design, so rounded (down: the rounded size still fits).
+    return math.floor(min(size, 10_000.0) * 1e3) / 1e3
+
+
+def design(model_path: str | os.PathLike[str], config: DesignConfig,
+           rng: np.random.Generator | None = None, check_overlaps: bool = True,
+           expect_as_cut: bool | None = None) -> Design:
+    """Load, place, stipple, crop by occlusion, check the tool, design the grooves.
+
+    Args:
+        model_path: mesh or point-cloud file.
+        config: the options.
+        rng: random generator for stippling; default seeded from ``config.seed``.
+        check_overlaps: measure where grooves cut into each other.
+        expect_as_cut: find which glints survive the other grooves' cuts
+            (:func:`expected_as_cut`); None for designs of at most
+            :data:`AS_CUT_MAX_STIPPLES` stipples.
+
+    Raises:
+        SpecholoError: on bad input, a plate smaller than the design, or (with
+            ``config.strict``) a tool whose walls lose views.
+    """
+    from specholo.visibility.occlusion import visible_intervals
+
+    if config.method == "ridged":
+        raise SpecholoError("a ridged design is made by design_ridged_model, not design")
+    setup = config.setup()
+    timings: dict[str, float] = {}
+    model, st, config = stipple_model(model_path, config, rng, timings)
+    points = st.points
+    t0 = time.perf_counter()
+    iv = visible_intervals(model.mesh, points, st.normals, setup.viewer)
+    runs = make_runs(points, iv.stipple, iv.start, iv.end)
+    timings["occlusion"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    cutter = config.cutter()
+    # The tilts depend on the views and the light, not on the depth: found once.
+    needed = needed_tilts(points, runs.stipple, runs.start, runs.end, setup.light,
+                          setup.viewer)
+    if config.depth is None:
+        config = dataclasses.replace(
+            config, depth=auto_depth(cutter, config, points, runs, tilts=needed[0]))
+        setup = config.setup()
+    views = check_views(cutter, config.depth_mm, points, runs.stipple, runs.start, runs.end,
+                        setup.light, setup.viewer, known=needed)
+    del needed  # ~10^8 samples at a million stipples: not kept through the walk
+    if config.strict and views.lost > 0:
+        raise SpecholoError(
+            f"the {cutter.describe()} at {config.depth_mm:g} mm loses {100 * views.lost:.1f}% "
+            f"of the views ({views.stipples_losing} stipples); {views.suggestion}")
+    timings["tool check"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    placed: dict[str, str] = {}
+    grooves, dropped = design_runs(runs, config, placed)
+    timings["toolpaths"] = time.perf_counter() - t0
+    cover = coverage(len(points), runs, grooves, dropped)
+    if cover.grooved == 0:
+        # A plate with nothing to cut: refused before any file is written.
+        from collections import Counter
+
+        why = Counter(r.split(":")[0] for r in drop_reasons(points, dropped, setup).values())
+        reasons = "" if not why else " (" + ", ".join(
+            f"{n}: {r}" for r, n in sorted(why.items())) + ")"
+        raise SpecholoError(f"no stipple gets a groove: {cover.reasons(reasons)}")
+    section = cutter.section(config.depth_mm)
+    # One pass over the arcs (or none, when the walk found them), for the plate and
+    # the overlaps (which need the length).
+    if check_overlaps:
+        extent, total = grooves.extent_and_length()
+    else:
+        extent, total = grooves.extent(), 0.0
+    plate = plate_rect(grooves, section.width, config, extent)
+    t0 = time.perf_counter()
+    overlaps = groove_overlaps(grooves, section.width, extent=extent,
+                               total_length=total) if check_overlaps else None
+    timings["overlaps"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    if expect_as_cut is None:
+        expect_as_cut = len(points) <= AS_CUT_MAX_STIPPLES
+    as_cut = expected_as_cut(config, points, runs, grooves) if expect_as_cut else None
+    timings["as cut"] = time.perf_counter() - t0
+    return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
+                  views, overlaps, plate, cover, as_cut, placement=placed or None)
+
+
+#: Head azimuths of the design's as-cut estimate are at most this far apart, degrees.
+AS_CUT_STEP_DEG = 5.0
+#: Most stipples whose as-cut figures a design finds by itself. Finding every
+#: eye's glints costs about a verification (~30 s at 10^5 stipples, against a
+#: ~5 s walk), so larger designs leave it to ``specholo verify --cut``.
+AS_CUT_MAX_STIPPLES = 20_000
+#: What a design without its own as-cut figures says instead.
+AS_CUT_SKIPPED = (f"as cut: not estimated by designs of over {AS_CUT_MAX_STIPPLES:,} "
+                  "stipples; `specholo verify FOLDER --cut` measures it")
+
+
+def expected_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
+                    grooves: Grooves) -> AsCut:
+    """The stereo figures of the plate as cut, every :data:`AS_CUT_STEP_DEG` over the range.
+
+    Each eye's designed glints are kept where no other groove's cut removes
+    them (:func:`~specholo.simulation.survival.verify_as_cut`). A stipple is
+    unoccluded for an eye when the eye's azimuth lies in one of the stipple's
+    view intervals (``runs``, what the grooves were designed to serve) rather
+    than by casting rays again: the same edges to ~0.01 degrees, at no cost.
+    """
+    from specholo.simulation.survival import verify_as_cut
+    from specholo.simulation.verify import view_azimuths
+    from specholo.visibility.occlusion import Intervals
+
+    setup = config.setup()
+    seen_from = Intervals(runs.stipple, runs.start, runs.end)
+
+    def vis(p: np.ndarray, eyes: np.ndarray) -> np.ndarray:
+        # verify asks for all the stipples, in order, from one eye
+        return seen_from.contains(np.arange(len(p)), np.arctan2(eyes[:, 0], eyes[:, 2]))
+
+    az = view_azimuths(setup.viewer.half_range, math.radians(AS_CUT_STEP_DEG))
+    return verify_as_cut(grooves, points, setup, config.cutter(), config.depth_mm, vis, az)
+
+
+def as_cut_json(as_cut: AsCut) -> dict[str, Any]:
+    """``hologram.json``'s ``expected``: the as-cut stereo visibility per azimuth."""
+    figures = as_cut.mean_and_lowest()
+    mean, low, at = figures if figures is not None else (None, None, None)
+    return {"as_cut_stereo_visibility": {
+        "mean": mean, "lowest": low, "lowest_azimuth_deg": at,
+        "per_azimuth": [
+            {"azimuth_deg": r.azimuth,
+             "visibility": None if math.isnan(r.visibility) else r.visibility,
+             "stipples_seen": r.stipples_seen,
+             "glints": [int(v) for v in g], "surviving": [int(v) for v in s]}
+            for r, g, s in zip(as_cut.reports, as_cut.glints, as_cut.surviving, strict=True)],
+        "how": ("share of the stipples unoccluded for both eyes whose left and right designed "
+                "glints both survive every other groove's cut (exact for a round tip cut "
+                "within its radius); glints and surviving count each eye's glints, left and "
+                "right"),
+    }}
+
+
+class StippleRows:
+    """The stipples of ``hologram.json`` (id, position, visible azimuths in degrees),
+    made a block at a time as they are written: as one list, a million
+    stipples' dictionaries would hold ~1 GB for the whole of the writing."""
+
+    def __init__(self, points: np.ndarray, runs: Runs) -> None:
+        self.points = points
+        self.runs = runs
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def blocks(self, size: int = 1 << 16) -> Iterator[list[dict[str, Any]]]:
+        """Lists of up to ``size`` stipples' rows, in id order."""
+        by_id = np.argsort(self.runs.stipple, kind="stable")  # each stipple's runs in order
+        ids = self.runs.stipple[by_id]
+        for a in range(0, len(self.points), size):
+            b = min(a + size, len(self.points))
+            lo, hi = np.searchsorted(ids, [a, b])
+            iv: list[list[list[float]]] = [[] for _ in range(b - a)]
+            for s, x, y in zip(ids[lo:hi].tolist(),
+                               np.degrees(self.runs.start[by_id[lo:hi]]).tolist(),
+                               np.degrees(self.runs.end[by_id[lo:hi]]).tolist(), strict=True):
+                iv[s - a].append([round(x, 4), round(y, 4)])
+            yield [{"id": i, "x": float(p[0]), "y": float(p[1]), "z": float(p[2]),
+                    "visible_deg": iv[i - a]}
+                   for i, p in enumerate(self.points[a:b].tolist(), start=a)]
+
+
+def hologram_json(d: Design) -> dict[str, Any]:
+    """The design's settings, figures and stipples, for ``hologram.json``."""
+    setup = d.config.setup()
+    lo, hi = d.grooves.bounds()
+    cover = d.coverage or coverage(len(d.points), d.runs, d.grooves, d.dropped)
+    return {
+        "specholo_version": __version__,
+        "settings": asdict(d.config),
+        "frame": "plate mm: x right, y up, z toward the viewer, plate at z = 0",
+        "tool": {"kind": d.config.tool, "description": d.config.cutter().describe(),
+                 "depth_mm": d.config.depth_mm,
+                 "groove_width_mm": d.config.cutter().section(d.config.depth_mm).width,
+                 "round_model": {"radius_mm": setup.tool.radius, "depth_mm": setup.tool.depth,
+                                 "max_wall_tilt_deg": math.degrees(setup.tool.max_tilt)}},
+        "views": d.views.as_dict() if d.views is not None else None,
+        "overlaps": d.overlaps.as_dict() if d.overlaps is not None else None,
+        "expected": (as_cut_json(d.as_cut) if d.as_cut is not None else
+                     {"as_cut_stereo_visibility": None, "why": AS_CUT_SKIPPED}),
+        "plate": {"groove_extent_mm": [lo.tolist(), hi.tolist()],
+                  "plate_mm": d.plate.tolist() if d.plate is not None else None,
+                  "stock_thickness_mm": d.config.stock_thickness},
+        "stats": {"stipples": len(d.points), "paths": d.grooves.n_paths,
+                  "dots": int(d.grooves.is_dot.sum()),
+                  "groove_length_mm": d.grooves.total_length(),
+                  "dropped_stipples": d.dropped.tolist(),
+                  "dropped_reasons": drop_reasons(d.points, d.dropped, setup),
+                  "hidden_stipples": cover.hidden,
+                  "stipples_with_grooves": cover.grooved,
+                  # what "auto" chose, and why it fell back (settings keep "auto")
+                  **({"placement": d.placement["placement"],
+                      "placement_fallback": d.placement.get("fallback")}
+                     if d.placement else {})},
+        "stipples": StippleRows(d.points, d.runs),
+    }
+
+
+def run_record(config: DesignConfig, command: list[str] | None,
+               seconds: dict[str, Any]) -> dict[str, Any]:
+    """What a flat or ridged design's ``run.json`` records
+    (:func:`specholo.staging.run_record`), with its settings."""
+    from specholo.staging import run_record as record
+
+    return record("ridged" if config.method == "ridged" else "flat", command, seconds,
+                  asdict(config))
+
+
+def drop_reasons(points: np.ndarray, dropped: np.ndarray, setup: Setup) -> dict[str, str]:
+    """Why each dropped stipple could not be designed, by id (as a JSON key)."""
+    from specholo.toolpaths.striped import at_light
+
+    near = at_light(np.asarray(points, dtype=float).reshape(-1, 3)[dropped], setup)
+    return {str(int(i)): ("at the light: its glint would be the light itself" if n else
+                          "light in the eyes' plane: its groove would run vertically")
+            for i, n in zip(dropped.tolist(), near.tolist(), strict=True)}
+
+
