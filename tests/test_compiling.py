@@ -39,3 +39,31 @@ def test_a_compile_is_announced_and_a_cached_kernel_is_not(tmp_path):
 
 def test_kernel_names_read_as_words():
     assert kernel_name(_points) == "scene sample points"
+
+
+def _readme_config():  # type: ignore[no-untyped-def]
+    from specholo.jobs.flat import FlatJob
+
+    values = {"size": 60.0, "center_z": -40.0, "light_elevation": 45.0,
+              "view_distance": 600.0, "view_range": 45.0, "stipples": 2000}
+    return FlatJob().configure(values, [Path(__file__).parents[1] / "examples" / "bunny.obj"])
+
+
+def test_precompile_runs_the_later_stages() -> None:
+    """The made-up design the first run's second process compiles for goes
+    through every later stage (it hides its errors, so a break here would only
+    show as a slower first run)."""
+    from specholo import _precompile
+
+    _precompile._run(_readme_config())
+
+
+def test_precompile_only_on_a_cold_cache(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    from specholo import _precompile
+
+    monkeypatch.setattr(_precompile, "cache_is_cold", lambda: False)
+    assert _precompile.start(_readme_config()) is None
+    monkeypatch.setattr(_precompile, "cache_is_cold", lambda: True)
+    monkeypatch.setenv("SPECHOLO_NO_PRECOMPILE", "1")
+    assert _precompile.start(_readme_config()) is None
+    _precompile.stop(None)

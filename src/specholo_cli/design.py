@@ -68,5 +68,5 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     with _status("designing...", "design") as status:
         summary = run(job, [model], values, out,
                       WriteOptions(formats=wanted, command=_command_line()), status.update,
-                      other_inputs=[config_path])
+                      other_inputs=[config_path], precompile=True)
     _print_summary(summary)

@@ -225,7 +225,7 @@ def publish_files(folder: str | os.PathLike[str],
 
 def run(job: Job, inputs: Sequence[Path], values: Mapping[str, Any], out: Path,
         options: WriteOptions | None = None, status: Status = quiet,
-        other_inputs: Sequence[Path | None] = ()) -> Summary:
+        other_inputs: Sequence[Path | None] = (), precompile: bool = False) -> Summary:
     """Design and write one hologram of any kind, the same steps for every kind:
     the settings checked, the output folder checked before the (long) design,
     the design, then its folder written whole with every program checked.
@@ -239,7 +239,12 @@ def run(job: Job, inputs: Sequence[Path], values: Mapping[str, Any], out: Path,
         status: told what a long step is doing.
         other_inputs: further files read (a config file), which ``out`` may not
             hold as files a design writes.
+        precompile: on a first run (numba's cache cold), compile a grooved
+            design's later kernels in a second process while its first stages
+            run (:mod:`specholo._precompile`); for a command, which ends with
+            the design, not for a caller that runs more after it.
     """
+    from specholo import _precompile
     from specholo.folders import check_out
 
     options = write_options(job, options or WriteOptions())
@@ -247,8 +252,19 @@ def run(job: Job, inputs: Sequence[Path], values: Mapping[str, Any], out: Path,
     job.check_options(config, options)
     every = [*inputs, *other_inputs]
     check_out(out, every)
-    designed = job.design(inputs, config, status)
-    return job.write(designed, out, every, options, status)
+    helper = _precompile.start(config) if precompile and _grooved(config) else None
+    try:
+        designed = job.design(inputs, config, status)
+        return job.write(designed, out, every, options, status)
+    finally:
+        _precompile.stop(helper)
+
+
+def _grooved(config: Any) -> bool:
+    """Whether a design's settings make a plate of grooves found one stipple
+    count at a time (what :mod:`specholo._precompile` compiles for)."""
+    return (getattr(config, "method", "ridged") in ("striped", "hyperbola", "arc")
+            and getattr(config, "visibility", None) is None)
 
 
 def refuse_formats(job: Job, options: WriteOptions) -> None:

@@ -1,0 +1,147 @@
+"""Compiling a design's later kernels in a second process on a first run.
+
+On a fresh install a design spends most of its time having numba compile
+kernels, one after another in one thread: the stipples', occlusion's and
+toolpaths' first, then those of the overlap figure, the as-cut estimate, the
+ordering, the G-code and its check. :func:`start` runs the later stages on a
+tiny made-up design in a process of its own while the design's own first stages
+compile and run, so the later kernels are compiled on another core and written
+to numba's on-disk cache, which the design then loads instead of compiling them.
+
+Only when the cache is cold (:func:`cache_is_cold`); a run whose kernels are
+cached starts nothing. The second process runs at a lower priority, so the
+design's own threads keep the cores when both want them, and it writes nothing
+but numba's cache (each file written whole, as numba writes it).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import multiprocessing
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+
+def cache_is_cold() -> bool:
+    """Whether numba's cache holds no G-code writer yet, one of the last kernels
+    a design compiles: a fresh install, or a cache emptied since."""
+    from specholo.fabrication import gcode
+
+    writer: Any = gcode._write_rows
+    try:
+        index = writer._cache._cache_file._index_path
+    except AttributeError:  # another numba, or caching off: nothing to share
+        return False
+    return not os.path.exists(index)
+
+
+def start(config: Any) -> multiprocessing.process.BaseProcess | None:
+    """A process compiling the later kernels of a design with ``config`` (a
+    ``pipeline.DesignConfig``), started when the cache is cold; None otherwise.
+    :func:`stop` it when the design is done."""
+    if os.environ.get("SPECHOLO_NO_PRECOMPILE") or not cache_is_cold():
+        return None
+    # spawn: a fork would copy the design's threads and locks mid-use.
+    process = multiprocessing.get_context("spawn").Process(
+        target=_later_stages, args=(config,), name="specholo-precompile", daemon=True)
+    try:
+        process.start()
+    except OSError:  # no room for a process: the design compiles them itself
+        return None
+    return process
+
+
+def stop(process: multiprocessing.process.BaseProcess | None) -> None:
+    """End the process :func:`start` started, if it still runs (what it has
+    compiled is in the cache; the rest the design compiled itself)."""
+    if process is None:
+        return
+    if process.is_alive():
+        process.terminate()
+    process.join(timeout=5.0)
+
+
+def _later_stages(config: Any) -> None:
+    """The stages after the toolpaths, on a few made-up grooves: what calls the
+    kernels with the very types a design calls them with."""
+    with contextlib.suppress(OSError, AttributeError):
+        os.nice(10)
+    # Nothing to the design's terminal, nor its pipes held open.
+    devnull = os.open(os.devnull, os.O_RDWR)
+    for fd in (0, 1, 2):
+        os.dup2(devnull, fd)
+    sys.stdout = sys.stderr = open(os.devnull, "w")  # noqa: SIM115  (the process's life)
+    try:
+        _run(config)
+    except Exception:  # noqa: BLE001  a kernel not compiled here is compiled by the design
+        pass
+
+
+def _run(config: Any) -> None:
+    import dataclasses
+
+    import numpy as np
+
+    from specholo.pipeline import Design, expected_as_cut, write_design
+    from specholo.toolpaths.common import make_runs
+    from specholo.toolpaths.overlap import groove_overlaps
+
+    if config.depth is None:
+        config = dataclasses.replace(config, depth=0.05)
+    points, grooves = _tiny(config)
+    n = len(points)
+    half = math.radians(config.view_range)
+    runs = make_runs(points, np.arange(n, dtype=np.int64), np.full(n, -half),
+                     np.full(n, half))
+    width = config.cutter().section(config.depth_mm).width
+    extent, total = grooves.extent_and_length()
+    overlaps = groove_overlaps(grooves, width, extent=extent, total_length=total)
+    as_cut = expected_as_cut(config, points, runs, grooves)
+    model = _Model()
+    d = Design(config, model, points, None, runs, grooves, np.zeros(0, np.int64), {},
+               overlaps=overlaps, as_cut=as_cut)
+    with tempfile.TemporaryDirectory(prefix="specholo-precompile-") as tmp:
+        write_design(d, Path(tmp) / "out", command=["specholo"])
+
+
+class _Model:
+    """A model with no mesh (nothing to export)."""
+
+    mesh = None
+
+
+def _tiny(config: Any) -> tuple[Any, Any]:
+    """A few stipples below the plate and, for each, a path of half circles
+    about the point under it (every direction of groove, so each eye finds
+    glints), two stipples' paths crossing; dots for two more."""
+    import numpy as np
+
+    from specholo.toolpaths.grooves import Grooves
+
+    points = np.array([[0.0, 0.0, -5.0], [0.6, 0.2, -6.0], [3.0, -2.0, -4.0],
+                       [-3.0, 2.0, -5.0], [5.0, 5.0, -3.0], [-5.0, -4.0, -4.0]])
+    vertices: list[list[float]] = []
+    bulges: list[float] = []
+    offsets = [0]
+    stipple: list[int] = []
+    for s, (x, y, _) in enumerate(points[:4]):
+        for r in (0.4, 0.8):
+            start = len(vertices)
+            for k in range(5):  # a zigzag of half circles
+                vertices.append([x - r + 0.5 * r * k, y + (0.1 * r if k % 2 else 0.0)])
+                bulges.append(1.0 if k % 2 else -0.5)
+            bulges[-1] = 0.0
+            offsets.append(offsets[-1] + len(vertices) - start)
+            stipple.append(s)
+    for s in (4, 5):  # dots: one vertex each
+        vertices.append([float(points[s, 0]), float(points[s, 1])])
+        bulges.append(0.0)
+        offsets.append(offsets[-1] + 1)
+        stipple.append(s)
+    grooves = Grooves(np.array(vertices), np.array(bulges), np.array(offsets, np.int64),
+                      np.array(stipple, np.int64))
+    return points, grooves
