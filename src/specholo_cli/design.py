@@ -65,8 +65,13 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     job = RidgedJob() if values.get("method") == "ridged" else FlatJob()
     wanted = None if formats is None else \
         tuple(f.strip().lower() for f in formats.split(",") if f.strip())
+    # The later kernels compiled beside a first run only for the specholo
+    # command itself: the process that compiles them is spawned, and would
+    # import a Python caller's own script again.
+    from specholo_cli.cli import _END_AT_ONCE
+
     with _status("designing...", "design") as status:
         summary = run(job, [model], values, out,
                       WriteOptions(formats=wanted, command=_command_line()), status.update,
-                      other_inputs=[config_path], precompile=True)
+                      other_inputs=[config_path], precompile=_END_AT_ONCE[0])
     _print_summary(summary)
