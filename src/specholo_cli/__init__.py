@@ -10,6 +10,10 @@ from typing import Any
 #: What Ctrl-C prints. Every file is written whole or not at all, and an output
 #: folder is replaced whole once all of it is done (``specholo.folders.publish``).
 INTERRUPTED = "error: interrupted; no file was left half-written"
+#: Whether this process is the ``specholo`` command itself (set by ``cli.main``),
+#: not a caller in Python: a Ctrl-C may then end it at once, and a first run may
+#: start a second process to compile kernels beside it.
+END_AT_ONCE = [False]
 
 
 def exit_interrupted() -> None:

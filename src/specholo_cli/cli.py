@@ -16,7 +16,7 @@ from typing import Any, NoReturn
 import click
 
 from specholo.errors import SpecholoError
-from specholo_cli import INTERRUPTED, early_sigint, exit_interrupted
+from specholo_cli import END_AT_ONCE, INTERRUPTED, early_sigint, exit_interrupted
 from specholo_cli import design as _design  # noqa: F401  (registers the command)
 from specholo_cli import jobs as _jobs  # noqa: F401
 from specholo_cli import pictures as _pictures  # noqa: F401
@@ -28,8 +28,6 @@ from specholo_cli.app import cli
 
 #: SIGINTs received by the running command (see :func:`main`).
 _SIGINTS: list[int] = []
-#: Whether a Ctrl-C may end the process at once (the ``specholo`` command).
-_END_AT_ONCE = [False]
 
 
 def _on_sigint(signum: int, frame: Any) -> None:
@@ -39,7 +37,7 @@ def _on_sigint(signum: int, frame: Any) -> None:
     from specholo.fabrication.atomic import scratch_open
 
     _SIGINTS.append(signum)
-    if _END_AT_ONCE[0] and not scratch_open():
+    if END_AT_ONCE[0] and not scratch_open():
         exit_interrupted()
     raise KeyboardInterrupt
 
@@ -71,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     args = [str(a) for a in (sys.argv[1:] if argv is None else argv)]
     command = argv is None  # the command itself, not a caller in Python
     _SIGINTS.clear()
-    _END_AT_ONCE[0] = command
+    END_AT_ONCE[0] = command
     previous = None
     with contextlib.suppress(ValueError):  # ValueError: not the main thread
         if signal.getsignal(signal.SIGINT) in (signal.default_int_handler, early_sigint):

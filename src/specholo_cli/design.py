@@ -68,10 +68,10 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     # The later kernels compiled beside a first run only for the specholo
     # command itself: the process that compiles them is spawned, and would
     # import a Python caller's own script again.
-    from specholo_cli.cli import _END_AT_ONCE
+    from specholo_cli import END_AT_ONCE
 
     with _status("designing...", "design") as status:
         summary = run(job, [model], values, out,
                       WriteOptions(formats=wanted, command=_command_line()), status.update,
-                      other_inputs=[config_path], precompile=_END_AT_ONCE[0])
+                      other_inputs=[config_path], precompile=END_AT_ONCE[0])
     _print_summary(summary)
