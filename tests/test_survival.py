@@ -357,10 +357,10 @@ def test_a_large_design_leaves_its_as_cut_figures_to_verify(tmp_path, capsys,
     import json
     from pathlib import Path
 
-    import specholo.pipeline as pipeline
+    import specholo.flat as flat
     from specholo_cli.cli import main
 
-    monkeypatch.setattr(pipeline, "AS_CUT_MAX_STIPPLES", 10)
+    monkeypatch.setattr(flat, "AS_CUT_MAX_STIPPLES", 10)
     out = tmp_path / "holo"
     bunny = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
     assert main(["design", str(bunny), "--out", str(out), "--stipples", "30"]) == 0

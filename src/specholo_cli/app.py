@@ -259,22 +259,19 @@ def _stderr_console() -> Any:
 #: verify then compiles one more): the progress line's "of ~N", only ever
 #: shown while compiling.
 KERNELS = {"design": 24}
-#: Seconds between two compiling lines when stderr is not a terminal (a log).
-_LOG_EVERY = 5.0
 
 
 class _Status:
     """A status line (rich) that also says when kernels compile.
 
-    On a terminal the line is replaced while compiling and restored after; to
-    a file or a pipe, where the status line never shows, a compiling line is
-    written at the first kernel and then at most every few seconds.
+    On a terminal the line is replaced while compiling and restored after. To
+    a file or a pipe nothing is added: there every line stays, and a command
+    that fails says so in exactly one line.
     """
 
     def __init__(self, console: Any, status: Any, text: str, expected: int | None) -> None:
         self.console, self.status, self.text, self.expected = console, status, text, expected
         self.compiling = False
-        self.logged = -math.inf
 
     def update(self, text: str) -> None:
         self.text = text
@@ -282,8 +279,6 @@ class _Status:
             self.status.update(text)
 
     def compiled(self, count: int, name: str | None) -> None:
-        import time
-
         if name is None:
             self.compiling = False
             self.status.update(self.text)
@@ -293,9 +288,6 @@ class _Status:
         line = f"compiling kernels for this machine (first run only): {count}{of}, {name}..."
         if self.console.is_terminal:
             self.status.update(_escape(line))
-        elif time.monotonic() - self.logged >= _LOG_EVERY:
-            self.logged = time.monotonic()
-            click.echo(line, err=True)
 
 
 @contextlib.contextmanager
