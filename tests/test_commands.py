@@ -82,6 +82,14 @@ def test_every_command_runs(command: str, design: Path, tmp_path: Path, capsys) 
     assert code == 0, printed.err
     assert "Traceback" not in printed.out + printed.err
     where = out if "{out}" in args else design
+    if "{out}" in args:  # a design: every file it wrote is one its kind names
+        from specholo.folders import is_output
+        from specholo.jobs import job_of
+
+        job = job_of(out)
+        written = {p.name for p in out.iterdir()}
+        assert all(map(is_output, written))
+        assert {n for n in written if not n.startswith("scene_")} <= job.files
     for item in expected:
         if "." in item and " " not in item and not item.startswith("127"):
             assert (where / item).is_file(), f"{command} did not write {item}"

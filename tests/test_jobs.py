@@ -80,6 +80,7 @@ class DotsJob:
     own_pictures = "none"
     design_step: tuple[float, float, float] | None = (10.0, 1.0, 45.0)
     preview_frames: int | None = None
+    files = frozenset({"hologram.json", "hologram.gcode", "run.json", "dots.txt"})
     overcut = 0.0
 
     def configure(self, values, inputs):  # type: ignore[no-untyped-def]
@@ -115,6 +116,7 @@ class DotsJob:
             report = stage.check("hologram.gcode", limits)
             (stage.path / "hologram.json").write_text(json.dumps(
                 {"design": "dots", "step_deg": options.step_deg}))
+            (stage.path / "dots.txt").write_text("\n".join(words))
         return Summary([*designed.notes, f"{len(words)} dots, {report.moves['G1']} plunges"],
                        [])
 
@@ -134,10 +136,14 @@ class DotsJob:
 
 
 def test_a_sixth_kind_is_one_class_and_a_line_in_the_registry(tmp_path, monkeypatch):
+    import specholo.folders as folders
     import specholo.jobs as jobs
     from specholo.jobs.base import WriteOptions, run
 
+    # the registry's line: the kind, and its files made specholo's
+    monkeypatch.setattr(folders, "_REGISTERED", set(folders._REGISTERED))
     monkeypatch.setattr(jobs, "JOBS", (DotsJob(), *JOBS))
+    folders.register_outputs(DotsJob.files)
     model = tmp_path / "model.txt"
     model.write_text("a b c")
     out = tmp_path / "holo"
@@ -160,3 +166,9 @@ def test_a_sixth_kind_is_one_class_and_a_line_in_the_registry(tmp_path, monkeypa
     with pytest.raises(SpecholoError, match="failed its safety check"):
         run(DotsJob(), [model], {"depth": 0.02}, out)
     assert (out / "hologram.gcode").read_bytes() == before
+    # another kind's design over the folder leaves none of the new kind's files
+    (out / "notes.txt").write_text("mine")
+    bunny = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
+    assert main(["design", str(bunny), "--out", str(out), "--stipples", "8"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert "dots.txt" not in names and "notes.txt" in names and jobs.job_of(out).kind == "flat"

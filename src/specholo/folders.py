@@ -12,7 +12,9 @@ folder as it was.
 Which files are specholo's is one registry (:data:`OUTPUT_NAMES`,
 :func:`is_output`): a design replaces every one of them, so none of an older
 design's files survives a new one, whichever job wrote it; any other name is
-the user's and is kept.
+the user's and is kept. A kind of hologram adds the names it writes with
+:func:`register_outputs` (the job registry does it for every job's ``files``),
+so a new kind's files are specholo's without a change here.
 """
 
 from __future__ import annotations
@@ -56,9 +58,20 @@ VERIFY_FILES = frozenset({"verify.json", "verify.png", "verify_cut.json"})
 _SIBLING = re.compile(r"\.(?P<name>.+)\.(?P<kind>stage|old)-(?P<pid>\d+)-[0-9a-f]+")
 
 
+#: Names the kinds of hologram registered (:func:`register_outputs`).
+_REGISTERED: set[str] = set()
+
+
+def register_outputs(names: Iterable[str]) -> None:
+    """Add file names a kind of hologram writes to specholo's own: every later
+    design drops them from a folder it replaces, as it drops the others."""
+    _REGISTERED.update(names)
+
+
 def is_output(name: str) -> bool:
     """Whether a file name is one specholo writes into a design folder."""
-    return name in OUTPUT_NAMES or any(p.fullmatch(name) for p in OUTPUT_PATTERNS)
+    return (name in OUTPUT_NAMES or name in _REGISTERED
+            or any(p.fullmatch(name) for p in OUTPUT_PATTERNS))
 
 
 def output_folder(out: str | os.PathLike[str]) -> Path:

@@ -132,6 +132,8 @@ class Job(Protocol):
         design_step: for a kind verified as it is designed, the step between
             verified positions, degrees: (default, lowest, highest); else None.
         preview_frames: the default frames of its animated preview, or None.
+        files: the file names it writes into a folder (the registry makes
+            them specholo's, :func:`specholo.folders.register_outputs`).
     """
 
     kind: str
@@ -141,6 +143,7 @@ class Job(Protocol):
     own_pictures: str
     design_step: tuple[float, float, float] | None
     preview_frames: int | None
+    files: frozenset[str]
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
         """The kind's settings from the command's (or TOML's) names and units

@@ -49,6 +49,9 @@ class CompositionJob:
     own_pictures = "preview.png and preview.gif"
     design_step: tuple[float, float, float] | None = (5.0, 0.1, 30.0)
     preview_frames: int | None = 48
+    files: frozenset[str] = frozenset({
+        "hologram.json", "grooves.npz", "stipples.npz", "run.json", "hologram.gcode",
+        "verify.json", "preview.png", "preview.gif"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
         """The composition file's settings (a composition is all in its TOML)."""

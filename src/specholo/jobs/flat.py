@@ -107,6 +107,9 @@ class FlatJob:
     own_pictures = "preview.png"
     design_step: tuple[float, float, float] | None = None
     preview_frames: int | None = None
+    files: frozenset[str] = frozenset({
+        "hologram.json", "grooves.npz", "stipples.npz", "model.ply", "run.json",
+        "hologram.gcode", "hologram.svg", "hologram.dxf", "pattern.pdf", "preview.png"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
         from specholo.pipeline import DesignConfig

@@ -62,6 +62,9 @@ class RidgedJob:
     own_pictures = "preview.png"
     design_step: tuple[float, float, float] | None = None
     preview_frames: int | None = None
+    files: frozenset[str] = frozenset({
+        "hologram.json", "plate.npz", "stipples.npz", "model.ply", "run.json", "heightmap.png",
+        "heightmap.tif", "heightmap.json", "hologram.stl", "hologram.gcode", "preview.png"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
         from specholo.pipeline import DesignConfig

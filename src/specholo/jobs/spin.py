@@ -43,6 +43,9 @@ class SpinJob:
     own_pictures = "preview.gif"
     design_step: tuple[float, float, float] | None = (5.0, 0.5, 90.0)
     preview_frames: int | None = 48
+    files: frozenset[str] = frozenset({
+        "hologram.json", "grooves.npz", "stipples.npz", "model.ply", "run.json",
+        "hologram.gcode", "relief.gcode", "hologram.svg", "verify.json", "preview.gif"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
         from specholo.scene.pose import POSE_OPTIONS, Pose

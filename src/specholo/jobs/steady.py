@@ -43,6 +43,9 @@ class SteadyJob:
     own_pictures = "preview.png"
     design_step: tuple[float, float, float] | None = (1.0, 0.05, 10.0)
     preview_frames: int | None = None
+    files: frozenset[str] = frozenset({
+        "hologram.json", "stipples.npz", "run.json", "hologram.gcode", "verify.json",
+        "preview.png"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
         from specholo.scene.pose import POSE_OPTIONS, Pose
