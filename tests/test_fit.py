@@ -140,3 +140,58 @@ def test_steady_and_spin_fit_put_the_cuts_on_the_plate(kind: str, tmp_path: Path
     assert main([kind, str(BUNNY), "--out", str(tmp_path / "x"), "--fit"]) == 1
     err = capsys.readouterr().err
     assert "give plate-width and plate-height" in err and _one_line(err)
+
+
+COMPOSITION = """
+mode = "walk"
+stipples = 60
+[host]
+kind = "{kind}"
+width = 90
+height = 70
+[light]
+elevation = 45
+[viewer]
+distance = 600
+range = 30
+[tool]
+radius = 0.05
+depth = 0.02
+[[scene]]
+model = "{model}"
+center_z = -25
+{scene}
+"""
+
+
+def test_a_composition_scene_fits_its_plane_host(tmp_path: Path, capsys) -> None:
+    from specholo.compose import fitted_scene_size, parse_composition, prepare_scenes
+    from specholo.scene.loading import load_model
+
+    toml = tmp_path / "fit.toml"
+    toml.write_text(COMPOSITION.format(kind="plane", model=BUNNY.as_posix(), scene="fit = true"))
+    assert main(["compose", str(toml), "--out", str(tmp_path / "fit"), "--frames", "0",
+                 "--step", "15"]) == 0
+    points = np.load(tmp_path / "fit" / "grooves.npz")["point"]
+    room = np.array([45.0 - 5.0, 35.0 - 5.0])
+    assert np.all(np.abs(points[:, :2]).max(axis=0) <= room)
+    # the largest: 15% larger, the grooves leave the border
+    comp = parse_composition(toml.read_text(), tmp_path)
+    scene = comp.scenes[0]
+    key = prepare_scenes(comp)[0].key
+    size = fitted_scene_size(comp, scene, key, load_model(BUNNY))
+    assert 5.0 < size < 60.0
+    big = tmp_path / "big.toml"
+    big.write_text(COMPOSITION.format(kind="plane", model=BUNNY.as_posix(),
+                                      scene=f"size = {1.15 * size}"))
+    assert main(["compose", str(big), "--out", str(tmp_path / "big"), "--frames", "0",
+                 "--step", "15"]) == 0
+    points = np.load(tmp_path / "big" / "grooves.npz")["point"]
+    assert np.any(np.abs(points[:, :2]).max(axis=0) > room)
+    # a scene fits a plane with a size only
+    capsys.readouterr()
+    toml.write_text(COMPOSITION.format(kind="cylinder", model=BUNNY.as_posix(),
+                                       scene="fit = true").replace("width = 90\n", ""))
+    assert main(["compose", str(toml), "--out", str(tmp_path / "no")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "fit scales the scene to a plate" in err[0]

@@ -46,7 +46,8 @@ _KEYS: dict[str, set[str]] = {
     "tool": {"radius", "depth"},
     "machining": {"feed", "plunge", "safe_z", "spindle", "axes"},
     "scene": {"model", "frames", "size", "center_z", "from", "to", "turn", "shift", "yaw",
-              "stipples", "up", "rotate_x", "rotate_y", "rotate_z", "offset_x", "offset_y"},
+              "stipples", "up", "rotate_x", "rotate_y", "rotate_z", "offset_x", "offset_y",
+              "fit"},
 }
 
 
@@ -161,6 +162,7 @@ class SceneSpec:
     stipples: int
     yaw: float = 0.0
     pose: Pose = field(default_factory=Pose)
+    fit: bool = False
 
 
 @dataclass
@@ -378,6 +380,13 @@ def parse_composition(text: str, base: Path) -> Composition:
         pose = Pose(up, (rx, ry, rz),
                     (_num(s, "offset_x", 0.0, where, -1e4, 1e4),
                      _num(s, "offset_y", 0.0, where, -1e4, 1e4)))
+        fit = s.get("fit", False)
+        if not isinstance(fit, bool):
+            raise SpecholoError(f"composition: {where}: fit must be true or false")
+        if fit and not (isinstance(host, Plane) and math.isfinite(host.width)
+                        and math.isfinite(host.height)):
+            raise SpecholoError(f"composition: {where}: fit scales the scene to a plate: give "
+                                "[host] kind = \"plane\" a width and a height")
         # A numbered sequence shares the scene's interval out evenly, in name order.
         edges = np.linspace(first, last, len(files) + 1)
         for i, f in enumerate(files):
@@ -389,7 +398,7 @@ def parse_composition(text: str, base: Path) -> Composition:
                 start=start_r, stop=stop_r, turn=turn,
                 shift=(shift[0] * 180.0 / math.pi, shift[1] * 180.0 / math.pi,
                        shift[2] * 180.0 / math.pi),
-                stipples=stipples, yaw=yaw, pose=pose))
+                stipples=stipples, yaw=yaw, pose=pose, fit=fit))
     settings = {"text": text, "base": str(base)}
     return Composition(motion, host, tool, machining, axes, band, seed, scenes, settings)
 
@@ -421,15 +430,60 @@ def prepare_scenes(comp: Composition) -> list[ComposedScene]:
     rng = np.random.default_rng(comp.seed)
     out = []
     for s in comp.scenes:
-        model = place(load_model(s.model), s.size, s.center_z, s.pose.rotation(), s.pose.offset)
-        st = stipple(model, rng, count=s.stipples)
+        loaded = load_model(s.model)
         origin = 0.5 * (max(s.start, comp.motion.driver()[0])
                         + min(s.stop, comp.motion.driver()[1]))
         # the scene turns about its own box centre, wherever it was moved
         pivot = (*s.pose.offset, s.center_z)
         key = SceneKey(s.start, s.stop, s.turn, s.shift, pivot, origin, s.yaw)
+        size = fitted_scene_size(comp, s, key, loaded) if s.fit else s.size
+        model = place(loaded, size, s.center_z, s.pose.rotation(), s.pose.offset)
+        st = stipple(model, rng, count=s.stipples)
         out.append(ComposedScene(key, model.mesh, st.points, st.normals))
     return out
+
+
+def fitted_scene_size(comp: Composition, spec: SceneSpec, key: SceneKey, model: Any) -> float:
+    """The largest size (mm) at which a scene's grooves lie on the composition's
+    plane host, 5 mm in from its edges, at every state it shows in.
+
+    The conforming grooves pass where the sightline from each state's eye to
+    the scene's point, as the motion moves and turns it, crosses the plate
+    (within the band); the scene's convex hull bounds those crossings.
+
+    Raises:
+        SpecholoError: the host cannot hold even a tiny scene there.
+    """
+    from specholo.fabrication.plate import PLATE_MARGIN
+    from specholo.scene.fit import hull_points, largest_size, moving_crossings_fit, round_size
+    from specholo.scene.placement import place
+
+    host = comp.host
+    if not isinstance(host, Plane):  # parse_composition refuses fit on any other host
+        raise SpecholoError("composition: fit needs a plane host")
+    unit = hull_points(place(model, 1.0, 0.0, spec.pose.rotation()).points)
+    centre = np.array(key.centre)
+    reach = 0.5 * comp.tool.width + np.array([0.0, comp.band])
+    room = np.array([host.width, host.height]) / 2.0 - PLATE_MARGIN - reach
+    families = comp.motion.families()
+
+    def targets(size: float) -> list[tuple[np.ndarray, np.ndarray]]:
+        sets = []
+        for fam in families:
+            inside = (fam.key >= spec.start) & (fam.key < spec.stop)
+            if inside.any():
+                world = key.pose(centre + size * unit, fam.key[inside])
+                points = np.einsum("mij,nmj->nmi", rot_z(-fam.plate_angle[inside]), world)
+                sets.append((points, fam.eye[inside]))
+        return sets
+
+    fits = moving_crossings_fit(targets, room)
+    if np.any(room <= 0) or not fits(0.1):
+        raise SpecholoError(
+            f"composition: a {host.width:g} x {host.height:g} mm plane cannot hold the scene "
+            f"{spec.model.name} at depth {spec.center_z:g} mm: its grooves would leave it at "
+            "any size; move it nearer the plane's middle and surface")
+    return round_size(largest_size(fits))
 
 
 def _shown(scene: ComposedScene, world_eyes: np.ndarray, keys: np.ndarray) -> np.ndarray:

@@ -141,6 +141,13 @@ def fit_size_from(points: np.ndarray, center: np.ndarray, plate: tuple[float, fl
             f"a {plate[0]:g} x {plate[1]:g} mm plate cannot hold the model at depth "
             f"{center[2]:g} mm, offset ({center[0]:g}, {center[1]:g}) mm: its grooves would "
             "leave the plate at any size; move it nearer the plate's middle and surface")
+    return largest_size(fits)
+
+
+def largest_size(fits: Callable[[float], bool]) -> float:
+    """The largest size (mm) ``fits`` holds, by bisection of its logarithm
+    between the smallest and the largest size tried (``fits`` of the smallest
+    is known to hold)."""
     if fits(_LARGEST):
         return _LARGEST
     lo, hi = math.log(_SMALLEST), math.log(_LARGEST)
@@ -148,6 +155,29 @@ def fit_size_from(points: np.ndarray, center: np.ndarray, plate: tuple[float, fl
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if fits(math.exp(mid)) else (lo, mid)
     return math.exp(lo)
+
+
+def moving_crossings_fit(targets: Callable[[float], list[tuple[np.ndarray, np.ndarray]]],
+                         room: np.ndarray) -> Callable[[float], bool]:
+    """Whether a moving scene's crossings lie within ``room`` at a size: for
+    each set of states, ``targets(size)`` gives the scene's points at each
+    state (n, m, 3) and the eye at each state (m, 3), both in the plate's frame."""
+
+    def fits(size: float) -> bool:
+        for points, eyes in targets(size):
+            ez = eyes[None, :, 2]
+            depth = ez - points[:, :, 2]
+            if np.any(depth <= 1e-6 * np.abs(ez)):
+                return False  # the scene reaches an eye
+            t = ez / depth
+            for axis in (0, 1):
+                e = eyes[None, :, axis]
+                cross = e + t * (points[:, :, axis] - e)
+                if float(np.abs(cross).max(initial=0.0)) > room[axis]:
+                    return False
+        return True
+
+    return fits
 
 
 def plate_room(plate: tuple[float, float], margin: float) -> np.ndarray:
