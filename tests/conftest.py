@@ -5,6 +5,7 @@ from __future__ import annotations
 import shutil
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -109,3 +110,24 @@ def small_design(tmp_path_factory: pytest.TempPathFactory) -> Path:
     bunny = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
     write_design(design(bunny, DesignConfig(stipples=150)), out)
     return out
+
+
+#: Headless Chromium for the pages' tests (SwiftShader: WebGL without a GPU).
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--headless=new", "--no-sandbox", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--no-first-run",
+    "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+]
+
+
+@pytest.fixture(scope="module")
+def browser() -> Any:
+    """A headless Chromium (skipped where it is not installed)."""
+    if not Path(CHROMIUM).exists():
+        pytest.skip("Chromium not installed at /usr/bin/chromium")
+    sync_api = pytest.importorskip("playwright.sync_api")
+    with sync_api.sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()

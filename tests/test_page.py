@@ -20,29 +20,12 @@ from specholo.simulation.glints import Engraved, find_glints
 
 ROOT = Path(__file__).resolve().parents[1]
 BUNNY = ROOT / "examples" / "bunny.obj"
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = [
-    "--headless=new", "--no-sandbox", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--no-first-run",
-    "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-]
 W, H = 800, 600
 HUD = 28  # the angle bar above the canvas, CSS px
 
 @pytest.fixture(scope="module")
 def folder(small_design: Path) -> Path:
     return small_design
-
-
-@pytest.fixture(scope="module")
-def browser() -> Any:
-    if not Path(CHROMIUM).exists():
-        pytest.skip("Chromium not installed at /usr/bin/chromium")
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield b
-        b.close()
 
 
 def spots(image: np.ndarray, threshold: float = 60.0) -> np.ndarray:

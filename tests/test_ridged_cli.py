@@ -156,7 +156,8 @@ def test_page_is_self_contained(designed: Path, tmp_path: Path, capsys):
 
 @pytest.mark.slow
 def test_page_shows_the_glints_of_the_nearest_view(designed: Path, tmp_path: Path, capsys):
-    from test_page import CHROMIUM, CHROMIUM_ARGS, HUD, H, W, spots
+    from conftest import CHROMIUM, CHROMIUM_ARGS
+    from test_page import HUD, H, W, spots
 
     if not Path(CHROMIUM).exists():
         pytest.skip("Chromium not installed at /usr/bin/chromium")

@@ -31,12 +31,6 @@ from specholo_cli.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 BUNNY = ROOT / "examples" / "bunny.obj"
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = [
-    "--headless=new", "--no-sandbox", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--no-first-run",
-    "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-]
 
 
 @pytest.fixture(scope="module")
@@ -247,17 +241,6 @@ def test_ctrl_c_ends_the_command_with_one_line(tmp_path: Path):
 
 
 # ---------------------------------------------------------------- in a browser
-@pytest.fixture(scope="module")
-def browser() -> Any:
-    if not Path(CHROMIUM).exists():
-        pytest.skip("Chromium not installed at /usr/bin/chromium")
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield b
-        b.close()
-
-
 def _slide(page: Any, key: str, value: float) -> None:
     page.evaluate("([k, v]) => { const e = document.getElementById(k); e.value = v; "
                   "e.dispatchEvent(new Event('input')); }", [key, value])

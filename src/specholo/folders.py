@@ -121,7 +121,23 @@ def check_out(out: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[st
     _check_inputs(out, target, inputs, _owner(replaces))
     if target.is_dir():
         _check_entries(out, target)
+    _check_parent(out, target)
     return target
+
+
+def _check_parent(out: str | os.PathLike[str], target: Path) -> None:
+    """Refuse an output folder whose nearest existing parent is not a writable
+    folder: the new folder is made, or staged, there."""
+    try:
+        above = target.parent
+        while not above.exists() and above != above.parent:
+            above = above.parent
+        if not above.is_dir():
+            raise SpecholoError(f"cannot create output folder {out}: {above} is not a folder")
+        if not os.access(above, os.W_OK | os.X_OK):
+            raise SpecholoError(f"cannot create output folder {out}: {above} is not writable")
+    except OSError as exc:
+        raise SpecholoError(f"bad output folder {os.fspath(out)!r}: {exc}") from exc
 
 
 @contextlib.contextmanager

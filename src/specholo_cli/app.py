@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import sys
 import tomllib
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -119,27 +118,6 @@ class _Folder(click.Path):
         if isinstance(value, str | bytes) and not value:
             raise SpecholoError("--out is empty: name a folder (. for the current one)")
         return super().convert(value, param, ctx)
-
-
-def _check_out(out: Path, inputs: Sequence[Path | None] = ()) -> None:
-    """Refuse an output folder that cannot be made or is not specholo's to
-    replace, or that holds an input where the job writes, before the (long)
-    design runs."""
-    from specholo.folders import check_out
-
-    check_out(out, inputs)
-    try:
-        above = out.resolve().parent
-        while not above.exists() and above != above.parent:
-            above = above.parent
-        if not above.is_dir():
-            raise SpecholoError(f"cannot create output folder {out}: {above} is not a folder")
-        if not os.access(above, os.W_OK | os.X_OK):
-            raise SpecholoError(f"cannot create output folder {out}: {above} is not writable")
-    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
-        if isinstance(exc, SpecholoError):
-            raise
-        raise SpecholoError(f"bad output folder {str(out)!r}: {exc}") from exc
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -322,10 +300,16 @@ def _pose_options(fn: Any) -> Any:
 _POSE = ("up", "rotate-x", "rotate-y", "rotate-z", "offset-x", "offset-y")
 
 
-def _pose(up: str | None, rotate_x: float | None, rotate_y: float | None,
-          rotate_z: float | None, offset_x: float | None, offset_y: float | None) -> Any:
-    """The :class:`~specholo.scene.pose.Pose` those options ask for."""
-    from specholo.scene.pose import Pose
+#: ``--fit``'s help, the same for every job that fits a model to a plate.
+FIT_HELP = ("Scale the model (instead of --size) to the largest whose grooves lie on the "
+            "plate given by --plate-width and --plate-height, 5 mm in from its edges.")
 
-    return Pose(up or "y", (rotate_x or 0.0, rotate_y or 0.0, rotate_z or 0.0),
-                (offset_x or 0.0, offset_y or 0.0))
+
+def _plate_options(fn: Any) -> Any:
+    """--plate-width, --plate-height (as for ``design``) and --fit, for the jobs
+    whose options are not ``design``'s."""
+    fn = click.option("--fit", is_flag=True, help=FIT_HELP)(fn)
+    for name, kind, text in reversed([row for row in _DESIGN_OPTIONS
+                                      if row[0] in ("plate-width", "plate-height")]):
+        fn = click.option(f"--{name}", type=kind, default=None, help=text)(fn)
+    return fn

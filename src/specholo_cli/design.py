@@ -8,7 +8,7 @@ from typing import Any
 import click
 
 from specholo_cli.app import (
-    _check_out,
+    FIT_HELP,
     _command_line,
     _design_options,
     _Folder,
@@ -32,10 +32,7 @@ from specholo_cli.app import (
               help="TOML file with any of these options (same names).")
 @click.option("--strict", is_flag=True,
               help="Refuse a design whose tool cannot serve every view.")
-@click.option("--fit", is_flag=True,
-              help="Scale the model (instead of --size) to the largest whose grooves lie "
-                   "on the plate given by --plate-width and --plate-height, 5 mm in from "
-                   "its edges.")
+@click.option("--fit", is_flag=True, help=FIT_HELP)
 @click.option("--no-order", is_flag=True,
               help="Keep the paths in design order (default: ordered to cut air travel).")
 @click.option("--formats", default=None,
@@ -47,11 +44,14 @@ from specholo_cli.app import (
 def design(model: Path, out: Path, method: str | None, config_path: Path | None,
            strict: bool, fit: bool, no_order: bool, formats: str | None, **options: Any) -> None:
     """Design a hologram of MODEL (OBJ, STL, PLY, OFF, GLB; PLY/XYZ/CSV point clouds)."""
+    from specholo.folders import check_out
     from specholo.jobs.base import WriteOptions, run
     from specholo.jobs.flat import FlatJob
     from specholo.jobs.ridged import RidgedJob
 
-    _check_out(out, [model, config_path])
+    # before any input is read: a config file that is the folder's own output is
+    # refused as such, not read as bad TOML
+    check_out(out, [model, config_path])
     values = _read_config(config_path)
     if method is not None:
         options["method"] = method

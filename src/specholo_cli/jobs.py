@@ -9,8 +9,8 @@ import click
 
 from specholo.jobs.base import WriteOptions
 from specholo_cli.app import (
-    _check_out,
     _Folder,
+    _plate_options,
     _pose_options,
     _print_summary,
     _print_verification,
@@ -69,14 +69,7 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
               help="Step between verified plate angles, degrees.")
 @click.option("--frames", type=int, default=48, show_default=True,
               help="Frames of preview.gif over one turn (0 for none).")
-@click.option("--plate-width", type=float, default=None,
-              help="Plate width, mm [the grooves' extent plus 5 mm each side].")
-@click.option("--plate-height", type=float, default=None,
-              help="Plate height, mm [the grooves' extent plus 5 mm each side].")
-@click.option("--fit", is_flag=True,
-              help="Scale the model (instead of --size) to the largest whose grooves lie "
-                   "on the plate given by --plate-width and --plate-height, 5 mm in from "
-                   "its edges.")
+@_plate_options
 @_pose_options
 def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns: int | None,
          stipples: int, seed: int,
@@ -128,14 +121,7 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
 @click.option("--depth", type=float, default=0.02, show_default=True, help="Cut depth, mm.")
 @click.option("--step", type=float, default=1.0, show_default=True,
               help="Step between verified light elevations, degrees.")
-@click.option("--plate-width", type=float, default=None,
-              help="Plate width, mm [the grooves' extent plus 5 mm each side].")
-@click.option("--plate-height", type=float, default=None,
-              help="Plate height, mm [the grooves' extent plus 5 mm each side].")
-@click.option("--fit", is_flag=True,
-              help="Scale the model (instead of --size) to the largest whose grooves lie "
-                   "on the plate given by --plate-width and --plate-height, 5 mm in from "
-                   "its edges.")
+@_plate_options
 @_pose_options
 def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, seed: int,
            view_distance: float, ipd: float, light_elevation: float, light_range: float,
@@ -158,9 +144,10 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
 def _run(job: Any, inputs: list[Path], values: dict[str, Any], out: Path,
          options: WriteOptions) -> None:
     """Run a job with a status line, then print what it says."""
+    from specholo.folders import check_out
     from specholo.jobs.base import run
 
-    _check_out(out, inputs)
+    check_out(out, inputs)  # before any input is read (a composition's TOML)
     with _status("starting...") as status:
         summary = run(job, inputs, values, out, options, status.update)
     if summary.table is not None:

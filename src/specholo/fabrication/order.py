@@ -331,6 +331,22 @@ def _box_dist2(box: np.ndarray, node: int, x: float, y: float) -> float:
     return dx * dx + dy * dy
 
 
+@nb.njit(cache=True, inline="always")
+def _push_children(box: np.ndarray, node: int, x: float, y: float, stack: np.ndarray,
+                   top: int) -> int:
+    """Push a node's two children on a search stack, the farther first so the
+    nearer is searched first; returns the new top."""
+    left = 2 * node + 1
+    right = left + 1
+    if _box_dist2(box, left, x, y) <= _box_dist2(box, right, x, y):
+        stack[top] = right
+        stack[top + 1] = left
+    else:
+        stack[top] = left
+        stack[top + 1] = right
+    return top + 2
+
+
 @nb.njit(cache=True)
 def _nearest_live(x: float, y: float, xs: np.ndarray, ys: np.ndarray, alive: np.ndarray,
                   lo: np.ndarray, hi: np.ndarray, box: np.ndarray, count: np.ndarray,
@@ -355,16 +371,7 @@ def _nearest_live(x: float, y: float, xs: np.ndarray, ys: np.ndarray, alive: np.
                         best = d
                         best_p = p
             continue
-        left = 2 * node + 1
-        right = left + 1
-        # push the farther child first so the nearer one is searched first
-        if _box_dist2(box, left, x, y) <= _box_dist2(box, right, x, y):
-            stack[top] = right
-            stack[top + 1] = left
-        else:
-            stack[top] = left
-            stack[top + 1] = right
-        top += 2
+        top = _push_children(box, node, x, y, stack, top)
     return best_p
 
 
@@ -418,15 +425,7 @@ def _knn_of(q0: int, q1: int, perm: np.ndarray, xs: np.ndarray, ys: np.ndarray,
                     best_d[j] = d
                     best_p[j] = p
                 continue
-            left = 2 * node + 1
-            right = left + 1
-            if _box_dist2(box, left, x, y) <= _box_dist2(box, right, x, y):
-                stack[top] = right
-                stack[top + 1] = left
-            else:
-                stack[top] = left
-                stack[top + 1] = right
-            top += 2
+            top = _push_children(box, node, x, y, stack, top)
         row = perm[q]
         for j in range(k):
             out[row, j] = perm[best_p[j]] + shift

@@ -48,11 +48,10 @@ class SpinJob:
         "hologram.gcode", "relief.gcode", "hologram.svg", "verify.json", "preview.gif"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
-        from specholo.scene.pose import POSE_OPTIONS, Pose
+        from specholo.scene.pose import split_pose
         from specholo.spin import SpinConfig
 
-        given = {k: v for k, v in values.items() if v is not None}
-        pose = Pose.from_options(**{k: given.pop(k) for k in POSE_OPTIONS if k in given})
+        pose, given = split_pose(values)
         return SpinConfig.from_options(models=len(inputs), pose=pose, **given)
 
     def check_options(self, config: Any, options: WriteOptions) -> None:

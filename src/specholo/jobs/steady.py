@@ -48,11 +48,10 @@ class SteadyJob:
         "preview.png"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
-        from specholo.scene.pose import POSE_OPTIONS, Pose
+        from specholo.scene.pose import split_pose
         from specholo.steady import SteadyConfig
 
-        given = {k: v for k, v in values.items() if v is not None}
-        pose = Pose.from_options(**{k: given.pop(k) for k in POSE_OPTIONS if k in given})
+        pose, given = split_pose(values)
         return SteadyConfig.from_options(pose=pose, **given)
 
     def check_options(self, config: Any, options: WriteOptions) -> None:

@@ -9,6 +9,7 @@ with the offset on the plate, for :func:`specholo.scene.placement.place`.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -111,3 +112,10 @@ class Pose:
         """(3, 3) model-to-plate rotation (:func:`orientation`; degrees to radians here)."""
         rx, ry, rz = (math.radians(a) for a in self.rotate_deg)
         return orientation(self.up, (rx, ry, rz))
+
+
+def split_pose(values: Mapping[str, Any]) -> tuple[Pose, dict[str, Any]]:
+    """The pose that settings by the command-line names ask for (:data:`POSE_OPTIONS`),
+    and the other settings; settings given as None are left out (their defaults)."""
+    given = {k: v for k, v in values.items() if v is not None}
+    return Pose.from_options(**{k: given.pop(k) for k in POSE_OPTIONS if k in given}), given
