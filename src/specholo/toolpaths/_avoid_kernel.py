@@ -29,6 +29,7 @@ import math
 import numba as nb
 import numpy as np
 
+from specholo._threads import chunked
 from specholo.toolpaths import _stripe_kernel as sk
 
 #: Hash table sizes of the spatial index, as powers of two: about two slots a
@@ -43,6 +44,8 @@ _FORBIDDEN = 1e9
 #: Cost of a sample at the band's edge over one on the sightline, in samples of
 #: groove lost to a crossing.
 _CENTRING = 0.005
+#: Fewest plan samples a thread takes (a sample's costs take about a microsecond).
+_GRAIN = 512
 
 
 @nb.njit(cache=True)
@@ -164,30 +167,32 @@ def _compacted(head: np.ndarray, pts: np.ndarray, n: int, h: float, side: int,
     """The n points in ``room`` rows, each chain's points side by side in memory.
 
     Points are stored as placed, so a chain (one cell's points, placed by many
-    grooves at different times) would be read from all over memory: sorted
-    by chain, a query reads a few runs of neighbouring rows. ``head`` is
-    relinked to the new rows.
+    grooves at different times) would be read from all over memory: copied
+    chain by chain, a query reads a few runs of neighbouring rows. ``head`` is
+    relinked to the new rows. The work is in the points, not the table (a
+    pass over a table of 2^25 slots, each time the points double, was most of
+    a large plan's time); a query's answer does not depend on the order.
     """
     mask = head.size - 1
-    start = np.zeros(head.size + 1, dtype=np.int64)
-    slot = np.empty(n, dtype=np.int64)
+    out = np.empty((room, 4))
+    k = 0
     for i in range(n):
         ix, iy = _cell(pts[i, 0], pts[i, 1], h)
-        slot[i] = _slot(ix, iy, mask, side)
-        start[slot[i] + 1] += 1
-    for s in range(head.size):
-        start[s + 1] += start[s]
-    out = np.empty((room, 4))
-    for i in range(n):
-        k = start[slot[i]]
-        start[slot[i]] += 1
-        out[k, 0], out[k, 1], out[k, 2] = pts[i, 0], pts[i, 1], pts[i, 2]
-    head[:] = -1
-    for k in range(n):
-        ix, iy = _cell(out[k, 0], out[k, 1], h)
         s = _slot(ix, iy, mask, side)
-        out[k, 3] = head[s]
-        head[s] = k
+        c = head[s]
+        if c < -1:  # its chain is moved already (its head says where, as -2 - row)
+            continue
+        head[s] = -2 - k
+        while c >= 0:
+            out[k, 0], out[k, 1], out[k, 2], out[k, 3] = pts[c, 0], pts[c, 1], pts[c, 2], k + 1
+            k += 1
+            c = int(pts[c, 3])
+        out[k - 1, 3] = -1.0
+    for i in range(k):
+        ix, iy = _cell(out[i, 0], out[i, 1], h)
+        s = _slot(ix, iy, mask, side)
+        if head[s] < -1:
+            head[s] = -2 - head[s]
     return out
 
 
@@ -205,6 +210,213 @@ def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: 
 
 
 @nb.njit(cache=True)
+def _walk(r: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray,
+          w: float, leaves: int, dx_target: float, leaf: np.ndarray
+          ) -> tuple[int, np.ndarray, np.ndarray]:
+    """Run r's walked leaf into ``leaf`` (see :func:`_leaf`) and, at each of its
+    samples, the lowest and highest leaf inside the band, in spacings from the
+    walk's first leaf.
+
+    Returns:
+        the number of samples m (-1 when ``leaf`` is too short), lo (m,), hi (m,).
+    """
+    params = sk._unpacked(packed)
+    w_eff = 0.98 * w  # the walked leaf strays ~(dy / D)^2 from the planned one
+    # A hand-over (the old leaf kept to the new one's first sample) overshoots
+    # the band by one u step at most: within w.
+    du_target = w - w_eff
+    delta = 2.0 * w / leaves
+    width = leaves + 3
+    m = _leaf(start[r], end[r], pts[r, 0], pts[r, 1], pts[r, 2], params, dx_target, du_target,
+              delta, w, leaf)
+    lo = np.empty(max(m, 0), dtype=np.int64)
+    hi = np.empty(max(m, 0), dtype=np.int64)
+    for j in range(m):
+        step = delta * leaf[j, 5]
+        base = int(leaf[j, 9])
+        lo[j] = base + int(math.ceil((-w_eff - leaf[j, 3]) / step))
+        hi[j] = base + int(math.floor((w_eff - leaf[j, 3]) / step))
+        if hi[j] < lo[j]:  # a band narrower than the leaf spacing: the nearest leaf
+            lo[j] = hi[j] = base + int(round(-leaf[j, 3] / step))
+        hi[j] = min(hi[j], lo[j] + width - 1)
+    return m, lo, hi
+
+
+@nb.njit(cache=True, nogil=True)
+def _costs(j0: int, j1: int, leaf: np.ndarray, lo: np.ndarray, hi: np.ndarray, w: float,
+           delta: float, r_tip: float, margin: float, head_c: np.ndarray, cen: np.ndarray,
+           head_g: np.ndarray, gli: np.ndarray, h: float, side: int, r_max_g: float,
+           here: np.ndarray) -> None:
+    """What each leaf costs at samples [j0, j1) of a run, into ``here[j, L - lo[j]]``.
+
+    The index of the placed grooves does not change while a run is chosen, so
+    every sample's costs are independent of the others' (and of the choices):
+    they are found on threads (:func:`specholo._threads.chunked`), then chosen
+    among in one pass (:func:`_choose`).
+    """
+    for j in range(j0, j1):
+        x0, y0, dxdy = leaf[j, 1], leaf[j, 2], leaf[j, 4]
+        nx, ny = leaf[j, 6], leaf[j, 7]
+        rg = r_tip * math.sqrt(nx * nx + ny * ny)
+        for L in range(lo[j], hi[j] + 1):
+            c = (L - leaf[j, 9]) * delta
+            cx, cy = x0 + dxdy * c, y0 + c
+            # Where nothing is in the way, the leaf nearer the sightline: a
+            # smaller vertical error (a run that fits the band is centred).
+            u = (leaf[j, 3] + c * leaf[j, 5]) / w
+            cost = _CENTRING * u * u
+            # Its own glint inside a placed groove's sweep, or its sweep over
+            # a placed glint: a view lost either way.
+            if _near(cx - r_tip * nx, cy - r_tip * ny, rg + margin, head_c, cen, h, side, 0.0):
+                cost += 1.0
+            if _near(cx, cy, margin, head_g, gli, h, side, r_max_g):
+                cost += 1.0
+            here[j, L - lo[j]] = cost
+
+
+@nb.njit(cache=True)
+def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: int,
+            lo: np.ndarray, hi: np.ndarray, here: np.ndarray, back: np.ndarray, w: float,
+            leaves: int, spacing: float, dx_target: float, jump_cost: float,
+            min_length: float, head_c: np.ndarray, cen: np.ndarray, head_g: np.ndarray,
+            gli: np.ndarray, n_c: int, h: float, side: int, r_max_g: float
+            ) -> tuple[np.ndarray, np.ndarray, int, float, np.ndarray, np.ndarray, np.ndarray,
+                       np.ndarray]:
+    """Run r's stripes: the cheapest path through its leaves' costs ``here``
+    (a dynamic programme over the samples), then stored in the index.
+
+    Returns:
+        the index's point arrays (grown when full), its point count and largest
+        glint radius, and each chosen stripe's theta start, theta end, u0 at
+        the start and x span.
+    """
+    params = sk._unpacked(packed)
+    r_tip = params[6]
+    px, py, pz = pts[r, 0], pts[r, 1], pts[r, 2]
+    delta = 2.0 * w / leaves
+    width = leaves + 3
+    cost = np.full(width, np.inf)
+    prev_cost = np.full(width, np.inf)
+    pre_v, suf_v = np.empty(width), np.empty(width)
+    pre_a = np.empty(width, dtype=np.int64)
+    suf_a = np.empty(width, dtype=np.int64)
+    p_lo, n_p, d_min = 0, 0, 1
+    back[:m] = -(1 << 40)
+    for j in range(m):
+        gap_scale = leaf[j, 5] * leaf[j, 8]
+        # Costs count groove length, in plan steps: samples crowd where u
+        # drifts fast, and a crossing costs the length it cuts away.
+        j0, j1 = max(j - 1, 0), min(j + 1, m - 1)
+        weight = abs(leaf[j1, 1] - leaf[j0, 1]) / max(j1 - j0, 1) / dx_target
+        for s in range(width):
+            cost[s] = np.inf
+        if j > 0:
+            # A jump of d leaves may be made from the first d whose gap reaches
+            # the spacing (gaps grow with d): the best jump into L comes from
+            # the leaves at least that far below or above, kept as running
+            # minima, the lower leaf on ties as a scan in order keeps it.
+            p_lo, n_p = lo[j - 1], hi[j - 1] - lo[j - 1] + 1
+            d_min = 1
+            while d_min <= width and d_min * delta * gap_scale < spacing:
+                d_min += 1
+            for t in range(n_p):
+                v = prev_cost[t] + jump_cost
+                if t == 0 or v < pre_v[t - 1]:
+                    pre_v[t], pre_a[t] = v, t
+                else:
+                    pre_v[t], pre_a[t] = pre_v[t - 1], pre_a[t - 1]
+            for t in range(n_p - 1, -1, -1):
+                v = prev_cost[t] + jump_cost
+                if t == n_p - 1 or v <= suf_v[t + 1]:
+                    suf_v[t], suf_a[t] = v, t
+                else:
+                    suf_v[t], suf_a[t] = suf_v[t + 1], suf_a[t + 1]
+        for L in range(lo[j], hi[j] + 1):
+            best, arg = np.inf, -(1 << 40)
+            if j == 0:
+                best, arg = 0.0, L
+            else:
+                t = L - d_min - p_lo  # the highest leaf far enough below
+                if t >= 0:
+                    t = min(t, n_p - 1)
+                    best, arg = pre_v[t], p_lo + pre_a[t]
+                t = L - p_lo
+                if 0 <= t < n_p and prev_cost[t] < best:
+                    best, arg = prev_cost[t], L
+                t = max(L + d_min - p_lo, 0)  # the lowest leaf far enough above
+                if t < n_p and suf_v[t] < best:
+                    best, arg = suf_v[t], p_lo + suf_a[t]
+                if best >= _FORBIDDEN:  # nowhere to come from but a forbidden jump
+                    best, arg = np.inf, -(1 << 40)
+                    for Lp in range(lo[j - 1], hi[j - 1] + 1):
+                        pc = prev_cost[Lp - lo[j - 1]]
+                        if Lp != L:
+                            gap = abs(L - Lp) * delta * gap_scale
+                            pc += jump_cost if gap >= spacing else _FORBIDDEN
+                        if pc < best:
+                            best, arg = pc, Lp
+            cost[L - lo[j]] = best + weight * here[j, L - lo[j]]
+            back[j, L - lo[j]] = arg
+        for s in range(width):
+            prev_cost[s] = cost[s]
+    # The cheapest last leaf, then back along the choices.
+    L = lo[m - 1]
+    for Lq in range(lo[m - 1], hi[m - 1] + 1):
+        if prev_cost[Lq - lo[m - 1]] < prev_cost[L - lo[m - 1]]:
+            L = Lq
+    chosen = np.empty(m, dtype=np.int64)
+    for j in range(m - 1, -1, -1):
+        chosen[j] = L
+        L = back[j, L - lo[j]]
+    # A sliver of a stripe would be dropped as too short to cut (a gap in
+    # the views): its samples stay on the leaf before it, a step or two past
+    # the band at most (each sample moves u by under 2% of w).
+    a = 0
+    for j in range(1, m + 1):
+        if j < m and chosen[j] == chosen[a]:
+            continue
+        b = min(j, m - 1)
+        sliver = abs(leaf[b, 1] - leaf[a, 1]) < min_length
+        if sliver and a > 0:
+            for q in range(a, j):
+                chosen[q] = chosen[a - 1]
+        elif sliver and j < m:
+            for q in range(a, j):
+                chosen[q] = chosen[j]
+        a = j
+    # Stripes: a jump at j ends the old leaf at j too (no azimuth left unserved).
+    o_a, o_b, o_u, o_x = [0.0], [0.0], [0.0], [0.0]  # (typed as floats, then emptied)
+    o_a.pop()
+    o_b.pop()
+    o_u.pop()
+    o_x.pop()
+    a = 0
+    for j in range(1, m + 1):
+        if j < m and chosen[j] == chosen[a]:
+            continue
+        b = min(j, m - 1)
+        ya = leaf[a, 2] + (chosen[a] - leaf[a, 9]) * delta
+        th_a = leaf[a, 0]
+        u0 = ya - sk.target(th_a, 0.0, px, py, pz, params)[1]
+        o_a.append(th_a)
+        o_b.append(leaf[b, 0])
+        o_u.append(u0)
+        o_x.append(abs(leaf[b, 1] - leaf[a, 1]))
+        for q in range(a, b + 1):
+            c = (chosen[a] - leaf[q, 9]) * delta
+            x0, y0, dxdy = leaf[q, 1], leaf[q, 2], leaf[q, 4]
+            nx, ny = leaf[q, 6], leaf[q, 7]
+            cx, cy = x0 + dxdy * c, y0 + c
+            rg = r_tip * math.sqrt(nx * nx + ny * ny)
+            r_max_g = max(r_max_g, rg)
+            cen = _insert(cx, cy, 0.0, head_c, cen, n_c, h, side)
+            gli = _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h, side)
+            n_c += 1
+        a = j
+    return (cen, gli, n_c, r_max_g, np.array(o_a), np.array(o_b), np.array(o_u),
+            np.array(o_x))
+
+
 def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray, w: float,
           spacing: float, leaves: int, dx_target: float, jump_cost: float, margin: float,
           sample_cap: np.ndarray, min_length: float, bits: int, max_offset: float
@@ -235,8 +447,7 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
         chosen stripe, in placement order; and the index of a run whose leaf
         outgrew its cap (-1 if none).
     """
-    params = sk._unpacked(packed)
-    r_tip = params[6]
+    r_tip = float(packed[6])  # (sk.Params: the tip radius)
     # Cells as wide as the farthest reach a groove's walls offer: a query
     # searches 3 x 3 of them, little more than its reach.
     h = min(max_offset, r_tip) + 2.0 * margin
@@ -247,134 +458,38 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
     cen = np.empty((_FIRST_ROOM, 4))
     gli = np.empty((_FIRST_ROOM, 4))
     n_c = 0
-    # One run's leaf and choices at a time, in room kept from run to run.
-    leaf_room = np.empty((0, 10))
-    back_room = np.empty((0, leaves + 3), dtype=np.int64)
-    w_eff = 0.98 * w  # the walked leaf strays ~(dy / D)^2 from the planned one
-    # A hand-over (the old leaf kept to the new one's first sample) overshoots
-    # the band by one u step at most: within w.
-    du_target = w - w_eff
     delta = 2.0 * w / leaves
     width = leaves + 3
-    o_run, o_a, o_b, o_u, o_x = [0], [0.0], [0.0], [0.0], [0.0]
-    o_run.pop()
-    o_a.pop()
-    o_b.pop()
-    o_u.pop()
-    o_x.pop()
+    # One run's leaf, costs and choices at a time, in room kept from run to run.
+    leaf_room = np.empty((0, 10))
+    here_room = np.empty((0, width))
+    back_room = np.empty((0, width), dtype=np.int64)
+    out: list[tuple[np.ndarray, ...]] = []
+
+    def placed(bad: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                  int]:
+        if not out:
+            return (np.zeros(0, dtype=np.int64), *(np.zeros(0) for _ in range(4)), bad)
+        run = np.concatenate([np.full(o[0].size, i, dtype=np.int64) for i, o in out])
+        cols = [np.concatenate([o[k] for _, o in out]) for k in range(4)]
+        return run, cols[0], cols[1], cols[2], cols[3], bad
+
     for r in range(start.size):
-        px, py, pz = pts[r, 0], pts[r, 1], pts[r, 2]
-        if leaf_room.shape[0] < sample_cap[r]:
-            leaf_room = np.empty((max(sample_cap[r], 2 * leaf_room.shape[0]), 10))
-        leaf = leaf_room[:sample_cap[r]]
-        m = _leaf(start[r], end[r], px, py, pz, params, dx_target, du_target, delta, w, leaf)
+        cap = int(sample_cap[r])
+        if leaf_room.shape[0] < cap:
+            size = max(cap, 2 * leaf_room.shape[0])
+            leaf_room = np.empty((size, 10))
+            here_room = np.empty((size, width))
+            back_room = np.empty((size, width), dtype=np.int64)
+        leaf = leaf_room[:cap]
+        m, lo, hi = _walk(r, start, end, pts, packed, w, leaves, dx_target, leaf)
         if m < 0:
-            return (np.array(o_run, dtype=np.int64), np.array(o_a), np.array(o_b),
-                    np.array(o_u), np.array(o_x), r)
-        lo = np.empty(m, dtype=np.int64)
-        hi = np.empty(m, dtype=np.int64)
-        for j in range(m):
-            step = delta * leaf[j, 5]
-            base = int(leaf[j, 9])
-            lo[j] = base + int(math.ceil((-w_eff - leaf[j, 3]) / step))
-            hi[j] = base + int(math.floor((w_eff - leaf[j, 3]) / step))
-            if hi[j] < lo[j]:  # a band narrower than the leaf spacing: the nearest leaf
-                lo[j] = hi[j] = base + int(round(-leaf[j, 3] / step))
-            hi[j] = min(hi[j], lo[j] + width - 1)
-        cost = np.full(width, np.inf)
-        prev_cost = np.full(width, np.inf)
-        if back_room.shape[0] < m:
-            back_room = np.empty((max(m, 2 * back_room.shape[0]), width), dtype=np.int64)
-        back = back_room[:m]
-        back[:] = -(1 << 40)
-        for j in range(m):
-            x0, y0, dxdy = leaf[j, 1], leaf[j, 2], leaf[j, 4]
-            nx, ny = leaf[j, 6], leaf[j, 7]
-            rg = r_tip * math.sqrt(nx * nx + ny * ny)
-            gap_scale = leaf[j, 5] * leaf[j, 8]
-            # Costs count groove length, in plan steps: samples crowd where u
-            # drifts fast, and a crossing costs the length it cuts away.
-            j0, j1 = max(j - 1, 0), min(j + 1, m - 1)
-            weight = abs(leaf[j1, 1] - leaf[j0, 1]) / max(j1 - j0, 1) / dx_target
-            for s in range(width):
-                cost[s] = np.inf
-            for L in range(lo[j], hi[j] + 1):
-                c = (L - leaf[j, 9]) * delta
-                cx, cy = x0 + dxdy * c, y0 + c
-                # Where nothing is in the way, the leaf nearer the sightline: a
-                # smaller vertical error (a run that fits the band is centred).
-                u = (leaf[j, 3] + c * leaf[j, 5]) / w
-                here = _CENTRING * u * u
-                # Its own glint inside a placed groove's sweep, or its sweep over
-                # a placed glint: a view lost either way.
-                if _near(cx - r_tip * nx, cy - r_tip * ny, rg + margin, head_c, cen, h, side, 0.0):
-                    here += 1.0
-                if _near(cx, cy, margin, head_g, gli, h, side, r_max_g):
-                    here += 1.0
-                best, arg = np.inf, -(1 << 40)
-                if j == 0:
-                    best, arg = 0.0, L
-                else:
-                    for Lp in range(lo[j - 1], hi[j - 1] + 1):
-                        pc = prev_cost[Lp - lo[j - 1]]
-                        if Lp != L:
-                            gap = abs(L - Lp) * delta * gap_scale
-                            pc += jump_cost if gap >= spacing else _FORBIDDEN
-                        if pc < best:
-                            best, arg = pc, Lp
-                cost[L - lo[j]] = best + weight * here
-                back[j, L - lo[j]] = arg
-            for s in range(width):
-                prev_cost[s] = cost[s]
-        # The cheapest last leaf, then back along the choices.
-        L = lo[m - 1]
-        for Lq in range(lo[m - 1], hi[m - 1] + 1):
-            if prev_cost[Lq - lo[m - 1]] < prev_cost[L - lo[m - 1]]:
-                L = Lq
-        chosen = np.empty(m, dtype=np.int64)
-        for j in range(m - 1, -1, -1):
-            chosen[j] = L
-            L = back[j, L - lo[j]]
-        # A sliver of a stripe would be dropped as too short to cut (a gap in
-        # the views): its samples stay on the leaf before it, a step or two past
-        # the band at most (each sample moves u by under 2% of w).
-        a = 0
-        for j in range(1, m + 1):
-            if j < m and chosen[j] == chosen[a]:
-                continue
-            b = min(j, m - 1)
-            sliver = abs(leaf[b, 1] - leaf[a, 1]) < min_length
-            if sliver and a > 0:
-                for q in range(a, j):
-                    chosen[q] = chosen[a - 1]
-            elif sliver and j < m:
-                for q in range(a, j):
-                    chosen[q] = chosen[j]
-            a = j
-        # Stripes: a jump at j ends the old leaf at j too (no azimuth left unserved).
-        a = 0
-        for j in range(1, m + 1):
-            if j < m and chosen[j] == chosen[a]:
-                continue
-            b = min(j, m - 1)
-            ya = leaf[a, 2] + (chosen[a] - leaf[a, 9]) * delta
-            th_a = leaf[a, 0]
-            u0 = ya - sk.target(th_a, 0.0, px, py, pz, params)[1]
-            o_run.append(r)
-            o_a.append(th_a)
-            o_b.append(leaf[b, 0])
-            o_u.append(u0)
-            o_x.append(abs(leaf[b, 1] - leaf[a, 1]))
-            for q in range(a, b + 1):
-                c = (chosen[a] - leaf[q, 9]) * delta
-                x0, y0, dxdy = leaf[q, 1], leaf[q, 2], leaf[q, 4]
-                nx, ny = leaf[q, 6], leaf[q, 7]
-                cx, cy = x0 + dxdy * c, y0 + c
-                rg = r_tip * math.sqrt(nx * nx + ny * ny)
-                r_max_g = max(r_max_g, rg)
-                cen = _insert(cx, cy, 0.0, head_c, cen, n_c, h, side)
-                gli = _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h, side)
-                n_c += 1
-            a = j
-    return (np.array(o_run, dtype=np.int64), np.array(o_a), np.array(o_b), np.array(o_u),
-            np.array(o_x), -1)
+            return placed(r)
+        here = here_room[:m]
+        chunked(_costs, 0, m, leaf, lo, hi, w, delta, r_tip, margin, head_c, cen, head_g, gli,
+                h, side, r_max_g, here, grain=_GRAIN)
+        cen, gli, n_c, r_max_g, a, b, u0, x = _choose(
+            r, pts, packed, leaf, m, lo, hi, here, back_room, w, leaves, spacing, dx_target,
+            jump_cost, min_length, head_c, cen, head_g, gli, n_c, h, side, r_max_g)
+        out.append((r, (a, b, u0, x)))
+    return placed(-1)
