@@ -34,7 +34,7 @@ _MAX_MANTISSA = 10**14  # so a mantissa of 15 digits stays below 2^53
 _NOT_TAKEN, _NOTHING = -1, -2
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _space(c: int) -> bool:
     """Space, tab, line feed, vertical tab, form feed or carriage return."""
     return c == 32 or 9 <= c <= 13

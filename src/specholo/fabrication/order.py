@@ -324,14 +324,14 @@ def _build_tree(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
     return perm, xs, ys, lo, hi, box, count, leaf_at, first_leaf
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _box_dist2(box: np.ndarray, node: int, x: float, y: float) -> float:
     dx = max(box[node, 0] - x, 0.0, x - box[node, 2])
     dy = max(box[node, 1] - y, 0.0, y - box[node, 3])
     return dx * dx + dy * dy
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _push_children(box: np.ndarray, node: int, x: float, y: float, stack: np.ndarray,
                    top: int) -> int:
     """Push a node's two children on a search stack, the farther first so the
@@ -623,7 +623,7 @@ def _improve(pts: np.ndarray, cand: np.ndarray, tour: np.ndarray, flip: np.ndarr
     for p in range(n):
         queue[p] = tour[p]
     head = 0
-    tail = 0
+    tail = 0 * n  # (an int64, not the literal 0, which _push would compile once more for)
     count = n
     moves = 0
     touched = np.empty(6, dtype=np.int64)
@@ -684,7 +684,7 @@ def _improve(pts: np.ndarray, cand: np.ndarray, tour: np.ndarray, flip: np.ndarr
                     break
 
         # Or-opt: move the run of 1-3 nodes starting at v next to a near end
-        size = 1
+        size = 1 + 0 * n  # (an int64: the literal 1 would compile _move_run once more)
         while not improved and size <= 3 and n >= size + 3:
             p = pos[v]
             last = tour[(p + size - 1) % n]

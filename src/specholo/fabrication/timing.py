@@ -96,7 +96,7 @@ def trapezoid_time(length: np.ndarray, cap: np.ndarray | float, accel: float,
     return (2.0 * peak - entry - leave) / accel + cruise
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _trapezoid(length: float, cap: float, accel: float, entry: float, leave: float) -> float:
     """:func:`trapezoid_time` of one move."""
     u2, w2 = entry * entry, leave * leave
@@ -107,7 +107,7 @@ def _trapezoid(length: float, cap: float, accel: float, entry: float, leave: flo
     return (2.0 * peak - entry - leave) / accel + cruise
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _plan(length: np.ndarray, cap: np.ndarray, junction: np.ndarray, k: int, accel: float,
           entry: np.ndarray, leave: np.ndarray) -> None:
     """Entry and exit speeds of one path's k segments, starting and ending at rest.

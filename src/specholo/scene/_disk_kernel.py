@@ -22,7 +22,7 @@ _AXIS = 1 << AXIS_BITS
 _GOLDEN = -7046029254386353131  # 0x9E3779B97F4A7C15 as an int64 (2^64 / golden ratio)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _slot(table: np.ndarray, key: int) -> int:
     """Where cube ``key`` is filed in the table, or the empty slot it would take."""
     mask = table.shape[0] - 1

@@ -35,7 +35,7 @@ BODY, SPHERE, CAP = 0, 1, 2
 MAX_CLUSTERS = 8
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def chord(geo: np.ndarray, m: int) -> tuple[float, float, float]:
     """Unit direction (x, y) and length of move m's chord; (0, 0, 0) when it has none."""
     cx, cy = geo[m, EX] - geo[m, SX], geo[m, EY] - geo[m, SY]
@@ -45,7 +45,7 @@ def chord(geo: np.ndarray, m: int) -> tuple[float, float, float]:
     return cx / length, cy / length, length
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def profile(r: float, step: float, height: np.ndarray,
             slope: np.ndarray) -> tuple[float, float, float]:
     """Profile height, slope and curvature at distance r from the axis.
@@ -71,7 +71,7 @@ def profile(r: float, step: float, height: np.ndarray,
     return p, dp, ddp
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _inside_arc(vx: float, vy: float, geo: np.ndarray, m: int) -> bool:
     """Whether direction v from the arc's centre lies within its sweep."""
     cx, cy = geo[m, CX], geo[m, CY]
@@ -87,7 +87,7 @@ def _inside_arc(vx: float, vy: float, geo: np.ndarray, m: int) -> bool:
     return not (c1 < 0.0 and c2 < 0.0)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def locate(geo: np.ndarray, kind: np.ndarray, m: int, px: float,
            py: float) -> tuple[float, int]:
     """Distance from p to move m, and where its closest point is.
@@ -116,7 +116,7 @@ def locate(geo: np.ndarray, kind: np.ndarray, m: int, px: float,
     return (d0, 1) if d0 <= d1 else (d1, 2)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _clip(k: float, c: float, lo: float, hi: float, a: float, b: float) -> tuple[float, float]:
     """Intersect [a, b] with the x where lo <= k x + c <= hi."""
     if k > 1e-12 or k < -1e-12:
@@ -186,7 +186,7 @@ def sweep(geo: np.ndarray, kind: np.ndarray, box: np.ndarray, shape: np.ndarray,
                            slope, base, z, move)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _sweep_row(geo: np.ndarray, kind: np.ndarray, m: int, i0: int, i1: int, j: int,
                x0: float, y: float, res: float, depth: float, r_cut: float, step: float,
                height: np.ndarray, slope: np.ndarray, base: int, z: np.ndarray,
@@ -264,7 +264,7 @@ def group_cells(move: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     return ptr, cells
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def mode_of(geo: np.ndarray, kind: np.ndarray, flags: np.ndarray, m: int, px: float,
             py: float) -> tuple[int, float, float]:
     """How the surface at p is modelled, and the sphere's centre if it is one."""
@@ -285,7 +285,7 @@ def mode_of(geo: np.ndarray, kind: np.ndarray, flags: np.ndarray, m: int, px: fl
     return BODY, 0.0, 0.0
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def surface(geo: np.ndarray, kind: np.ndarray, m: int, mode: int, qx: float, qy: float,
             px: float, py: float, depth: float, step: float, height: np.ndarray,
             slope: np.ndarray) -> tuple[float, float, float, float, float, float]:
@@ -327,7 +327,7 @@ def surface(geo: np.ndarray, kind: np.ndarray, m: int, mode: int, qx: float, qy:
             (ddp - k) * ux * uy, ddp * uy * uy + k * ux * ux)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _dslope(ax: float, ay: float, az: float, ia: float, bx: float, by: float, bz: float,
             ib: float, hx: float, hy: float, hz: float, gjx: float, gjy: float,
             gjz: float) -> tuple[float, float]:
@@ -340,7 +340,7 @@ def _dslope(ax: float, ay: float, az: float, ia: float, bx: float, by: float, bz
     return (dhx * hz - hx * dhz) / (hz * hz), (dhy * hz - hy * dhz) / (hz * hz)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _half(gx: float, gy: float, gz: float, zx: float, zy: float, eye: np.ndarray,
           light: np.ndarray, point: bool) -> tuple[float, float, float, float, float, float]:
     """Slope of h = u(light - g) + u(eye - g), and its derivative along the surface.

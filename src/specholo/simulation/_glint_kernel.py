@@ -28,7 +28,7 @@ SMOOTH = 1e-9
 _GRAIN = 2048
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _h(gx: float, gy: float, gz: float, eye: np.ndarray, light: np.ndarray,
        point: bool) -> tuple[float, float, float]:
     """Normality vector u(light - g) + u(eye - g) (not normalised)."""
@@ -43,7 +43,7 @@ def _h(gx: float, gy: float, gz: float, eye: np.ndarray, light: np.ndarray,
     return ax + bx / m, ay + by / m, az + bz / m
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _wall(px: float, py: float, radius: float, cz: float, eye: np.ndarray,
           light: np.ndarray, point: bool) -> tuple[float, float, float, float, float, float]:
     """Glint point on the ball-end wall about toolpath point p, and h there."""
@@ -56,7 +56,7 @@ def _wall(px: float, py: float, radius: float, cz: float, eye: np.ndarray,
     return gx, gy, gz, hx, hy, hz
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _wall_shift(px: float, py: float, reach: float, eye: np.ndarray, light: np.ndarray,
                 point: bool) -> float:
     """A bound on how much h . t can change between toolpath point p and any
@@ -74,12 +74,12 @@ def _wall_shift(px: float, py: float, reach: float, eye: np.ndarray, light: np.n
     return 2.0 * shift + 1e-12
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _tilt_ok(hx: float, hy: float, hz: float, cos_tilt: float) -> bool:
     return hz >= cos_tilt * math.sqrt(hx * hx + hy * hy + hz * hz)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _at_row(geo: np.ndarray, i: int, u: float) -> tuple[float, float, float, float]:
     """Point and unit tangent at parameter u of packed row i (see :func:`index_arcs`)."""
     r = geo[i, 2]
@@ -222,7 +222,7 @@ def _corner_glints(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_rad
             pts[j, 0], pts[j, 1], pts[j, 2] = gx, gy, gz
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _arc(sx: float, sy: float, ex: float, ey: float, b: float,
          line_bulge: float) -> tuple[float, float, float, float, float, float, float, float,
                                      float]:
@@ -538,7 +538,10 @@ def _sort_cells(c0: int, c1: int, first: np.ndarray, order: np.ndarray, angle: n
         if n == 0:
             continue
         part = order[lo:hi].copy()
-        ang = angle[part]
+        # (Loops, not fancy indexing: that compiles for seconds on a first run.)
+        ang = np.empty(n)
+        for t in range(n):
+            ang[t] = angle[part[t]]
         scale = n / math.pi
         bucket = np.empty(n, np.int64)
         at = np.zeros(n + 1, np.int64)
@@ -562,9 +565,11 @@ def _sort_cells(c0: int, c1: int, first: np.ndarray, order: np.ndarray, angle: n
             a, b = at[q], at[q + 1]
             if b - a > 32:
                 o = stable_argsort(sa[a:b])
-                ta, ti = sa[a:b][o], si[a:b][o]
-                sa[a:b] = ta
-                si[a:b] = ti
+                ta, ti = np.empty(b - a), np.empty(b - a, np.int64)
+                for t in range(b - a):
+                    ta[t], ti[t] = sa[a + o[t]], si[a + o[t]]
+                for t in range(b - a):  # (not sa[a:b] = ta: slice setting compiles for seconds)
+                    sa[a + t], si[a + t] = ta[t], ti[t]
             else:
                 for t in range(a + 1, b):
                     x, y = sa[t], si[t]

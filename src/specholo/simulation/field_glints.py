@@ -67,7 +67,7 @@ TILE_BOXES = 4
 BOX_RADIUS = 0.02
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _slope(zm: float, z0: float, zp: float, ok_m: bool, ok_p: bool,
            res: float) -> tuple[float, bool]:
     """Slope at a cell from its two neighbours, one-sided across a kink."""
@@ -84,7 +84,7 @@ def _slope(zm: float, z0: float, zp: float, ok_m: bool, ok_p: bool,
     return 0.0, False
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _normal(z: np.ndarray, labels: np.ndarray, j: int, i: int,
             res: float) -> tuple[float, float, float, bool]:
     ny, nx = z.shape
@@ -102,7 +102,7 @@ def _normal(z: np.ndarray, labels: np.ndarray, j: int, i: int,
     return -gx / norm, -gy / norm, 1.0 / norm, okx and oky
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _half(x: float, y: float, z: float, eye: np.ndarray, light: np.ndarray,
           point: bool) -> tuple[float, float, float]:
     """Unit normality vector h at (x, y, z)."""
@@ -176,7 +176,7 @@ def _tile_boxes(z: np.ndarray, labels: np.ndarray, res: float, tile: int, k_boxe
     return box
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _tile_target(x0: float, y0: float, res: float, tile: int, ty: int, tx: int,
                  eye: np.ndarray, light: np.ndarray, point: bool, reach: float,
                  spread: float) -> tuple[float, float, float]:
@@ -252,7 +252,7 @@ def _lit_cells(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: flo
     return out, count
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _height_at(z: np.ndarray, x0: float, y0: float, res: float, x: float,
                y: float) -> float:
     """Bilinear height; 0 (the plate surface) outside the field."""
@@ -269,7 +269,7 @@ def _height_at(z: np.ndarray, x0: float, y0: float, res: float, x: float,
             + (1 - a) * b * z[j + 1, i] + a * b * z[j + 1, i + 1])
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _blocked(z: np.ndarray, x0: float, y0: float, res: float, sx: float, sy: float,
              sz: float, dx: float, dy: float, dz: float) -> bool:
     """Whether the ray from (sx, sy, sz) along the unit (dx, dy, dz) meets the

@@ -197,7 +197,7 @@ def on_real_wall(glints: Glints, model: Tool, cutter: Any, depth: float, light: 
 # Compiled: every glint against every other path
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _arc_distance(px: float, py: float, ax: float, ay: float, bx: float, by: float,
                   bulge: float) -> float:
     """Plan distance from p to the arc from a to b of the given bulge, mm.

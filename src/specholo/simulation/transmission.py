@@ -65,7 +65,7 @@ EXIT_LOBE = 2.0
 REACH_SAFETY = 2.0
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def refract(dx: float, dy: float, dz: float, nx: float, ny: float, nz: float, eta1: float,
             eta2: float) -> tuple[float, float, float, bool]:
     """Snell's law in vector form for one ray (see
@@ -85,7 +85,7 @@ def refract(dx: float, dy: float, dz: float, nx: float, ny: float, nz: float, et
     return r * dx + f * nx, r * dy + f * ny, r * dz + f * nz, True
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def in_plate(x: float, y: float, z: float, light: np.ndarray, point: bool, n: float,
              zback: float) -> tuple[float, float, float]:
     """Unit direction, inside the plate, of the light that reaches (x, y, z) there
@@ -128,7 +128,7 @@ def in_plate(x: float, y: float, z: float, light: np.ndarray, point: bool, n: fl
     return dx, dy, dz
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _through_glass(z: np.ndarray, x0: float, y0: float, res: float, sx: float, sy: float,
                    sz: float, dx: float, dy: float, dz: float, floor: float) -> bool:
     """Whether the in-plate ray reaching (sx, sy, sz) along the unit (dx, dy, dz)
@@ -150,7 +150,7 @@ def _through_glass(z: np.ndarray, x0: float, y0: float, res: float, sx: float, s
         t += dt
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _tile_target(x0: float, y0: float, res: float, tile: int, ty: int, tx: int,
                  eye: np.ndarray, light: np.ndarray, point: bool, n: float, zback: float,
                  reach: float, spread: float) -> tuple[float, float, float]:
@@ -201,7 +201,7 @@ def _candidate_tiles(box: np.ndarray, x0: float, y0: float, res: float, tile: in
     return flag
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _exit_mismatch(nx_: float, ny_: float, nz_: float, x: float, y: float, h: float,
                    eye: np.ndarray, light: np.ndarray, point: bool, n: float,
                    zback: float) -> tuple[float, float, bool, float, float, float]:

@@ -25,6 +25,7 @@ by :func:`specholo.toolpaths._stripe_kernel.integrate`.
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import numba as nb
 import numpy as np
@@ -67,7 +68,7 @@ def _leaf(th0: float, th1: float, px: float, py: float, pz: float, params: sk.Pa
     max_step = params[8]
     th = th0
     y = sk.target(th, 0.0, px, py, pz, params)[1]
-    sol = sk.solve(th, y, px, py, pz, params, sk._UP, sk._ZERO, sk._ZERO, 4)
+    sol = sk.solve(th, y, px, py, pz, params, sk._UP, sk._ZERO, sk._ZERO, sk.FIRST_STEPS)
     k = 0
     shift = 0
     while True:
@@ -94,7 +95,7 @@ def _leaf(th0: float, th1: float, px: float, py: float, pz: float, params: sk.Pa
             q = int(round(u1 / delta))
             m = sk._moved(sol, -q * delta)
             y1 -= q * delta
-            sol = sk.solve(th, y1, px, py, pz, params, m[3], m[8], m[9], 1)
+            sol = sk.solve(th, y1, px, py, pz, params, m[3], m[8], m[9], sk.NEAR_STEPS)
             shift -= q  # a leaf keeps its index: it is q spacings higher on the new base
         y = y1
 
@@ -209,7 +210,7 @@ def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: 
     return pts
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _walk(r: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray,
           w: float, leaves: int, dx_target: float, leaf: np.ndarray
           ) -> tuple[int, np.ndarray, np.ndarray]:
@@ -274,7 +275,7 @@ def _costs(j0: int, j1: int, leaf: np.ndarray, lo: np.ndarray, hi: np.ndarray, w
             here[j, L - lo[j]] = cost
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: int,
             lo: np.ndarray, hi: np.ndarray, here: np.ndarray, back: np.ndarray, w: float,
             leaves: int, spacing: float, dx_target: float, jump_cost: float,
@@ -301,7 +302,9 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
     pre_a = np.empty(width, dtype=np.int64)
     suf_a = np.empty(width, dtype=np.int64)
     p_lo, n_p, d_min = 0, 0, 1
-    back[:m] = -(1 << 40)
+    for j in range(m):  # (loops, not slice setting: that compiles for seconds)
+        for s in range(width):
+            back[j, s] = -(1 << 40)
     for j in range(m):
         gap_scale = leaf[j, 5] * leaf[j, 8]
         # Costs count groove length, in plan steps: samples crowd where u
@@ -385,11 +388,13 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
                 chosen[q] = chosen[j]
         a = j
     # Stripes: a jump at j ends the old leaf at j too (no azimuth left unserved).
-    o_a, o_b, o_u, o_x = [0.0], [0.0], [0.0], [0.0]  # (typed as floats, then emptied)
-    o_a.pop()
-    o_b.pop()
-    o_u.pop()
-    o_x.pop()
+    # (Arrays, not lists: a list compiles for seconds on a first run.)
+    stripes = 1
+    for j in range(1, m):
+        if chosen[j] != chosen[j - 1]:
+            stripes += 1
+    o_a, o_b, o_u, o_x = np.empty(stripes), np.empty(stripes), np.empty(stripes), np.empty(stripes)
+    k = 0
     a = 0
     for j in range(1, m + 1):
         if j < m and chosen[j] == chosen[a]:
@@ -398,10 +403,8 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
         ya = leaf[a, 2] + (chosen[a] - leaf[a, 9]) * delta
         th_a = leaf[a, 0]
         u0 = ya - sk.target(th_a, 0.0, px, py, pz, params)[1]
-        o_a.append(th_a)
-        o_b.append(leaf[b, 0])
-        o_u.append(u0)
-        o_x.append(abs(leaf[b, 1] - leaf[a, 1]))
+        o_a[k], o_b[k], o_u[k], o_x[k] = th_a, leaf[b, 0], u0, abs(leaf[b, 1] - leaf[a, 1])
+        k += 1
         for q in range(a, b + 1):
             c = (chosen[a] - leaf[q, 9]) * delta
             x0, y0, dxdy = leaf[q, 1], leaf[q, 2], leaf[q, 4]
@@ -413,8 +416,7 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
             gli = _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h, side)
             n_c += 1
         a = j
-    return (cen, gli, n_c, r_max_g, np.array(o_a), np.array(o_b), np.array(o_u),
-            np.array(o_x))
+    return cen, gli, n_c, r_max_g, o_a, o_b, o_u, o_x
 
 
 def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray, w: float,
@@ -460,36 +462,50 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
     n_c = 0
     delta = 2.0 * w / leaves
     width = leaves + 3
-    # One run's leaf, costs and choices at a time, in room kept from run to run.
-    leaf_room = np.empty((0, 10))
+    # Runs' leaves, costs and choices in room kept from run to run; two leaves,
+    # since the next run's is walked (on its own thread: walks do not read the
+    # index) while this one's costs are found and chosen among.
+    leaf_rooms = [np.empty((0, 10)), np.empty((0, 10))]
     here_room = np.empty((0, width))
     back_room = np.empty((0, width), dtype=np.int64)
-    out: list[tuple[np.ndarray, ...]] = []
+    out: list[tuple[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = []
 
     def placed(bad: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                   int]:
         if not out:
-            return (np.zeros(0, dtype=np.int64), *(np.zeros(0) for _ in range(4)), bad)
+            return (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(0),
+                    np.zeros(0), bad)
         run = np.concatenate([np.full(o[0].size, i, dtype=np.int64) for i, o in out])
         cols = [np.concatenate([o[k] for _, o in out]) for k in range(4)]
         return run, cols[0], cols[1], cols[2], cols[3], bad
 
-    for r in range(start.size):
+    def walked(r: int) -> tuple[np.ndarray, int, np.ndarray, np.ndarray]:
         cap = int(sample_cap[r])
-        if leaf_room.shape[0] < cap:
-            size = max(cap, 2 * leaf_room.shape[0])
-            leaf_room = np.empty((size, 10))
-            here_room = np.empty((size, width))
-            back_room = np.empty((size, width), dtype=np.int64)
-        leaf = leaf_room[:cap]
+        if leaf_rooms[r % 2].shape[0] < cap:
+            leaf_rooms[r % 2] = np.empty((max(cap, 2 * leaf_rooms[r % 2].shape[0]), 10))
+        leaf = leaf_rooms[r % 2][:cap]
         m, lo, hi = _walk(r, start, end, pts, packed, w, leaves, dx_target, leaf)
-        if m < 0:
-            return placed(r)
-        here = here_room[:m]
-        chunked(_costs, 0, m, leaf, lo, hi, w, delta, r_tip, margin, head_c, cen, head_g, gli,
-                h, side, r_max_g, here, grain=_GRAIN)
-        cen, gli, n_c, r_max_g, a, b, u0, x = _choose(
-            r, pts, packed, leaf, m, lo, hi, here, back_room, w, leaves, spacing, dx_target,
-            jump_cost, min_length, head_c, cen, head_g, gli, n_c, h, side, r_max_g)
-        out.append((r, (a, b, u0, x)))
+        return leaf, m, lo, hi
+
+    if start.size == 0:
+        return placed(-1)
+    with ThreadPoolExecutor(1, thread_name_prefix="specholo-walk") as ahead:
+        following = ahead.submit(walked, 0)
+        for r in range(start.size):
+            leaf, m, lo, hi = following.result()
+            if m < 0:
+                return placed(r)
+            if r + 1 < start.size:
+                following = ahead.submit(walked, r + 1)
+            if here_room.shape[0] < m:
+                here_room = np.empty((max(m, 2 * here_room.shape[0]), width))
+                back_room = np.empty((max(m, 2 * back_room.shape[0]), width), dtype=np.int64)
+            here = here_room[:m]
+            chunked(_costs, 0, m, leaf, lo, hi, w, delta, r_tip, margin, head_c, cen, head_g,
+                    gli, h, side, r_max_g, here, grain=_GRAIN)
+            cen, gli, n_c, r_max_g, a, b, u0, x = _choose(
+                r, pts, packed, leaf, m, lo, hi, here, back_room, w, leaves, spacing,
+                dx_target, jump_cost, min_length, head_c, cen, head_g, gli, n_c, h, side,
+                r_max_g)
+            out.append((r, (a, b, u0, x)))
     return placed(-1)

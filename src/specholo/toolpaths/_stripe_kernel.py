@@ -11,6 +11,7 @@ position, else its direction.
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numba as nb
 import numpy as np
@@ -37,6 +38,11 @@ _ZERO = (0.0, 0.0, 0.0)
 #: Fewest runs per thread worth a thread's start (a run's walk takes microseconds).
 _GRAIN = 64
 _UP = (0.0, 0.0, 1.0)
+#: Fixed-point steps of :func:`solve` from a first guess and from a near one,
+#: as numpy integers: a plain int constant is a literal to numba, and each
+#: literal compiles the solve once more (about 1.5 s each on a first run).
+FIRST_STEPS = cast(int, np.int64(4))
+NEAR_STEPS = cast(int, np.int64(1))
 
 
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
@@ -181,7 +187,7 @@ def _slopes(s: Solved) -> tuple[float, float, float]:
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
 def target(theta: float, y: float, px: float, py: float, pz: float, params: Params) -> Solved:
     """:func:`solve` from the plate normal (four steps reach ~1e-10 mm)."""
-    return solve(theta, y, px, py, pz, params, _UP, _ZERO, _ZERO, 4)
+    return solve(theta, y, px, py, pz, params, _UP, _ZERO, _ZERO, FIRST_STEPS)
 
 
 @nb.njit(fastmath=_FAST, cache=True, inline="always")
@@ -246,11 +252,11 @@ def _offset(th0: float, th_end: float, px: float, py: float, pz: float, params: 
         if j > 0:
             y = sol[1]
             sol = solve(th, y, px, py, pz, params, _along(sol[3], th - prev_th, sol[8]), sol[8],
-                        sol[9], 1)
+                        sol[9], NEAR_STEPS)
         sol = _moved(sol, sol[1] - y)
         if j == 0:
             y = sol[1]
-            sol = solve(th, y, px, py, pz, params, sol[3], sol[8], sol[9], 1)
+            sol = solve(th, y, px, py, pz, params, sol[3], sol[8], sol[9], NEAR_STEPS)
         x, h = sol[0], sol[2]
         dy, _, dc = _slopes(sol)
         if abs(h[1]) / math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) < min_light_tilt:
@@ -300,7 +306,7 @@ def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: 
     y_p = y + dth * k1
     n, n_t, n_y = s[3], s[8], s[9]
     e = solve(th + dth, y_p, px, py, pz, params, _along(n, dth, _along(n_t, k1, n_y)), n_t,
-              n_y, 1)
+              n_y, NEAR_STEPS)
     y1 = y + 0.5 * dth * (k1 + _slopes(e)[0])
     e = _moved(e, y1 - y_p)
     return y1, y1 - e[1], e
@@ -370,7 +376,7 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
     # Each solve starts from the wall normal of the last, nearby, and its
     # derivatives (a step or two instead of four; the same convergence test
     # ends it).
-    sol = solve(th, y, px, py, pz, params, _UP, _ZERO, _ZERO, 4)
+    sol = solve(th, y, px, py, pz, params, _UP, _ZERO, _ZERO, FIRST_STEPS)
     while th_end - th > _NEAR_EDGE:
         if k + 2 > stop:
             k = -1
@@ -449,7 +455,7 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
             # this solve carried over.
             y_new = sol[1] - edge
             m = _moved(sol, y_new - y)
-            sol = solve(th, y_new, px, py, pz, params, m[3], m[8], m[9], 1)
+            sol = solve(th, y_new, px, py, pz, params, m[3], m[8], m[9], NEAR_STEPS)
             y = y_new
             point_out[k, 1], stripe_out[k] = y, stripe
             k += 1

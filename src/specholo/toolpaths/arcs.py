@@ -14,7 +14,7 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _half_turn_bulge(ax: float, ay: float, bx: float, by: float) -> float:
     """tan(angle from a to b / 2): the bulge of an arc making that angle with its chord."""
     # tan(phi / 2) = sin / (1 + cos) = (1 - cos) / sin, whichever does not cancel.

@@ -65,7 +65,7 @@ def _arc_geometry_of(lo: int, hi: int, start: np.ndarray, end: np.ndarray, bulge
         start_angle[i] = math.atan2(start[i, 1] - centre[i, 1], start[i, 0] - centre[i, 0])
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def path_length(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int) -> float:
     """Length of the arcs of vertices a .. b - 1, mm."""
     part = 0.0
@@ -76,7 +76,7 @@ def path_length(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int) -> flo
     return part
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _arc_over_chord(t: float) -> float:
     """An arc's length over its chord for |bulge| t: sweep / (2 sin(sweep / 2)) with
     sweep = 4 atan(t), which is atan(t) (1 + t^2) / t."""
@@ -88,7 +88,7 @@ def _arc_over_chord(t: float) -> float:
     return math.atan(t) * (1.0 + t2) / t
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def grow_box(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int, lo_x: float,
              lo_y: float, hi_x: float, hi_y: float) -> tuple[float, float, float, float]:
     """The box (lo_x, lo_y, hi_x, hi_y) grown by the arcs of the path of vertices

@@ -180,7 +180,7 @@ def _arc_points(i0: int, i1: int, vertices: np.ndarray, bulges: np.ndarray, arcs
             q += 1
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _on_arc(sx: float, sy: float, dx: float, dy: float, b: float, chord: float,
             heading: float, half: float, sin_half: float, u: float) -> tuple[float, float]:
     """The point a fraction u of the sweep along the arc from (sx, sy) with chord
@@ -282,7 +282,7 @@ def _buckets(pts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.
     return order, table, marks, f, x0, y0, cell
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _slot(table: np.ndarray, tag: int) -> int:
     """Where the cell numbered ``tag`` - 1 is filed, or the empty slot it would take."""
     mask = table.shape[0] - 1
@@ -292,7 +292,7 @@ def _slot(table: np.ndarray, tag: int) -> int:
     return h
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _marked(marks: np.ndarray, f: int, gx: float, gy: float) -> bool:
     """Whether any bucketed point may lie in the 3 x 3 cells around cell (gx, gy)."""
     if gx < -1.0 or gy < -1.0:
@@ -301,7 +301,7 @@ def _marked(marks: np.ndarray, f: int, gx: float, gy: float) -> bool:
     return i < marks.shape[0] and j < marks.shape[1] and marks[i, j] != 0
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _run(table: np.ndarray, gx: float, gy: float) -> tuple[int, int]:
     """The run [lo, hi) of :func:`_buckets`' order in cell (gx, gy) (empty if none)."""
     if gx < 0.0 or gy < 0.0 or gx >= 2.0 ** (_ROW_BITS - 1) or gy >= 2.0 ** (_ROW_BITS - 1):
@@ -373,7 +373,7 @@ def _budget(stipple: np.ndarray, n_pairs: int, min_pairs: int) -> int:
     return max(min_pairs, MAX_PAIRS // max(pairs_of, 1))
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _gap(pts: np.ndarray, first: np.ndarray, p: int, budget: int) -> float:
     """Closest distance between path p's points and path p + 1's."""
     best = np.inf  # squared: one root per pair of paths
@@ -387,7 +387,7 @@ def _gap(pts: np.ndarray, first: np.ndarray, p: int, budget: int) -> float:
     return math.sqrt(best)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _tally(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, p: int, budget: int,
            limit: float, near: np.ndarray, closest: np.ndarray, b: int) -> None:
     """Path p's gap to path p + 1, when both draw one stipple, into block b's count
@@ -539,7 +539,7 @@ def _intersection_blocks(lo: int, hi: int, pts: np.ndarray, path: np.ndarray,
                         hits[blk, q] += 1
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _path_near(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int, chosen: np.ndarray,
                x0: float, y0: float, side: float, reach: float) -> bool:
     """Whether the path of vertices a .. b - 1 may come within ``reach`` of a chosen
@@ -630,11 +630,12 @@ def _near_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
 def _grown(a: np.ndarray, n: int, size: int) -> np.ndarray:
     """A copy of a[:n] with room for ``size``."""
     out = np.empty(size, a.dtype)
-    out[:n] = a[:n]
+    for i in range(n):  # (not out[:n] = a[:n]: slice setting compiles for seconds)
+        out[i] = a[i]
     return out
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _touches(chosen: np.ndarray, lo_x: float, lo_y: float, hi_x: float, hi_y: float,
              pad: float, x0: float, y0: float, side: float) -> bool:
     """Whether the box, grown by ``pad``, meets a chosen window."""

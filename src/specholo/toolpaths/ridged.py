@@ -448,7 +448,7 @@ def _eye_through(points: np.ndarray, xy: np.ndarray, viewer: Viewer) -> np.ndarr
     return points + t[:, None] * d
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _phi(x: float, y: float, z: float, px: float, py: float, pz: float, sg: float,
          point: bool, lx: float, ly: float, lz: float) -> tuple[float, float]:
     """phi of a mirror optic and d phi / dz at (x, y, z)."""
@@ -461,7 +461,7 @@ def _phi(x: float, y: float, z: float, px: float, py: float, pz: float, sg: floa
     return -(lx * x + ly * y + lz * z) + sg * rp, -lz + sg * dz / rp
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _back_path(x: float, y: float, z: float, ix: float, iy: float, iz: float, n: float,
                zback: float) -> tuple[float, float]:
     """The Fermat path from a point light behind the back face z = zback to a point
@@ -493,7 +493,7 @@ def _back_path(x: float, y: float, z: float, ix: float, iy: float, iz: float, n:
     return math.sqrt(r * r + a * a) + n * big_c, n * c / big_c
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _phi_refract(x: float, y: float, z: float, px: float, py: float, pz: float, sg: float,
                  fermat: bool, point: bool, fx: float, fy: float, fz: float, n: float,
                  zback: float, const: float) -> tuple[float, float]:

@@ -17,7 +17,7 @@ import numpy as np
 from specholo._threads import chunked
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _pair(k: int, grid: int) -> tuple[np.int64, np.int64]:
     q = np.int64(k)  # an unsigned index: int64 // uint64 would be a float
     if grid > 0:
