@@ -516,7 +516,7 @@ def _nearest_neighbour_tour(ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 # entry(tour[p + 1]), cyclically.
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _d(pts: np.ndarray, a: int, b: int) -> float:
     if a == 0 or b == 0:
         return 0.0
@@ -525,12 +525,12 @@ def _d(pts: np.ndarray, a: int, b: int) -> float:
     return np.sqrt(dx * dx + dy * dy)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _entry(flip: np.ndarray, v: int) -> int:
     return 2 * v + flip[v]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _exit(flip: np.ndarray, v: int) -> int:
     return 2 * v + 1 - flip[v]
 

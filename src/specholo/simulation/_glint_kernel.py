@@ -596,7 +596,7 @@ def merge_ranges(i0: np.ndarray, i1: np.ndarray, tail0: int,
     for j in range(c):
         lo = i0[:, j].copy()
         hi = i1[:, j].copy()
-        o = np.argsort(lo)
+        o = stable_argsort(lo)  # (numba's quicksort compiles for seconds; any order merges alike)
         for t in range(r):
             a, b = lo[o[t]], hi[o[t]]
             if b <= a:
