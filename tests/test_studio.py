@@ -267,6 +267,7 @@ def test_the_page_poses_redraws_and_designs_a_plate_that_verifies(
     page.goto(server.url)
     _settled(page)
     assert page.inner_text("#model-name") == "bunny"
+    page.uncheck("#follow")  # designed on the button only (the next test follows)
 
     # drag on the model: the pose turns about the plate's y and x axes
     box = page.locator("#model").bounding_box()
@@ -322,3 +323,43 @@ def test_the_page_poses_redraws_and_designs_a_plate_that_verifies(
     context.close()
     assert errors == []
     assert urls and all(u.startswith(server.url) for u in urls), urls
+
+
+def test_the_exact_figures_follow_the_settings(server: StudioServer, browser: Any,
+                                               tmp_path: Path):
+    """Left to follow, the page designs exactly once the settings rest: the
+    as-cut visibility and the whole job's machining time stand beside the
+    preview's estimates, are the folder's own, and give way when a setting moves."""
+    context = browser.new_context(bypass_csp=True, viewport={"width": 1400, "height": 900})
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(server.url)
+    _settled(page)
+    assert page.is_checked("#follow")
+    _slide(page, "stipples", 100)
+    _settled(page)
+    current = "window.studio.exact() && window.studio.exact().current"
+    page.wait_for_function(current, timeout=120_000)
+    exact = page.evaluate("window.studio.exact()")
+    assert exact["settings"]["stipples"] == 100
+    table = page.inner_text("#estimates")
+    summary = exact["summary"]
+    assert f"about {summary['machining']}" in table, table
+    assert f"{round(100 * summary['as_cut_lowest'])}% lowest" in table, table
+    # they are the figures of the folder the design wrote
+    info = json.loads((Path(page.inner_text("#folder")) / "hologram.json").read_text())
+    assert summary["machining_hours"] == pytest.approx(info["machining"]["estimated_hours"])
+    seen = info["expected"]["as_cut_stereo_visibility"]
+    assert summary["as_cut_lowest"] == pytest.approx(seen["lowest"])
+    # a setting moves: the figures wait for the next design, then are its own
+    _slide(page, "light_elevation", 50)
+    _settled(page)
+    assert "updating" in page.inner_text("#estimates")
+    page.wait_for_function(current, timeout=120_000)
+    assert page.evaluate("window.studio.exact()")["settings"]["light_elevation"] == 50
+    assert "updating" not in page.inner_text("#estimates")
+    context.close()
+    assert errors == []
+

@@ -11,7 +11,8 @@ Beside it come figures the grooves would give, as estimates that say what they
 are: the groove length the views need, in closed form (see
 :func:`groove_length_bound`), and a lower bound on the cutting time; the
 plate's whole machining time and its as-cut visibility depend on how the
-stripes are cut and placed, and are left to the exact design.
+stripes are cut and placed, and are left to the exact design (which the page
+runs by itself once the settings rest, and shows beside these).
 """
 
 from __future__ import annotations

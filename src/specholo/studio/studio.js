@@ -6,7 +6,12 @@ const $ = (id) => document.getElementById(id);
 const SLIDERS = ["size", "center_z", "offset_x", "offset_y", "light_elevation", "view_range",
                  "view_distance", "stipples"];
 const S = {settings: {}, azimuth: 0, preview: null, model: null, span: 80,
-           asked: 0, inFlight: false, dirty: false, glintDraws: 0, lastGlints: []};
+           asked: 0, inFlight: false, dirty: false, glintDraws: 0, lastGlints: [],
+           // The exact design: the settings it was asked for (their JSON), whether
+           // one runs, whether the current settings wait for it, the last one done.
+           designing: null, running: false, pending: false, done: null, followTimer: 0};
+//: How long the settings stay still before the exact design follows them, ms.
+const FOLLOW_MS = 1200;
 
 function showError(text) { $("error").textContent = text ? "error: " + text : ""; }
 
@@ -80,7 +85,22 @@ async function askPreview() {
   }
   S.inFlight = false;
   fit(); drawModel(); drawGlints(); showEstimates();
-  if (S.dirty) askPreview();
+  if (S.dirty) askPreview(); else follow();
+}
+
+function key() { return JSON.stringify(sent()); }
+
+function follow() {
+  // Once the settings rest, the exact design follows them: its as-cut
+  // visibility and machining time join the preview's estimates.
+  clearTimeout(S.followTimer);
+  if (!$("follow").checked || !S.model) return;
+  S.followTimer = setTimeout(() => {
+    S.followTimer = 0;
+    if (!S.dirty && !S.inFlight && (!S.done || S.done.key !== key()) && S.designing !== key())
+      design();
+  }, FOLLOW_MS);
+  showEstimates();
 }
 
 function visibleAt(p, az) {
@@ -177,19 +197,37 @@ function showEstimates() {
       "closed form: what the views need (exact grooves within ~1%)");
   row(t, "cutting time", `at least ${e.cutting_at_least}`,
       `lower bound at ${S.settings.feed} mm/min`);
-  row(t, "machining, whole job", "\u2014", "plunges, hops and rapids: exact design only");
-  row(t, "as-cut visibility", "\u2014", e.as_cut_why);
+  const d = S.done && S.done.key === key() ? S.done.summary : null;
+  if (d) {
+    const pct = (v) => v === null ? "\u2014" : `${Math.round(100 * v)}%`;
+    row(t, "machining, whole job", `about ${d.machining}`,
+        "the exact design's, for these settings");
+    row(t, "as-cut visibility", `${pct(d.as_cut_mean)} mean, ${pct(d.as_cut_lowest)} lowest`,
+        "the exact design's, for these settings: both eyes, the plate as cut");
+  } else {
+    const coming = S.followTimer || S.pending || S.designing === key();
+    const why = coming ? "the exact design of these settings is on its way" :
+      "the exact design's: press Design exactly (or keep it to the settings)";
+    const wait = coming ? "updating\u2026" : "\u2014";
+    row(t, "machining, whole job", wait, why);
+    row(t, "as-cut visibility", wait, coming ? why : e.as_cut_why);
+  }
   row(t, "preview took", `${Math.round(p.ms)} ms`);
 }
 
 // ---------------------------------------------------------------- exact design
 async function design() {
   showError("");
+  // One design at a time: these settings wait for the running one.
+  if (S.running) { S.pending = true; showEstimates(); return; }
+  const k = key();
+  S.designing = k; S.running = true; S.pending = false;
   // The last design's figures go at once: what shows next is this one's.
   showDesign({state: "running", stage: "starting"});
   try {
-    await call("POST", "/api/design", {settings: sent()});
+    await call("POST", "/api/design", {settings: JSON.parse(k)});
   } catch (e) {
+    S.designing = null; S.running = false;
     showError(e.message);
     poll();  // a refusal: show the design that is running, or none
     return;
@@ -205,8 +243,20 @@ async function poll() {
     showError(e.message);
     return;
   }
+  S.running = st.state === "running";
+  if (!S.running && S.designing !== null) {
+    if (st.state === "done") S.done = {key: S.designing, summary: st.summary};
+    S.designing = null;
+  }
   showDesign(st);
-  if (st.state === "running") setTimeout(poll, 400);
+  showEstimates();
+  if (S.running) { setTimeout(poll, 400); return; }
+  // Settings that waited, or changed while it ran: their own design now.
+  const stale = !S.done || S.done.key !== key();
+  if (S.pending || ($("follow").checked && stale && S.model && !S.followTimer)) {
+    S.pending = false;
+    if (stale) design();
+  }
 }
 
 function showDesign(st) {
@@ -242,6 +292,7 @@ function bindInputs() {
     changed();
   });
   $("design").addEventListener("click", design);
+  $("follow").addEventListener("change", () => { follow(); showEstimates(); });
   $("file").addEventListener("change", async (ev) => {
     const file = ev.target.files[0];
     if (!file) return;
@@ -303,7 +354,8 @@ async function start() {
     setAzimuth(0);
     setModel(st.model);
     showDesign(st.design);
-    if (st.design.state === "running") poll();
+    S.running = st.design.state === "running";  // (started before this page: not ours to follow)
+    if (S.running) poll();
     drawModel();
     changed();
   } catch (e) {
@@ -318,6 +370,9 @@ window.studio = {
   draws: () => S.glintDraws,
   previews: () => S.asked,
   busy: () => S.inFlight || S.dirty,
+  // The settings the last finished exact design was made for, and its figures.
+  exact: () => S.done && {settings: JSON.parse(S.done.key), summary: S.done.summary,
+                          current: S.done.key === key()},
   azimuth: () => S.azimuth,
 };
 start();
