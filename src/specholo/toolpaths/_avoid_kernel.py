@@ -136,7 +136,8 @@ def _near(x: float, y: float, reach: float, head: np.ndarray, pts: np.ndarray,
           h: float, side: int, r_max: float) -> bool:
     """Whether a stored point lies closer to (x, y) than ``reach`` plus its own radius.
 
-    Row i of ``pts`` is x, y, radius and the next point of its chain (-1 at the
+    ``head`` holds each slot's first point plus one (0: no point). Row i of
+    ``pts`` is x, y, radius and the next point of its chain (-1 at the
     end), together so that a step along a chain reads one place in memory; the
     cell of (x, y) goes first, where a point in reach is likeliest. The cells
     searched are those within ``reach`` plus the largest stored radius
