@@ -115,6 +115,16 @@ class Tiling:
         return self.tiles * self.sheets
 
     @property
+    def table_pages(self) -> int:
+        """Number of table pages after the tiles."""
+        raise NotImplementedError
+
+    @property
+    def pages(self) -> int:
+        """Total pages: instructions, tiles of every sheet, the table."""
+        return 1 + self.tile_pages + self.table_pages
+
+    @property
     def step(self) -> np.ndarray:
         """(2,) distance between neighbouring tiles across and down, mm."""
         return self.frame - self.overlap
@@ -242,11 +252,6 @@ class PatternPlan(Tiling):
         """Number of radius-table pages (0 unless numbered)."""
         per_page = self.table_rows * self.table_columns
         return -(-len(self.radius) // per_page) if self.numbered else 0
-
-    @property
-    def pages(self) -> int:
-        """Total pages: instructions, tiles of every sheet, radius table."""
-        return 1 + self.tile_pages + self.table_pages
 
 
 def tile_name(column: int, row: int) -> str:
@@ -890,19 +895,40 @@ def pattern_figures(plan: PatternPlan) -> Iterator[Figure]:
         one labelled ``"paper"`` in mm from the paper's lower-left corner, both
         at 1:1.
     """
+    arcs = arc_path(plan.centre, plan.radius, plan.start, plan.sweep)
+    yield from tiled_figures(plan, lambda: _instructions(plan, arcs), _tile, _table)
+
+
+def tiled_figures(plan: Tiling, instructions: Callable[[], Figure],
+                  tile: Callable[[Any, int, int, int, np.ndarray], Figure],
+                  table: Callable[[Any, int], Figure]) -> Iterator[Figure]:
+    """A tiled pattern's pages in order: ``instructions()``, ``tile(plan, sheet,
+    column, row, targets)`` for each tile of each sheet row by row from the top
+    left, then ``table(plan, index)`` for each table page."""
     def build(make: Callable[..., Figure], *args: Any) -> Figure:
         # texts take their font when made, so the setting need not outlive this
         with rc_context({"font.family": _FONT}):
             return make(*args)
 
-    yield build(_instructions, plan, arc_path(plan.centre, plan.radius, plan.start, plan.sweep))
+    yield build(instructions)
     targets = _targets(plan)
     for sheet in range(plan.sheets if plan.tiles else 0):
         for row in range(plan.rows):
             for col in range(plan.columns):
-                yield build(_tile, plan, sheet, col, row, targets)
+                yield build(tile, plan, sheet, col, row, targets)
     for index in range(plan.table_pages):
-        yield build(_table, plan, index)
+        yield build(table, plan, index)
+
+
+def write_pdf(path: str | os.PathLike[str], title: str, figures: Iterator[Figure]) -> None:
+    """Write a pattern's pages as a PDF at the paper's size (for 1:1 printing),
+    atomically, with no creation date (the same design gives the same file)."""
+    meta = {"Title": title, "Creator": "specholo", "CreationDate": None}
+    # never "tight": the page must keep the paper's size for 1:1 printing
+    with rc_context({"savefig.bbox": "standard", "pdf.fonttype": 42}), \
+            atomic_open(path, "wb") as fh, PdfPages(fh, metadata=meta) as pdf:
+        for fig in figures:
+            pdf.savefig(fig)
 
 
 def write_pattern(path: str | os.PathLike[str], grooves: Grooves, paper: str = "a4",
@@ -923,11 +949,5 @@ def write_pattern(path: str | os.PathLike[str], grooves: Grooves, paper: str = "
             pattern is for the `arc` design), or the paper or overlap is not allowed.
     """
     plan = plan_pattern(grooves, paper, overlap)
-    # no creation date, so the same design gives the same file
-    meta = {"Title": "specholo scratch pattern", "Creator": "specholo", "CreationDate": None}
-    # never "tight": the page must keep the paper's size for 1:1 printing
-    with rc_context({"savefig.bbox": "standard", "pdf.fonttype": 42}), \
-            atomic_open(path, "wb") as fh, PdfPages(fh, metadata=meta) as pdf:
-        for fig in pattern_figures(plan):
-            pdf.savefig(fig)
+    write_pdf(path, "specholo scratch pattern", pattern_figures(plan))
     return plan

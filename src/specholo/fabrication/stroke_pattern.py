@@ -21,19 +21,15 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
-from matplotlib import rc_context
-from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch
 from matplotlib.path import Path
 
-from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import check_grooves, format_number, is_straight
 from specholo.fabrication.pattern import (
     _DOT_MM,
@@ -55,14 +51,15 @@ from specholo.fabrication.pattern import (
     _sheets_step,
     _table_page,
     _table_size,
-    _targets,
     _text_width,
     _tile_axes,
     _tile_margins,
     arc_path,
     check_overlap,
     reading_numbers,
+    tiled_figures,
     tiling,
+    write_pdf,
 )
 from specholo.fabrication.svg import arc_bounds
 from specholo.toolpaths.grooves import Grooves, Segments
@@ -154,11 +151,6 @@ class StrokePlan(Tiling):
     def table_pages(self) -> int:
         """Number of checklist pages."""
         return -(-len(self.stipple) // (self.table_rows * self.table_columns))
-
-    @property
-    def pages(self) -> int:
-        """Total pages: instructions, tiles of every sheet, checklist."""
-        return 1 + self.tile_pages + self.table_pages
 
     def colour(self, group: np.ndarray) -> list[str]:
         """Colour of each group (by its number)."""
@@ -432,18 +424,7 @@ def stroke_figures(plan: StrokePlan) -> Iterator[Figure]:
         and one labelled ``"paper"`` in mm from the paper's lower-left corner,
         both at 1:1.
     """
-    def build(make: Callable[..., Figure], *args: Any) -> Figure:
-        with rc_context({"font.family": _FONT}):
-            return make(*args)
-
-    yield build(_instructions, plan)
-    targets = _targets(plan)
-    for sheet in range(plan.sheets if plan.tiles else 0):
-        for row in range(plan.rows):
-            for col in range(plan.columns):
-                yield build(_tile, plan, sheet, col, row, targets)
-    for index in range(plan.table_pages):
-        yield build(_checklist, plan, index)
+    yield from tiled_figures(plan, lambda: _instructions(plan), _tile, _checklist)
 
 
 def write_stroke_pattern(path: str | os.PathLike[str], grooves: Grooves, paper: str = "a4",
@@ -464,10 +445,5 @@ def write_stroke_pattern(path: str | os.PathLike[str], grooves: Grooves, paper: 
             overlap is not allowed.
     """
     plan = plan_strokes(grooves, paper, overlap)
-    meta = {"Title": "specholo stroke pattern", "Creator": "specholo", "CreationDate": None}
-    # never "tight": the page must keep the paper's size for 1:1 printing
-    with rc_context({"savefig.bbox": "standard", "pdf.fonttype": 42}), \
-            atomic_open(path, "wb") as fh, PdfPages(fh, metadata=meta) as pdf:
-        for fig in stroke_figures(plan):
-            pdf.savefig(fig)
+    write_pdf(path, "specholo stroke pattern", stroke_figures(plan))
     return plan
