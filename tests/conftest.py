@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import shutil
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -14,6 +16,10 @@ from hypothesis import strategies as st
 from specholo.toolpaths.grooves import Grooves
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
+
+# Models read by the tests are kept in a cache of the test run's own, not the
+# user's (subprocesses inherit it).
+os.environ.setdefault("SPECHOLO_CACHE_DIR", tempfile.mkdtemp(prefix="specholo-test-cache-"))
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

@@ -31,8 +31,8 @@ def _assert_is_box(model: Model) -> None:
     assert model.points.shape == (8, 3)
     np.testing.assert_allclose(np.ptp(model.points, axis=0), BOX_EXTENTS)
     # Outward normals: a closed mesh with positive volume.
-    assert model.mesh.is_watertight
-    assert model.mesh.volume == pytest.approx(np.prod(BOX_EXTENTS))
+    assert model.mesh.to_trimesh().is_watertight
+    assert model.mesh.to_trimesh().volume == pytest.approx(np.prod(BOX_EXTENTS))
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +87,7 @@ def test_load_stl_merges_vertices(tmp_path: Path) -> None:
     path = tmp_path / "box.stl"
     _box().export(path)
     model = load_model(path)
-    assert model.mesh is not None and model.mesh.is_watertight
+    assert model.mesh is not None and model.mesh.to_trimesh().is_watertight
 
 
 def test_load_ply_cloud(tmp_path: Path) -> None:
@@ -186,7 +186,8 @@ def test_load_truncated_files(tmp_path: Path) -> None:
 def test_load_bunny() -> None:
     model = load_model(BUNNY)
     assert model.mesh is not None
-    assert model.mesh.is_watertight and model.mesh.volume > 0
+    tm = model.mesh.to_trimesh()
+    assert tm.is_watertight and tm.volume > 0
     assert len(model.mesh.faces) == 3674
 
 
@@ -276,7 +277,7 @@ def test_stipple_count_on_surface(bunny: Model, count: int) -> None:
     assert s.normals is not None and s.normals.shape == (count, 3)
     np.testing.assert_allclose(np.linalg.norm(s.normals, axis=1), 1.0)
     assert bunny.mesh is not None
-    _, dist, tri = trimesh.proximity.closest_point(bunny.mesh, s.points)
+    _, dist, tri = trimesh.proximity.closest_point(bunny.mesh.to_trimesh(), s.points)
     assert dist.max() < 1e-9
     # Each normal is the normal of a face the point lies on (the nearest face,
     # up to points on shared edges, where both faces are at distance 0).
@@ -310,7 +311,8 @@ def test_surface_samples_lie_on_their_faces_uniformly_by_area(bunny: Model) -> N
     assert chisquare(observed[keep], wanted[keep]).pvalue > 1e-4
     np.testing.assert_allclose(bary.mean(axis=0), 1 / 3, atol=0.005)
     # The same draws and arithmetic as trimesh's sampler: the same points.
-    ref, ref_face = trimesh.sample.sample_surface(mesh, 1000, seed=np.random.default_rng(9))
+    ref, ref_face = trimesh.sample.sample_surface(mesh.to_trimesh(), 1000,
+                                                  seed=np.random.default_rng(9))
     ours, our_face = sample_surface(mesh.vertices, mesh.faces, mesh.area_faces, 1000,
                                     np.random.default_rng(9))
     np.testing.assert_array_equal(our_face, ref_face)
@@ -334,7 +336,8 @@ def test_stipple_is_blue_noise(bunny: Model) -> None:
     n = 2000
     s = stipple(bunny, np.random.default_rng(2), count=n)
     assert bunny.mesh is not None
-    uniform, _ = trimesh.sample.sample_surface(bunny.mesh, n, seed=np.random.default_rng(2))
+    uniform, _ = trimesh.sample.sample_surface(bunny.mesh.to_trimesh(), n,
+                                               seed=np.random.default_rng(2))
     spacing = math.sqrt(bunny.mesh.area / n)
     # Poisson-disk: no two stipples much closer than the mean spacing, while
     # uniform samples of the same size clump.
@@ -358,7 +361,8 @@ def test_stipple_spacing_covers_surface(bunny: Model) -> None:
     assert _min_distance(s.points) >= spacing
     # Maximal: every part of the surface has a stipple nearby.
     assert bunny.mesh is not None
-    probe, _ = trimesh.sample.sample_surface(bunny.mesh, 5000, seed=np.random.default_rng(9))
+    probe, _ = trimesh.sample.sample_surface(bunny.mesh.to_trimesh(), 5000,
+                                             seed=np.random.default_rng(9))
     gap = cKDTree(s.points).query(np.asarray(probe))[0]
     assert gap.max() < 2.0 * spacing
 
@@ -470,7 +474,7 @@ def test_a_z_up_model_stands_up_facing_the_viewer() -> None:
     assert ext == pytest.approx([15.0, 60.0, 6.0])
     # the model's front (-y) face now faces the viewer (+z), and every face still
     # points out of the solid (a proper rotation keeps the winding)
-    mesh = placed.mesh
+    mesh = placed.mesh.to_trimesh()
     front = mesh.face_normals[:, 2] > 0.99
     assert np.allclose(mesh.triangles_center[front, 2], -40.0 + 3.0)
     assert mesh.is_winding_consistent and mesh.volume > 0

@@ -210,7 +210,7 @@ def _host(t: dict[str, Any], base: Path) -> Host:
         model = load_model(path)
         if model.mesh is None:
             raise SpecholoError(f"composition: mesh host {path} has no faces")
-        return MeshHost(model.mesh)
+        return MeshHost(model.mesh.to_trimesh())
     rows = t.get("panels")
     if not isinstance(rows, list) or not rows:
         raise SpecholoError("composition: a panels host needs [[host.panels]] entries")

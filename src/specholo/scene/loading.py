@@ -1,7 +1,9 @@
 """Loading 3D models: triangle meshes and point clouds.
 
 Meshes come from OBJ, STL, PLY, OFF, GLB and GLTF files (via trimesh; a scene of
-several meshes is baked into one). Point clouds come from PLY files with vertices
+several meshes is baked into one), and are kept, cleaned, by their bytes
+(:mod:`specholo.scene.cache`): trimesh is imported only for a file not read
+before. Point clouds come from PLY files with vertices
 but no faces, from ``.xyz`` text files (``x y z`` per line, further columns
 ignored) and from ``.csv`` files (columns x, y, z; an optional header names them
 in any order). Every problem with a file raises :class:`SpecholoError` with a
@@ -21,14 +23,16 @@ import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import trimesh
 
 from specholo._memory import available_memory as available_memory
 from specholo._memory import format_bytes as format_bytes
 from specholo.errors import SpecholoError
 from specholo.readback import all_finite, check_fits, one_line, open_file, read_bytes, within
+from specholo.scene import cache
+from specholo.scene.mesh import Mesh, read_ply
 
 MESH_FORMATS = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")
 CLOUD_FORMATS = (".ply", ".xyz", ".csv")
@@ -71,7 +75,7 @@ class Model:
             or the cloud's points.
     """
 
-    mesh: trimesh.Trimesh | None
+    mesh: Mesh | None
     points: np.ndarray
 
     @property
@@ -185,7 +189,13 @@ def load_model(path: str | os.PathLike[str]) -> Model:
             return _cloud(p, _read_xyz(p, _decode(p, data)))
         if ext == ".csv":
             return _cloud(p, _read_csv(p, _decode(p, data)))
-        return _read_with_trimesh(p, ext, data)
+        mesh = cache.kept(data, ext)
+        if mesh is not None:
+            return Model(mesh=mesh, points=mesh.vertices)
+        model = _read_with_trimesh(p, ext, data)
+        if model.mesh is not None:
+            cache.keep(data, ext, model.mesh)
+        return model
 
 
 def _looks_like_text(p: Path) -> bool:
@@ -218,23 +228,31 @@ def _as_text(data: bytes) -> bytes:
     return data
 
 
-class _FolderResolver(trimesh.resolvers.FilePathResolver):
-    """Reads a glTF's external buffers only from regular files in the model's folder."""
+def _folder_resolver(p: Path) -> Any:
+    """A resolver reading a glTF's external buffers only from regular files in
+    the model's folder (a trimesh resolver: trimesh is imported on use)."""
+    import trimesh
 
-    def get(self, name: str) -> bytes:
-        path = self.absolute(name)  # raises ValueError for a path outside the folder
-        if not path.is_file():  # missing, a folder, a FIFO or a device
-            raise FileNotFoundError(f"buffer {name!r} is not a file beside the model")
-        size = path.stat().st_size
-        room = available_memory()
-        if room is not None and 2 * size > room:
-            raise MemoryError(f"buffer {name!r} of {format_bytes(size)} does not fit in memory")
-        # As stat'ed: a FIFO swapped in since is refused, not waited on.
-        return read_bytes(path, size)
+    class FolderResolver(trimesh.resolvers.FilePathResolver):  # type: ignore[misc]
+        def get(self, name: str) -> bytes:
+            path = self.absolute(name)  # raises ValueError for a path outside the folder
+            if not path.is_file():  # missing, a folder, a FIFO or a device
+                raise FileNotFoundError(f"buffer {name!r} is not a file beside the model")
+            size = path.stat().st_size
+            room = available_memory()
+            if room is not None and 2 * size > room:
+                raise MemoryError(f"buffer {name!r} of {format_bytes(size)} does not fit "
+                                  "in memory")
+            # As stat'ed: a FIFO swapped in since is refused, not waited on.
+            return read_bytes(path, size)
+
+    return FolderResolver(str(p))
 
 
 def _read_with_trimesh(p: Path, ext: str, data: bytes) -> Model:
     """Load a mesh format (or a face-less PLY) with trimesh."""
+    import trimesh
+
     fmt = ext[1:].upper()
     if ext == ".ply":
         _check_ply_header(p, data)
@@ -252,7 +270,7 @@ def _read_with_trimesh(p: Path, ext: str, data: bytes) -> Model:
         if ext == ".gltf":
             # The bytes already read, not the path: the file is not opened twice.
             loaded = trimesh.load(io.BytesIO(data), file_type="gltf", process=False,
-                                  resolver=_FolderResolver(str(p)), skip_materials=True)
+                                  resolver=_folder_resolver(p), skip_materials=True)
         else:
             loaded = trimesh.load(io.BytesIO(data), file_type=ext[1:], process=False,
                                   skip_materials=True)
@@ -452,6 +470,8 @@ def _clean_mesh(p: Path, vertices: np.ndarray, faces: np.ndarray) -> Model:
         raise SpecholoError(f"{p}: every face of the mesh is degenerate (zero area)")
     e = math.frexp(extent)[1]
     unit = np.ldexp(w - lo, -e)  # in [0, 1]
+    import trimesh
+
     try:
         mesh = trimesh.Trimesh(vertices=unit, faces=faces, process=False)
         mesh.merge_vertices()
@@ -467,14 +487,14 @@ def _clean_mesh(p: Path, vertices: np.ndarray, faces: np.ndarray) -> Model:
         restored = np.ldexp(np.ldexp(np.asarray(mesh.vertices), e) + lo, k)
         if not np.isfinite(restored).all():
             raise SpecholoError(f"{p}: vertex coordinates too large for floating point")
-        mesh = trimesh.Trimesh(vertices=restored, faces=np.asarray(mesh.faces), process=False)
+        cleaned = Mesh(restored, np.asarray(mesh.faces))
     except SpecholoError:
         raise
     except MemoryError as exc:
         raise SpecholoError(f"{p}: out of memory processing the mesh") from exc
     except Exception as exc:
         raise SpecholoError(f"{p}: cannot process mesh: {_one_line(exc)}") from exc
-    return Model(mesh=mesh, points=np.asarray(mesh.vertices, dtype=np.float64))
+    return Model(mesh=cleaned, points=cleaned.vertices)
 
 
 def _cloud(p: Path, points: np.ndarray) -> Model:
@@ -569,11 +589,12 @@ MAX_MESH_BYTES = 2 << 30
 _MESH_BYTES_PER_FILE_BYTE = 3
 
 
-def read_mesh(path: str | os.PathLike[str], what: str = "model") -> trimesh.Trimesh:
-    """A placed model (a PLY a design wrote) as a trimesh, exactly as written.
+def read_mesh(path: str | os.PathLike[str], what: str = "model") -> Mesh:
+    """A placed model (a PLY a design wrote), exactly as written.
 
     Unlike :func:`specholo.scene.loading.load_model`, nothing is merged or
-    dropped: the occlusion tests then see the mesh the design saw.
+    dropped: the occlusion tests then see the mesh the design saw. The binary
+    PLY a design writes is read directly; any other PLY with trimesh.
 
     Raises:
         SpecholoError: unreadable, too large, or not a mesh of finite vertices
@@ -582,23 +603,34 @@ def read_mesh(path: str | os.PathLike[str], what: str = "model") -> trimesh.Trim
     data = read_bytes(path, MAX_MESH_BYTES, what)
     check_fits(path, what, _MESH_BYTES_PER_FILE_BYTE * len(data))
     p = Path(path)
+    got = read_ply(data)
+    if got is not None:
+        v, f = got
+    else:
+        mesh = _read_ply_with_trimesh(p, data, what)
+        v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    if v.ndim != 2 or v.shape[1] != 3 or not all_finite(v.astype(float, copy=False)):
+        raise SpecholoError(f"{what} {os.fspath(path)}: vertices are not finite 3D points")
+    if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer) \
+            or (f.size and not within(f, 0, len(v) - 1)):
+        raise SpecholoError(f"{what} {os.fspath(path)}: faces do not index its vertices")
+    return Mesh(v, f)
+
+
+def _read_ply_with_trimesh(p: Path, data: bytes, what: str) -> Any:
+    """A PLY's mesh, read by trimesh (any PLY it reads)."""
+    import trimesh
+
     with _quiet():
         _check_ply_header(p, data)
         try:
             mesh = trimesh.load(io.BytesIO(data), file_type="ply", force="mesh",
                                 process=False)
         except MemoryError as exc:
-            raise SpecholoError(f"{what} {os.fspath(path)}: out of memory reading it") from exc
+            raise SpecholoError(f"{what} {os.fspath(p)}: out of memory reading it") from exc
         except Exception as exc:  # trimesh raises anything from KeyError to struct.error
-            raise SpecholoError(f"{what} {os.fspath(path)} is not a readable PLY mesh: "
+            raise SpecholoError(f"{what} {os.fspath(p)} is not a readable PLY mesh: "
                                 f"{one_line(exc)}") from exc
     if not isinstance(mesh, trimesh.Trimesh):
-        raise SpecholoError(f"{what} {os.fspath(path)} holds no triangle mesh")
-    v = np.asarray(mesh.vertices)
-    f = np.asarray(mesh.faces)
-    if v.ndim != 2 or v.shape[1] != 3 or not all_finite(v.astype(float, copy=False)):
-        raise SpecholoError(f"{what} {os.fspath(path)}: vertices are not finite 3D points")
-    if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer) \
-            or (f.size and not within(f, 0, len(v) - 1)):
-        raise SpecholoError(f"{what} {os.fspath(path)}: faces do not index its vertices")
+        raise SpecholoError(f"{what} {os.fspath(p)} holds no triangle mesh")
     return mesh

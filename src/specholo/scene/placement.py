@@ -11,10 +11,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import trimesh
 
 from specholo.errors import SpecholoError
 from specholo.scene.loading import Model
+from specholo.scene.mesh import Mesh
 from specholo.scene.pose import UP_AXES as UP_AXES
 from specholo.scene.pose import Pose as Pose
 from specholo.scene.pose import orientation as orientation
@@ -97,5 +97,5 @@ def place(model: Model, size: float, center_z: float, rotation: np.ndarray | Non
     if model.mesh is None:
         return Model(mesh=None, points=placed)
     # Uniform positive scaling keeps winding, so face normals stay outward.
-    mesh = trimesh.Trimesh(vertices=placed, faces=np.asarray(model.mesh.faces), process=False)
-    return Model(mesh=mesh, points=np.asarray(mesh.vertices, dtype=np.float64))
+    mesh = Mesh(placed, model.mesh.faces)
+    return Model(mesh=mesh, points=mesh.vertices)

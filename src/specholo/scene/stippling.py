@@ -18,13 +18,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import trimesh
-from scipy.spatial import cKDTree
 
 from specholo.errors import SpecholoError
 from specholo.scene._disk_kernel import AXIS_BITS, greedy_disk
 from specholo.scene._sample_kernel import sample_surface
 from specholo.scene.loading import Model, available_memory, format_bytes, mesh_memory
+from specholo.scene.mesh import Mesh
 
 # Candidates drawn per wanted stipple: more gives a tighter (more saturated)
 # Poisson-disk set, at a cost linear in the ratio; beyond 4 the gain is small.
@@ -191,8 +190,7 @@ def stipple(
     unit_spacing = None if spacing is None else math.ldexp(float(spacing), -k)
     with np.errstate(all="ignore"):
         if model.mesh is not None:
-            mesh = trimesh.Trimesh(vertices=unit, faces=np.asarray(model.mesh.faces),
-                                   process=False)
+            mesh = Mesh(unit, model.mesh.faces)
             st = _stipple_mesh(mesh, rng, n_wanted, unit_spacing, 2.0**k)
         else:
             st = _stipple_cloud(unit, rng, n_wanted, unit_spacing)
@@ -200,7 +198,7 @@ def stipple(
 
 
 def _stipple_mesh(
-    mesh: trimesh.Trimesh, rng: np.random.Generator, count: int | None, spacing: float | None,
+    mesh: Mesh, rng: np.random.Generator, count: int | None, spacing: float | None,
     unit: float = 1.0,
 ) -> Stipples:
     """Stipples of a mesh; ``unit`` is the model's length per unit of ``mesh`` (for messages)."""
@@ -239,6 +237,8 @@ def _stipple_mesh(
 def _stipple_cloud(
     points: np.ndarray, rng: np.random.Generator, count: int | None, spacing: float | None
 ) -> Stipples:
+    from scipy.spatial import cKDTree  # (only clouds need it: scipy takes a while to import)
+
     # Repeated points would only inflate the neighbour graph.
     _, first = np.unique(points, axis=0, return_index=True)
     distinct = np.sort(first)

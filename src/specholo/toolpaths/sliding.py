@@ -249,6 +249,8 @@ def slide_tracks(meshes: list[Any], setup: SpinSetup, turns: int, count: int,
     if any(m is None for m in meshes):
         raise SpecholoError("a view that circles the scene needs a mesh (a surface to slide "
                             "over), not a point cloud")
+    # Rays through every hit and sampling the surface are trimesh's.
+    meshes = [m.to_trimesh() if hasattr(m, "to_trimesh") else m for m in meshes]
     k_grid = int(round(2.0 * math.pi / step))
     phi = np.arange(k_grid) * (2.0 * math.pi / k_grid)
     gap = int(math.ceil(eye_gap(setup) / (2.0 * math.pi / k_grid)))

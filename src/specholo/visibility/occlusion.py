@@ -16,13 +16,21 @@ import weakref
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
-import trimesh
 
 from specholo.errors import SpecholoError
+from specholo.scene.mesh import Mesh
 from specholo.setup import Viewer
 from specholo.visibility import _ray_kernel
+
+if TYPE_CHECKING:
+    import trimesh
+
+#: A mesh the tests take: specholo's own, or a trimesh (anything with vertices,
+#: faces, face_normals, triangles, scale and, without embree, ray).
+AnyMesh: TypeAlias = "Mesh | trimesh.Trimesh"
 
 try:  # trimesh's embree tracer is used through its scene, set up in bulk
     import embreex  # noqa: F401
@@ -59,7 +67,7 @@ def _check(points: np.ndarray, normals: np.ndarray | None) -> tuple[np.ndarray, 
 
 
 def visible(
-    mesh: trimesh.Trimesh | None,
+    mesh: AnyMesh | None,
     points: np.ndarray,
     normals: np.ndarray | None,
     eyes: np.ndarray,
@@ -98,7 +106,7 @@ def visible(
     return result
 
 
-def _each(trace: Callable[[int], None], starts: range, mesh: trimesh.Trimesh) -> None:
+def _each(trace: Callable[[int], None], starts: range, mesh: AnyMesh) -> None:
     """trace(start) for every start, in threads, which share the mesh's ray index
     (built first, so that no thread waits for it)."""
     if len(starts) <= 1:
@@ -115,7 +123,7 @@ class _Scene:
     their minimum and scaled to a box of ~100, in single precision), so a ray
     set up in that frame (:func:`_ray_kernel.rays`) hits what trimesh's would."""
 
-    def __init__(self, mesh: trimesh.Trimesh) -> None:
+    def __init__(self, mesh: AnyMesh) -> None:
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
 
@@ -138,7 +146,7 @@ _SCENES: dict[int, _Scene] = {}
 _SCENES_LOCK = threading.Lock()
 
 
-def _scene(mesh: trimesh.Trimesh) -> _Scene | None:
+def _scene(mesh: AnyMesh) -> _Scene | None:
     """The mesh's cached scene (rebuilt if the mesh changed), or None without embreex."""
     if not _HAVE_EMBREE:
         return None
@@ -159,7 +167,7 @@ def _ray_ends(points: np.ndarray, normals: np.ndarray, eyes: np.ndarray, grid: i
     return origins, eyes[ej] - origins
 
 
-def _visible_rays(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray,
+def _visible_rays(mesh: AnyMesh, points: np.ndarray, normals: np.ndarray,
                   eyes: np.ndarray, grid: int) -> np.ndarray:
     """Visibility along the rays of :mod:`._ray_kernel` (point i, eye j of ray k).
 
@@ -271,7 +279,7 @@ class Intervals:
 
 
 def visible_intervals(
-    mesh: trimesh.Trimesh | None,
+    mesh: AnyMesh | None,
     points: np.ndarray,
     normals: np.ndarray | None,
     viewer: Viewer,
