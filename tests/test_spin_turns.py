@@ -28,7 +28,9 @@ TOOL = Tool()
 
 
 def _mesh(path: Path) -> trimesh.Trimesh:
-    return place(load_model(path), 40.0, 0.0).mesh
+    mesh = place(load_model(path), 40.0, 0.0).mesh
+    assert mesh is not None
+    return mesh.to_trimesh()
 
 
 @pytest.fixture(scope="module")
