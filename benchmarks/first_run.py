@@ -10,8 +10,10 @@ Times, each command in a fresh process as a maker runs it:
 - the same design with ``--stipples 100``, cache filled;
 - ``specholo --help`` and ``import specholo_cli.cli`` (what every command pays).
 
-Each cold run gets its own empty ``NUMBA_CACHE_DIR`` in a temporary folder,
-so the project's own cache is neither read nor touched. Prints the median of
+Each cold run gets its own empty ``NUMBA_CACHE_DIR`` and ``SPECHOLO_CACHE_DIR``
+(the models read before) in a temporary folder, so neither the project's own
+kernels nor the user's models are read or touched; the warm runs use the
+caches the cold runs filled. Prints the median of
 the repeats (min-max beside it) and how many kernels the cold runs compiled
 (counted as the index files numba wrote into the empty cache: the design's
 own and its second process's, which compiles the later kernels beside it).
@@ -39,8 +41,12 @@ README = ["--size", "60", "--center-z", "-40", "--light-elevation", "45",
 def timed(cmd: list[str], cache: Path | None) -> tuple[float, int]:
     """Seconds for ``cmd`` to end, and how many kernels ``cache`` holds after it."""
     env = dict(os.environ)
+    # As on a maker's machine, Python keeps the modules' bytecode (an
+    # environment that turns that off compiles every module on every run).
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     if cache is not None:
         env["NUMBA_CACHE_DIR"] = str(cache)
+        env["SPECHOLO_CACHE_DIR"] = str(cache / "specholo")
     t0 = time.perf_counter()
     run = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True)
     seconds = time.perf_counter() - t0

@@ -47,6 +47,11 @@ _FORBIDDEN = 1e9
 _CENTRING = 0.005
 #: Fewest plan samples a thread takes (a sample's costs take about a microsecond).
 _GRAIN = 512
+#: Cells of the coarse map of where anything is placed, in cells of the index:
+#: a sample whose leaves' reach covers no marked cell costs its leaves nothing
+#: but their centring (most samples of a sparse design: two searches per leaf
+#: spared for a few reads).
+_COARSE = 8
 
 
 @nb.njit(cache=True)
@@ -211,6 +216,28 @@ def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: 
     return pts
 
 
+@nb.njit(cache=True)
+def _mark(x: float, y: float, occ: np.ndarray, hc: float, side: int) -> None:
+    """Mark the coarse cell of a placed point."""
+    ix, iy = _cell(x, y, hc)
+    occ[_slot(ix, iy, occ.size - 1, side)] = 1
+
+
+@nb.njit(cache=True)
+def _clear(x0: float, y0: float, x1: float, y1: float, occ: np.ndarray, hc: float,
+           side: int) -> bool:
+    """Whether no coarse cell meeting the box [x0, x1] x [y0, y1] is marked (two
+    cells sharing a slot only make a box look less clear)."""
+    mask = occ.size - 1
+    ax, ay = _cell(x0, y0, hc)
+    bx, by = _cell(x1, y1, hc)
+    for a in range(ax, bx + 1):
+        for b in range(ay, by + 1):
+            if occ[_slot(a, b, mask, side)] != 0:
+                return False
+    return True
+
+
 @nb.njit(cache=True, nogil=True)
 def _walk(r: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray,
           w: float, leaves: int, dx_target: float, leaf: np.ndarray
@@ -248,7 +275,7 @@ def _walk(r: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: n
 def _costs(j0: int, j1: int, leaf: np.ndarray, lo: np.ndarray, hi: np.ndarray, w: float,
            delta: float, r_tip: float, margin: float, head_c: np.ndarray, cen: np.ndarray,
            head_g: np.ndarray, gli: np.ndarray, h: float, side: int, r_max_g: float,
-           here: np.ndarray) -> None:
+           occ: np.ndarray, hc: float, here: np.ndarray) -> None:
     """What each leaf costs at samples [j0, j1) of a run, into ``here[j, L - lo[j]]``.
 
     The index of the placed grooves does not change while a run is chosen, so
@@ -256,10 +283,25 @@ def _costs(j0: int, j1: int, leaf: np.ndarray, lo: np.ndarray, hi: np.ndarray, w
     they are found on threads (:func:`specholo._threads.chunked`), then chosen
     among in one pass (:func:`_choose`).
     """
+    # Every search below finds a point within this of one of the leaves' two
+    # query points, or none (a glint's radius is at most r_max_g, a wall's
+    # offset at most r_tip).
+    reach = max(r_tip, r_max_g) + margin + 1e-9
     for j in range(j0, j1):
         x0, y0, dxdy = leaf[j, 1], leaf[j, 2], leaf[j, 4]
         nx, ny = leaf[j, 6], leaf[j, 7]
         rg = r_tip * math.sqrt(nx * nx + ny * ny)
+        ca, cb = (lo[j] - leaf[j, 9]) * delta, (hi[j] - leaf[j, 9]) * delta
+        xa, xb = x0 + dxdy * ca, x0 + dxdy * cb
+        bx0 = min(xa, xb) - max(r_tip * nx, 0.0) - reach
+        bx1 = max(xa, xb) - min(r_tip * nx, 0.0) + reach
+        by0 = y0 + ca - max(r_tip * ny, 0.0) - reach
+        by1 = y0 + cb - min(r_tip * ny, 0.0) + reach
+        if _clear(bx0, by0, bx1, by1, occ, hc, side):
+            for L in range(lo[j], hi[j] + 1):
+                u = (leaf[j, 3] + (L - leaf[j, 9]) * delta * leaf[j, 5]) / w
+                here[j, L - lo[j]] = _CENTRING * u * u
+            continue
         for L in range(lo[j], hi[j] + 1):
             c = (L - leaf[j, 9]) * delta
             cx, cy = x0 + dxdy * c, y0 + c
@@ -281,7 +323,8 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
             lo: np.ndarray, hi: np.ndarray, here: np.ndarray, back: np.ndarray, w: float,
             leaves: int, spacing: float, dx_target: float, jump_cost: float,
             min_length: float, head_c: np.ndarray, cen: np.ndarray, head_g: np.ndarray,
-            gli: np.ndarray, n_c: int, h: float, side: int, r_max_g: float
+            gli: np.ndarray, n_c: int, h: float, side: int, r_max_g: float,
+            occ: np.ndarray, hc: float
             ) -> tuple[np.ndarray, np.ndarray, int, float, np.ndarray, np.ndarray, np.ndarray,
                        np.ndarray]:
     """Run r's stripes: the cheapest path through its leaves' costs ``here``
@@ -415,6 +458,8 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
             r_max_g = max(r_max_g, rg)
             cen = _insert(cx, cy, 0.0, head_c, cen, n_c, h, side)
             gli = _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h, side)
+            _mark(cx, cy, occ, hc, side)
+            _mark(cx - r_tip * nx, cy - r_tip * ny, occ, hc, side)
             n_c += 1
         a = j
     return cen, gli, n_c, r_max_g, o_a, o_b, o_u, o_x
@@ -461,6 +506,10 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
     # page (filling two tables of 2^25 slots with -1 took 0.6 s).
     head_c = np.zeros(1 << bits, dtype=np.int64)
     head_g = np.zeros(1 << bits, dtype=np.int64)
+    # The coarse map, on the same grid of slots (a cell of it is _COARSE cells
+    # of the index on a side, so it has room to spare).
+    hc = _COARSE * h
+    occ = np.zeros(1 << bits, dtype=np.uint8)
     cen = np.empty((_FIRST_ROOM, 4))
     gli = np.empty((_FIRST_ROOM, 4))
     n_c = 0
@@ -506,10 +555,10 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
                 back_room = np.empty((max(m, 2 * back_room.shape[0]), width), dtype=np.int64)
             here = here_room[:m]
             chunked(_costs, 0, m, leaf, lo, hi, w, delta, r_tip, margin, head_c, cen, head_g,
-                    gli, h, side, r_max_g, here, grain=_GRAIN)
+                    gli, h, side, r_max_g, occ, hc, here, grain=_GRAIN)
             cen, gli, n_c, r_max_g, a, b, u0, x = _choose(
                 r, pts, packed, leaf, m, lo, hi, here, back_room, w, leaves, spacing,
                 dx_target, jump_cost, min_length, head_c, cen, head_g, gli, n_c, h, side,
-                r_max_g)
+                r_max_g, occ, hc)
             out.append((r, (a, b, u0, x)))
     return placed(-1)
