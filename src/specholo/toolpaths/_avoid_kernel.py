@@ -37,8 +37,9 @@ from specholo.toolpaths import _stripe_kernel as sk
 #: point (few chains shared by two cells) from the plan's expected count.
 MIN_TABLE_BITS = 16
 MAX_TABLE_BITS = 26
-#: Points the index has room for at first; it doubles as it fills, so it holds
-#: what the placed stripes need, not the runs' worst-case bounds.
+#: Fewest points the index has room for at first (room for the plan's expected
+#: points is made at once); it doubles if they are more, so it holds what the
+#: placed stripes need, not the runs' worst-case bounds.
 _FIRST_ROOM = 1 << 16
 #: A cost too large to pay: a jump whose stripes would cut into each other.
 _FORBIDDEN = 1e9
@@ -169,46 +170,25 @@ def _near(x: float, y: float, reach: float, head: np.ndarray, pts: np.ndarray,
 
 
 @nb.njit(cache=True)
-def _compacted(head: np.ndarray, pts: np.ndarray, n: int, h: float, side: int,
-               room: int) -> np.ndarray:
-    """The n points in ``room`` rows, each chain's points side by side in memory.
+def _grown(pts: np.ndarray, n: int) -> np.ndarray:
+    """The n points in twice the room, in the same rows (chains link rows).
 
-    Points are stored as placed, so a chain (one cell's points, placed by many
-    grooves at different times) would be read from all over memory: copied
-    chain by chain, a query reads a few runs of neighbouring rows. ``head`` is
-    relinked to the new rows. The work is in the points, not the table (a
-    pass over a table of 2^25 slots, each time the points double, was most of
-    a large plan's time); a query's answer does not depend on the order.
+    Copying the chains cell by cell, so that a query reads neighbouring rows,
+    was tried: on the README design it cost 0.9 s of moving points about and
+    the queries took no less time (4.2 s either way, on two cores).
     """
-    mask = head.size - 1
-    out = np.empty((room, 4))
-    k = 0
-    for i in range(n):
-        ix, iy = _cell(pts[i, 0], pts[i, 1], h)
-        s = _slot(ix, iy, mask, side)
-        if head[s] < 0:  # its chain is moved already (its head says where, as -(row + 1))
-            continue
-        c = head[s] - 1
-        head[s] = -(k + 1)
-        while c >= 0:
-            out[k, 0], out[k, 1], out[k, 2], out[k, 3] = pts[c, 0], pts[c, 1], pts[c, 2], k + 1
-            k += 1
-            c = int(pts[c, 3])
-        out[k - 1, 3] = -1.0
-    for i in range(k):
-        ix, iy = _cell(out[i, 0], out[i, 1], h)
-        s = _slot(ix, iy, mask, side)
-        if head[s] < 0:
-            head[s] = -head[s]
+    out = np.empty((2 * pts.shape[0], 4))
+    for i in range(n):  # (a loop, not a slice copy: that compiles for seconds)
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = pts[i, 0], pts[i, 1], pts[i, 2], pts[i, 3]
     return out
 
 
 @nb.njit(cache=True)
 def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: int,
             h: float, side: int) -> np.ndarray:
-    """Store point n (``pts`` doubled and compacted when full); returns ``pts``."""
+    """Store point n (``pts`` doubled when full); returns ``pts``."""
     if n >= pts.shape[0]:
-        pts = _compacted(head, pts, n, h, side, 2 * pts.shape[0])
+        pts = _grown(pts, n)
     ix, iy = _cell(x, y, h)
     s = _slot(ix, iy, head.size - 1, side)
     pts[n, 0], pts[n, 1], pts[n, 2], pts[n, 3] = x, y, r, head[s] - 1
@@ -346,9 +326,7 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
     pre_a = np.empty(width, dtype=np.int64)
     suf_a = np.empty(width, dtype=np.int64)
     p_lo, n_p, d_min = 0, 0, 1
-    for j in range(m):  # (loops, not slice setting: that compiles for seconds)
-        for s in range(width):
-            back[j, s] = -(1 << 40)
+    # (back[j] is written for every leaf in the band at j, all that is read.)
     for j in range(m):
         gap_scale = leaf[j, 5] * leaf[j, 8]
         # Costs count groove length, in plan steps: samples crowd where u
@@ -510,8 +488,12 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
     # of the index on a side, so it has room to spare).
     hc = _COARSE * h
     occ = np.zeros(1 << bits, dtype=np.uint8)
-    cen = np.empty((_FIRST_ROOM, 4))
-    gli = np.empty((_FIRST_ROOM, 4))
+    # Room for the points the plan is expected to place (the table has about
+    # two slots a point): untouched rows cost no memory, and doubling the
+    # room (copying every point and faulting in the pages twice) is rare.
+    room = max(_FIRST_ROOM, 1 << (bits - 1))
+    cen = np.empty((room, 4))
+    gli = np.empty((room, 4))
     n_c = 0
     delta = 2.0 * w / leaves
     width = leaves + 3
