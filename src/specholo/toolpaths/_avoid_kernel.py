@@ -185,15 +185,12 @@ def _grown(pts: np.ndarray, n: int) -> np.ndarray:
 
 @nb.njit(cache=True)
 def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: int,
-            h: float, side: int) -> np.ndarray:
-    """Store point n (``pts`` doubled when full); returns ``pts``."""
-    if n >= pts.shape[0]:
-        pts = _grown(pts, n)
+            h: float, side: int) -> None:
+    """Store point n (``pts`` has room for it)."""
     ix, iy = _cell(x, y, h)
     s = _slot(ix, iy, head.size - 1, side)
     pts[n, 0], pts[n, 1], pts[n, 2], pts[n, 3] = x, y, r, head[s] - 1
     head[s] = n + 1
-    return pts
 
 
 @nb.njit(cache=True)
@@ -427,6 +424,10 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
         u0 = ya - sk.target(th_a, 0.0, px, py, pz, params)[1]
         o_a[k], o_b[k], o_u[k], o_x[k] = th_a, leaf[b, 0], u0, abs(leaf[b, 1] - leaf[a, 1])
         k += 1
+        # Room first (an array handed back from every insert costs its
+        # reference counting at every point).
+        while n_c + b - a + 1 > cen.shape[0]:
+            cen, gli = _grown(cen, n_c), _grown(gli, n_c)
         for q in range(a, b + 1):
             c = (chosen[a] - leaf[q, 9]) * delta
             x0, y0, dxdy = leaf[q, 1], leaf[q, 2], leaf[q, 4]
@@ -434,8 +435,8 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
             cx, cy = x0 + dxdy * c, y0 + c
             rg = r_tip * math.sqrt(nx * nx + ny * ny)
             r_max_g = max(r_max_g, rg)
-            cen = _insert(cx, cy, 0.0, head_c, cen, n_c, h, side)
-            gli = _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h, side)
+            _insert(cx, cy, 0.0, head_c, cen, n_c, h, side)
+            _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h, side)
             _mark(cx, cy, occ, hc, side)
             _mark(cx - r_tip * nx, cy - r_tip * ny, occ, hc, side)
             n_c += 1
