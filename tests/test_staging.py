@@ -103,3 +103,14 @@ def test_every_kind_writes_one_verify_schema(tmp_path: Path) -> None:
     (tmp_path / "bad.json").write_text("[1]")
     with pytest.raises(SpecholoError, match="not a verification"):
         read_verify_figures(tmp_path / "bad.json")
+
+
+def test_the_run_record_names_the_installed_versions() -> None:
+    """Read from the .dist-info folders, the versions are importlib.metadata's."""
+    from importlib import metadata
+
+    from specholo.staging import software_versions
+
+    versions = software_versions()
+    for name in ("numpy", "numba", "trimesh", "matplotlib"):
+        assert versions[name] == metadata.version(name)

@@ -82,18 +82,46 @@ class Stage:
 def software_versions() -> dict[str, str]:
     """Versions of specholo, Python and the libraries a design's numbers depend on."""
     import platform
-    from importlib import metadata
 
     from specholo import __version__
 
     versions = {"specholo": __version__, "python": platform.python_version()}
-    for name in ("numpy", "scipy", "numba", "trimesh", "embreex", "ezdxf", "matplotlib",
-                 "pillow"):
-        try:
-            versions[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            continue
+    names = ("numpy", "scipy", "numba", "trimesh", "embreex", "ezdxf", "matplotlib", "pillow")
+    found = _installed(names)
+    for name in names:
+        if name in found:
+            versions[name] = found[name]
     return versions
+
+
+def _installed(names: tuple[str, ...]) -> dict[str, str]:
+    """The versions of those installed packages, from their ``.dist-info``
+    folders, one listing of each folder on the path (``importlib.metadata``
+    searches the whole path once a name: 40 ms for these eight); a package
+    installed any other way is asked of ``importlib.metadata``."""
+    found: dict[str, str] = {}
+    for entry in sys.path:
+        try:
+            listing = os.listdir(entry or ".")
+        except OSError:
+            continue
+        for fn in listing:
+            if not fn.endswith(".dist-info"):
+                continue
+            project, _, version = fn[: -len(".dist-info")].rpartition("-")
+            key = project.lower().replace("_", "-")
+            if key in names and key not in found:
+                found[key] = version
+    missing = [name for name in names if name not in found]
+    if missing:
+        from importlib import metadata  # (itself a few tens of ms to import)
+
+        for name in missing:
+            try:
+                found[name] = metadata.version(name)
+            except metadata.PackageNotFoundError:
+                continue
+    return found
 
 
 def numba_threads() -> int | None:
