@@ -611,7 +611,7 @@ def design_ridged(points: np.ndarray, normals: np.ndarray | None, mesh: Any, set
     Args:
         points: (n, 3) stipples, mm.
         normals: (n, 3) their outward face normals (None for a point cloud).
-        mesh: the occluding mesh (``trimesh.Trimesh``) or None.
+        mesh: the occluding mesh (a :class:`~specholo.scene.mesh.Mesh` or a trimesh) or None.
         setup: light and viewer (the viewer's azimuth range and distance).
         options: the construction's settings.
         plate: (2, 2) plate corners, mm; default the patches' extent plus the margin.
