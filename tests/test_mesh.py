@@ -111,3 +111,23 @@ def test_a_design_of_a_model_read_before_does_not_import_trimesh(tmp_path: Path)
                            text=True, check=True).stdout.split("\n")[-2] for _ in range(2)]
     assert runs[0] == "['networkx', 'scipy.spatial', 'trimesh']"
     assert runs[1] == "[]"
+
+
+def test_the_cache_keeps_the_models_used_last(tmp_path: Path,
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("SPECHOLO_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(cache, "MAX_ENTRIES", 2)
+    boxes, entries = [], []
+    for k in range(3):
+        path = tmp_path / f"box{k}.stl"
+        trimesh.creation.box(extents=(1.0 + k, 2.0, 3.0)).export(path)
+        boxes.append(path)
+        entries.append(cache._entry(path.read_bytes(), ".stl"))
+    load_model(boxes[0])
+    load_model(boxes[1])
+    for p, t in zip(entries[:2], (1000.0, 2000.0), strict=True):
+        os.utime(p, (t, t))  # type: ignore[arg-type]
+    load_model(boxes[0])  # read from the cache: used last now
+    load_model(boxes[2])  # a third: the longest unused goes
+    left = {p.name for p in (tmp_path / "cache" / "models").iterdir()}
+    assert left == {entries[0].name, entries[2].name}  # type: ignore[union-attr]

@@ -8,6 +8,8 @@ named by a hash of the file's bytes and format, in ``$SPECHOLO_CACHE_DIR`` (or
 give the same mesh without trimesh. Entries are written whole (renamed into
 place), and one that cannot be read is read from the file again; a cache that
 cannot be written is not used. ``SPECHOLO_CACHE_DIR=`` (empty) turns it off.
+The cache keeps the models used last: an entry read is marked as used, and
+past :data:`MAX_ENTRIES` entries or :data:`MAX_BYTES` the longest unused go.
 """
 
 from __future__ import annotations
@@ -27,6 +29,9 @@ from specholo.scene.mesh import Mesh, ply_bytes, read_ply
 LOADER_VERSION = 1
 #: Largest entry read back, bytes (a larger file is read with trimesh again).
 MAX_ENTRY = 1 << 30
+#: Most entries, and most bytes of them, the cache keeps.
+MAX_ENTRIES = 256
+MAX_BYTES = 2 << 30
 
 
 def cache_dir() -> Path | None:
@@ -67,6 +72,8 @@ def kept(data: bytes, ext: str) -> Mesh | None:
     if (len(faces) == 0 or not np.isfinite(vertices).all() or faces.min() < 0
             or faces.max() >= len(vertices)):
         return None
+    with contextlib.suppress(OSError):
+        os.utime(path)  # used now: the last to go
     return Mesh(vertices, faces)
 
 
@@ -86,3 +93,20 @@ def keep(data: bytes, ext: str, mesh: Mesh) -> None:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
             raise
+        _trim(path.parent)
+
+
+def _trim(folder: Path) -> None:
+    """Remove the longest unused entries past MAX_ENTRIES or MAX_BYTES."""
+    entries = []
+    for p in folder.glob("*.ply"):
+        with contextlib.suppress(OSError):
+            st = p.stat()
+            entries.append((st.st_mtime, st.st_size, p))
+    entries.sort(reverse=True)  # the last used first
+    total = 0
+    for k, (_, size, p) in enumerate(entries):
+        total += size
+        if k >= MAX_ENTRIES or total > MAX_BYTES:
+            with contextlib.suppress(OSError):
+                p.unlink()
