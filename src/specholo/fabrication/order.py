@@ -290,8 +290,9 @@ def _build_tree(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
     n_nodes = (1 << (depth + 1)) - 1
     first_leaf = (1 << depth) - 1
     perm = np.arange(n)
-    xs = pts[:, 0].copy()
-    ys = pts[:, 1].copy()
+    xs, ys = np.empty(n), np.empty(n)
+    for p in range(n):  # (a loop, not copies of column views: those compile for a second)
+        xs[p], ys[p] = pts[p, 0], pts[p, 1]
     lo = np.zeros(n_nodes, dtype=np.int64)
     hi = np.zeros(n_nodes, dtype=np.int64)
     box = np.empty((n_nodes, 4))

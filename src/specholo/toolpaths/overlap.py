@@ -247,8 +247,12 @@ def _buckets(pts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.
         and the cell side.
     """
     n = pts.shape[0]
-    x0, y0 = pts[:, 0].min(), pts[:, 1].min()
-    wx, wy = pts[:, 0].max() - x0, pts[:, 1].max() - y0
+    # (Loops, not min and max of column views: those compile for seconds.)
+    x0, y0, x1, y1 = np.inf, np.inf, -np.inf, -np.inf
+    for i in range(n):
+        x0, x1 = min(x0, pts[i, 0]), max(x1, pts[i, 0])
+        y0, y1 = min(y0, pts[i, 1]), max(y1, pts[i, 1])
+    wx, wy = x1 - x0, y1 - y0
     cell = max(reach * (1.0 + 1e-9), max(wx, wy) * (1.0 + 1e-9) / 2.0 ** (_ROW_BITS - 1),
                1e-300)
     key = np.empty(n, np.int64)
