@@ -95,22 +95,32 @@ def test_a_model_read_again_comes_from_the_cache(tmp_path: Path,
     load_model(BUNNY)
 
 
-def test_a_design_of_a_model_read_before_does_not_import_trimesh(tmp_path: Path) -> None:
-    """trimesh and scipy.spatial take longer to import than a small design takes
-    (numba imports a little of scipy itself)."""
-    env = {**os.environ, "SPECHOLO_CACHE_DIR": str(tmp_path / "cache"),
-           "SPECHOLO_NO_PRECOMPILE": "1"}
+def _imported(model: Path, cache_dir: Path) -> str:
+    """Which of trimesh, networkx and scipy.spatial a 30-stipple design of
+    ``model`` imports, in a fresh process (numba imports a little of scipy)."""
+    env = {**os.environ, "SPECHOLO_CACHE_DIR": str(cache_dir), "SPECHOLO_NO_PRECOMPILE": "1"}
     script = textwrap.dedent(f"""
         import sys
         from specholo.flat import design
         from specholo.settings import DesignConfig
-        design({str(BUNNY)!r}, DesignConfig(size=60.0, center_z=-40.0, stipples=30))
+        design({str(model)!r}, DesignConfig(size=60.0, center_z=-40.0, stipples=30))
         print(sorted(m for m in ("trimesh", "scipy.spatial", "networkx") if m in sys.modules))
     """)
-    runs = [subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
-                           text=True, check=True).stdout.split("\n")[-2] for _ in range(2)]
-    assert runs[0] == "['networkx', 'scipy.spatial', 'trimesh']"
-    assert runs[1] == "[]"
+    run = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                         text=True, check=True)
+    return run.stdout.split("\n")[-2]
+
+
+def test_a_design_of_an_obj_does_not_import_trimesh(tmp_path: Path) -> None:
+    """trimesh and scipy.spatial take longer to import than a small design takes."""
+    assert _imported(BUNNY, tmp_path / "cache") == "[]"
+
+
+def test_a_model_read_before_is_read_without_trimesh(tmp_path: Path) -> None:
+    ply = tmp_path / "bunny.ply"
+    trimesh.load(BUNNY, process=False).export(ply)
+    assert _imported(ply, tmp_path / "cache") == "['networkx', 'scipy.spatial', 'trimesh']"
+    assert _imported(ply, tmp_path / "cache") == "[]"
 
 
 def test_the_cache_keeps_the_models_used_last(tmp_path: Path,
@@ -131,3 +141,98 @@ def test_the_cache_keeps_the_models_used_last(tmp_path: Path,
     load_model(boxes[2])  # a third: the longest unused goes
     left = {p.name for p in (tmp_path / "cache" / "models").iterdir()}
     assert left == {entries[0].name, entries[2].name}  # type: ignore[union-attr]
+
+
+# ---------------------------------------------------------------- reading and cleaning
+
+
+def _raw_meshes() -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Raw meshes, in the unit box and every vertex used, as loading hands them on."""
+    rng = np.random.default_rng(4)
+    out: dict[str, trimesh.Trimesh] = {}
+    out["bunny"] = trimesh.load(BUNNY, process=False)
+    out["knot"] = trimesh.load(BUNNY.parent / "knot.obj", process=False)
+    box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
+    # The same box with every face's corners its own (merged back into 8).
+    out["box unmerged"] = trimesh.Trimesh(box.triangles.reshape(-1, 3),
+                                          np.arange(36).reshape(-1, 3), process=False)
+    inverted = trimesh.creation.icosphere(subdivisions=2)
+    inverted.invert()
+    out["inside out"] = inverted
+    out["two bodies, one inside out"] = trimesh.util.concatenate(
+        [inverted, box.copy().apply_translation([4.0, 0.0, 0.0])])
+    grid = trimesh.creation.box(extents=(1.0, 1.0, 1.0)).triangles[:4]  # an open piece
+    out["open"] = trimesh.Trimesh(grid.reshape(-1, 3), np.arange(12).reshape(-1, 3),
+                                  process=False)
+    # Faces of no area, and corners that agree to 1e-12 (merged).
+    soup = rng.random((30, 3, 3))
+    soup[5, 2] = soup[5, 1]
+    soup[7, 0] = soup[6, 0] + 1e-12
+    out["soup"] = trimesh.Trimesh(soup.reshape(-1, 3), np.arange(90).reshape(-1, 3),
+                                  process=False)
+    flipped = box.copy()
+    faces = flipped.faces.copy()
+    faces[0] = faces[0][::-1]  # one face wound the other way
+    out["wound both ways"] = trimesh.Trimesh(box.vertices, faces, process=False)
+    raw = {}
+    for name, m in out.items():
+        v = np.asarray(m.vertices, dtype=np.float64)
+        v = (v - v.min(axis=0)) / np.ptp(v, axis=0).max() / 2.0
+        raw[name] = (v, np.asarray(m.faces, dtype=np.int64))
+    return raw
+
+
+@pytest.mark.parametrize("name", list(_raw_meshes()))
+def test_cleaning_is_trimeshs_vertex_for_vertex(name: str) -> None:
+    from specholo.scene import cleaning
+    from specholo.scene.loading import _DEGENERATE_AREA, clean_with_trimesh
+
+    unit, faces = _raw_meshes()[name]
+    want = clean_with_trimesh(unit, faces)
+    got = cleaning.clean(unit, faces, _DEGENERATE_AREA)
+    if name == "wound both ways":
+        assert got is None  # left to trimesh's walk over the faces
+        return
+    assert got is not None
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    if name in ("inside out", "two bodies, one inside out"):
+        assert trimesh.Trimesh(*got, process=False).volume > 0  # outward now
+
+
+def test_plain_obj_and_stl_read_as_trimesh_reads_them(tmp_path: Path) -> None:
+    from specholo.scene import readers
+
+    box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
+    files = {"box.stl": box.export(file_type="stl"),
+             "box_ascii.stl": box.export(file_type="stl_ascii").encode(),
+             "box.obj": box.export(file_type="obj").encode(),
+             "bunny.obj": BUNNY.read_bytes()}
+    for name, data in files.items():
+        ext = Path(name).suffix
+        got = readers.read(ext, data)
+        assert got is not None, name
+        loaded = trimesh.load(trimesh.util.wrap_as_stream(data), file_type=ext[1:],
+                              process=False)
+        # trimesh keeps only the vertices faces use, in order: so does loading.
+        used = np.unique(got[1])
+        assert np.array_equal(got[0][used], loaded.vertices), name
+        assert np.array_equal(np.searchsorted(used, got[1]), loaded.faces), name
+
+
+@pytest.mark.parametrize("text", [
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4 3\n",  # a polygon
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n",  # materials
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n",  # relative indices
+    "v 0 0 0 1\nv 1 0 0 1\nv 0 1 0 1\nf 1 2 3\n",  # four coordinates
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 \\\n3\n",  # a continued line
+])
+def test_other_objs_are_left_to_trimesh(text: str, tmp_path: Path,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    from specholo.scene import readers
+
+    assert readers.read(".obj", text.encode()) is None
+    # ... which still reads them (the quad as two triangles).
+    monkeypatch.setenv("SPECHOLO_CACHE_DIR", "")
+    path = tmp_path / "m.obj"
+    path.write_text(text)
+    assert len(load_model(path).mesh.faces) >= 1  # type: ignore[union-attr]

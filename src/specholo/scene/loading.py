@@ -31,7 +31,7 @@ from specholo._memory import available_memory as available_memory
 from specholo._memory import format_bytes as format_bytes
 from specholo.errors import SpecholoError
 from specholo.readback import all_finite, check_fits, one_line, open_file, read_bytes, within
-from specholo.scene import cache
+from specholo.scene import cache, cleaning, readers
 from specholo.scene.mesh import Mesh, read_ply
 
 MESH_FORMATS = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")
@@ -192,7 +192,11 @@ def load_model(path: str | os.PathLike[str]) -> Model:
         mesh = cache.kept(data, ext)
         if mesh is not None:
             return Model(mesh=mesh, points=mesh.vertices)
-        model = _read_with_trimesh(p, ext, data)
+        raw = readers.read(ext, data)
+        if raw is not None:
+            model = _clean_mesh(p, *raw)
+        else:
+            model = _read_with_trimesh(p, ext, data)
         if model.mesh is not None:
             cache.keep(data, ext, model.mesh)
         return model
@@ -470,31 +474,40 @@ def _clean_mesh(p: Path, vertices: np.ndarray, faces: np.ndarray) -> Model:
         raise SpecholoError(f"{p}: every face of the mesh is degenerate (zero area)")
     e = math.frexp(extent)[1]
     unit = np.ldexp(w - lo, -e)  # in [0, 1]
-    import trimesh
-
     try:
-        mesh = trimesh.Trimesh(vertices=unit, faces=faces, process=False)
-        mesh.merge_vertices()
-        diag2 = float(np.sum(np.ptp(mesh.vertices, axis=0) ** 2))
-        keep = mesh.area_faces > _DEGENERATE_AREA * diag2
-        if not keep.any():
-            raise SpecholoError(f"{p}: every face of the mesh is degenerate (zero area)")
-        mesh.update_faces(keep)
-        mesh.remove_unreferenced_vertices()
-        # Consistent winding (and outward, for closed meshes) so face normals
-        # tell the outer side of the surface.
-        mesh.fix_normals(multibody=True)
-        restored = np.ldexp(np.ldexp(np.asarray(mesh.vertices), e) + lo, k)
-        if not np.isfinite(restored).all():
-            raise SpecholoError(f"{p}: vertex coordinates too large for floating point")
-        cleaned = Mesh(restored, np.asarray(mesh.faces))
-    except SpecholoError:
-        raise
+        done = cleaning.clean(unit, faces, _DEGENERATE_AREA)
+        if done is None:  # faces wound both ways: trimesh walks them into agreement
+            done = clean_with_trimesh(unit, faces)
+    except SpecholoError as exc:
+        raise SpecholoError(f"{p}: {exc}") from exc
     except MemoryError as exc:
         raise SpecholoError(f"{p}: out of memory processing the mesh") from exc
     except Exception as exc:
         raise SpecholoError(f"{p}: cannot process mesh: {_one_line(exc)}") from exc
+    restored = np.ldexp(np.ldexp(done[0], e) + lo, k)
+    if not np.isfinite(restored).all():
+        raise SpecholoError(f"{p}: vertex coordinates too large for floating point")
+    cleaned = Mesh(restored, done[1])
     return Model(mesh=cleaned, points=cleaned.vertices)
+
+
+def clean_with_trimesh(unit: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`specholo.scene.cleaning.clean` by trimesh's own steps (which also
+    make an inconsistent winding consistent)."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices=unit, faces=faces, process=False)
+    mesh.merge_vertices()
+    diag2 = float(np.sum(np.ptp(mesh.vertices, axis=0) ** 2))
+    keep = mesh.area_faces > _DEGENERATE_AREA * diag2
+    if not keep.any():
+        raise SpecholoError("every face of the mesh is degenerate (zero area)")
+    mesh.update_faces(keep)
+    mesh.remove_unreferenced_vertices()
+    # Consistent winding (and outward, for closed meshes) so face normals
+    # tell the outer side of the surface.
+    mesh.fix_normals(multibody=True)
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
 
 
 def _cloud(p: Path, points: np.ndarray) -> Model:
