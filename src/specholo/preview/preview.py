@@ -180,7 +180,10 @@ def plot_verification(rows: list[dict[str, float]], path: str | os.PathLike[str]
     ax2.grid(alpha=0.3)
     if title:
         ax1.set_title(title)
-    fig.tight_layout()
+    # Margins set, not fitted: the figure's size and labels never change, and
+    # fitting them measures every text (a tenth of a second of a verify).
+    fig.subplots_adjust(left=0.1, right=0.975, bottom=0.08, top=0.94 if title else 0.975,
+                        hspace=0.06)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
     with atomic_open(path, "wb", encoding=None) as fh:
