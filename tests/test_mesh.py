@@ -236,3 +236,16 @@ def test_other_objs_are_left_to_trimesh(text: str, tmp_path: Path,
     path = tmp_path / "m.obj"
     path.write_text(text)
     assert len(load_model(path).mesh.faces) >= 1  # type: ignore[union-attr]
+
+
+def test_line_ends_as_trimesh_takes_them() -> None:
+    from specholo.scene import readers
+
+    lf = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+    got = readers.read(".obj", lf.replace(b"\n", b"\r\n"))
+    want = readers.read(".obj", lf)
+    assert got is not None and want is not None
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    # Lines broken by a lone carriage return or a form feed: left to trimesh.
+    assert readers.read(".obj", lf.replace(b"\n", b"\r")) is None
+    assert readers.read(".obj", lf.replace(b"v 1", b"\x0cv 1")) is None

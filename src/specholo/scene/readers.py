@@ -30,12 +30,13 @@ def read(ext: str, data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def _obj(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
-    text = data.decode("utf-8")
-    if "\\\n" in text or "\\\r\n" in text:
+    text = data.decode("utf-8").replace("\r\n", "\n")
+    # Continued lines, and lines broken where trimesh would not break them.
+    if "\\\n" in text or any(c in text for c in "\r\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029"):
         return None
     vertices: list[str] = []
     faces: list[str] = []
-    for line in text.splitlines():
+    for line in text.split("\n"):
         if not line or line[0] == "#":
             continue
         if line[0].isspace():
