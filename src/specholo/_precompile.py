@@ -117,7 +117,10 @@ class _Model:
 def _tiny(config: Any) -> tuple[Any, Any]:
     """A few stipples below the plate and, for each, a path of half circles
     about the point under it (every direction of groove, so each eye finds
-    glints), two stipples' paths crossing; dots for two more."""
+    glints), two stipples' paths crossing; dots for two more. The half circles
+    turn one way and the other along a line, so the path's direction never
+    jumps, as a design's never does: a corner would compile the corners'
+    glint kernel, which no design of the README's kind needs."""
     import numpy as np
 
     from specholo.toolpaths.grooves import Grooves
@@ -131,9 +134,9 @@ def _tiny(config: Any) -> tuple[Any, Any]:
     for s, (x, y, _) in enumerate(points[:4]):
         for r in (0.4, 0.8):
             start = len(vertices)
-            for k in range(5):  # a zigzag of half circles
-                vertices.append([x - r + 0.5 * r * k, y + (0.1 * r if k % 2 else 0.0)])
-                bulges.append(1.0 if k % 2 else -0.5)
+            for k in range(5):  # a wave of half circles
+                vertices.append([x - r + 0.5 * r * k, y])
+                bulges.append(1.0 if k % 2 else -1.0)
             bulges[-1] = 0.0
             offsets.append(offsets[-1] + len(vertices) - start)
             stipple.append(s)
