@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from specholo import __version__
+from specholo.errors import SpecholoError
 from specholo.scene.mesh import Mesh, ply_bytes, read_ply
 
 #: Changes whenever loading would clean a file differently.
@@ -69,12 +70,15 @@ def kept(data: bytes, ext: str) -> Mesh | None:
     if got is None:
         return None
     vertices, faces = got
-    if (len(faces) == 0 or not np.isfinite(vertices).all() or faces.min() < 0
-            or faces.max() >= len(vertices)):
+    if len(faces) == 0 or not np.isfinite(vertices).all():
+        return None
+    try:
+        mesh = Mesh(vertices, faces)
+    except SpecholoError:  # (faces that do not index the vertices)
         return None
     with contextlib.suppress(OSError):
         os.utime(path)  # used now: the last to go
-    return Mesh(vertices, faces)
+    return mesh
 
 
 def keep(data: bytes, ext: str, mesh: Mesh) -> None:

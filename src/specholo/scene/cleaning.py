@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.scene.mesh import Mesh
 
 #: Decimals of the unit box to which vertices are merged (trimesh's tol.merge).
 MERGE_DIGITS = 8
@@ -41,10 +42,7 @@ def clean(unit: np.ndarray, faces: np.ndarray,
     """
     vertices, faces = _merged(unit, faces)
     diag2 = float(np.sum(np.ptp(vertices, axis=0) ** 2))
-    t = vertices[faces]
-    vectors = t[:, 1:, :] - t[:, :2, :]
-    cross = np.cross(vectors[:, 0], vectors[:, 1])
-    keep = np.sqrt((cross**2).sum(axis=1)) / 2.0 > degenerate * diag2
+    keep = Mesh(vertices, faces).area_faces > degenerate * diag2
     if not keep.any():
         raise SpecholoError("every face of the mesh is degenerate (zero area)")
     faces = faces[keep]
@@ -96,12 +94,11 @@ def _outward(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray,
              pairs: np.ndarray) -> np.ndarray:
     """The faces with every closed body of negative volume turned inside out."""
     adjacent = pairs // 3  # (k, 2) faces sharing an edge
-    label = _components(len(faces), adjacent)
     if len(adjacent) == 0:
         return faces
-    t = vertices[faces]
-    vectors = t[:, 1:, :] - t[:, :2, :]
-    cross = np.cross(vectors[:, 0], vectors[:, 1])
+    label = _components(len(faces), adjacent)
+    mesh = Mesh(vertices, faces)
+    t, cross = mesh.triangles, mesh.triangles_cross
     f1 = t[:, 0, :] + t[:, 1, :] + t[:, 2, :]
     flip = np.zeros(len(faces), dtype=bool)
     joined = np.zeros(len(faces), dtype=bool)

@@ -32,7 +32,7 @@ from specholo._memory import format_bytes as format_bytes
 from specholo.errors import SpecholoError
 from specholo.readback import all_finite, check_fits, one_line, open_file, read_bytes, within
 from specholo.scene import cache, cleaning, readers
-from specholo.scene.mesh import Mesh, read_ply
+from specholo.scene.mesh import PLY_TYPES, Mesh, read_ply
 
 MESH_FORMATS = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")
 CLOUD_FORMATS = (".ply", ".xyz", ".csv")
@@ -56,11 +56,7 @@ _LOAD_BYTES_PER_FILE_BYTE = {"mesh text": 24.0, "cloud text": 12.0, "binary": 3.
 # How much of a PLY header is searched for ``end_header``.
 _MAX_HEADER = 1 << 20
 # Sizes of PLY property types, bytes.
-_PLY_SIZES = {
-    "char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2,
-    "uint16": 2, "int": 4, "int32": 4, "uint": 4, "uint32": 4, "float": 4, "float32": 4,
-    "double": 8, "float64": 8,
-}
+_PLY_SIZES = {name: np.dtype(t).itemsize for name, t in PLY_TYPES.items()}
 # Characters str.splitlines breaks lines at (trimesh splits ASCII PLY data this way).
 _LINE_BREAKS = ("\n", "\r", "\x0b", "\x0c", "\x1c", "\x1d", "\x1e", "\x85", "\u2028", "\u2029")
 

@@ -29,8 +29,8 @@ if TYPE_CHECKING:
 TOL_ZERO = 1e-13
 #: The PLY header's comment line.
 PLY_COMMENT = b"comment specholo model"
-#: Binary PLY property types -> numpy little-endian dtypes.
-_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "<i2",
+#: PLY property types -> numpy little-endian dtypes.
+PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "<i2",
               "int16": "<i2", "ushort": "<u2", "uint16": "<u2", "int": "<i4", "int32": "<i4",
               "uint": "<u4", "uint32": "<u4", "float": "<f4", "float32": "<f4",
               "double": "<f8", "float64": "<f8"}
@@ -200,13 +200,13 @@ def read_ply(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     (_, n_v, v_props), (_, n_f, f_props) = elements
     if ([p[-1] for p in v_props[:3]] != ["x", "y", "z"]
-            or any(len(p) != 2 or p[0] not in _PLY_TYPES for p in v_props)):
+            or any(len(p) != 2 or p[0] not in PLY_TYPES for p in v_props)):
         return None
     if (len(f_props) != 1 or len(f_props[0]) != 4 or f_props[0][0] != "list"
-            or f_props[0][1] not in _PLY_TYPES or f_props[0][2] not in _PLY_TYPES):
+            or f_props[0][1] not in PLY_TYPES or f_props[0][2] not in PLY_TYPES):
         return None
-    v_type = np.dtype([(f"p{i}", _PLY_TYPES[p[0]]) for i, p in enumerate(v_props)])
-    count_t, index_t = np.dtype(_PLY_TYPES[f_props[0][1]]), np.dtype(_PLY_TYPES[f_props[0][2]])
+    v_type = np.dtype([(f"p{i}", PLY_TYPES[p[0]]) for i, p in enumerate(v_props)])
+    count_t, index_t = np.dtype(PLY_TYPES[f_props[0][1]]), np.dtype(PLY_TYPES[f_props[0][2]])
     f_type = np.dtype([("n", count_t), ("v", index_t, (3,))])
     start = end + len(b"end_header\n")
     need = n_v * v_type.itemsize + n_f * f_type.itemsize

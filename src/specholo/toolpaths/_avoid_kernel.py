@@ -185,17 +185,12 @@ def _grown(pts: np.ndarray, n: int) -> np.ndarray:
 
 @nb.njit(cache=True)
 def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: int,
-            h: float, side: int) -> None:
-    """Store point n (``pts`` has room for it)."""
+            h: float, side: int, occ: np.ndarray, hc: float) -> None:
+    """Store point n (``pts`` has room for it) and mark its cell of the coarse map."""
     ix, iy = _cell(x, y, h)
     s = _slot(ix, iy, head.size - 1, side)
     pts[n, 0], pts[n, 1], pts[n, 2], pts[n, 3] = x, y, r, head[s] - 1
     head[s] = n + 1
-
-
-@nb.njit(cache=True)
-def _mark(x: float, y: float, occ: np.ndarray, hc: float, side: int) -> None:
-    """Mark the coarse cell of a placed point."""
     ix, iy = _cell(x, y, hc)
     occ[_slot(ix, iy, occ.size - 1, side)] = 1
 
@@ -435,10 +430,8 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
             cx, cy = x0 + dxdy * c, y0 + c
             rg = r_tip * math.sqrt(nx * nx + ny * ny)
             r_max_g = max(r_max_g, rg)
-            _insert(cx, cy, 0.0, head_c, cen, n_c, h, side)
-            _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h, side)
-            _mark(cx, cy, occ, hc, side)
-            _mark(cx - r_tip * nx, cy - r_tip * ny, occ, hc, side)
+            _insert(cx, cy, 0.0, head_c, cen, n_c, h, side, occ, hc)
+            _insert(cx - r_tip * nx, cy - r_tip * ny, rg, head_g, gli, n_c, h, side, occ, hc)
             n_c += 1
         a = j
     return cen, gli, n_c, r_max_g, o_a, o_b, o_u, o_x
