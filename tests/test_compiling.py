@@ -3,11 +3,14 @@ cached one is not."""
 
 from __future__ import annotations
 
+import ast
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
+
+import numpy as np
 
 from specholo._compiling import kernel_name
 from specholo.scene._sample_kernel import _points
@@ -67,3 +70,85 @@ def test_precompile_only_on_a_cold_cache(monkeypatch) -> None:  # type: ignore[n
     monkeypatch.setenv("SPECHOLO_NO_PRECOMPILE", "1")
     assert _precompile.start(_readme_config()) is None
     _precompile.stop(None)
+
+
+# -- one decorator for every kernel -------------------------------------------------
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+ROOT = SRC.parent
+
+
+def _decorator(fn: ast.FunctionDef) -> ast.Call | None:
+    """The ``kernel(...)`` or ``njit(...)`` call decorating ``fn``, if any."""
+    for d in fn.decorator_list:
+        call = d if isinstance(d, ast.Call) else None
+        name = ast.unparse(call.func if call else d)
+        if name == "kernel" or name.endswith("njit"):
+            return call if call else ast.Call(func=d, args=[], keywords=[])
+    return None
+
+
+def _kernels() -> list[tuple[Path, ast.FunctionDef, ast.Call]]:
+    found = []
+    for f in SRC.rglob("*.py"):
+        for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.FunctionDef) and (call := _decorator(node)) is not None:
+                found.append((f, node, call))
+    return found
+
+
+def test_every_kernel_is_compiled_through_one_decorator() -> None:
+    """A kernel decorated with numba's own ``njit`` would get both wrappers back
+    (and might not be cached); every one goes through ``kernel``."""
+    kernels = _kernels()
+    assert len(kernels) > 100
+    raw = [f"{f.relative_to(SRC)}:{fn.name}" for f, fn, call in kernels
+           if ast.unparse(call.func) != "kernel"]
+    assert raw == []
+
+
+def test_a_helper_is_never_called_from_python() -> None:
+    """A ``helper=True`` kernel has no Python entry point: calling it from
+    Python fails at run time, so its name appears only inside other kernels'
+    bodies, in the sources, the tests and the benchmarks."""
+    kernels = _kernels()
+    helpers = {fn.name for _, fn, call in kernels
+               if any(k.arg == "helper" and ast.unparse(k.value) == "True"
+                      for k in call.keywords)}
+    assert len(helpers) > 40
+    bodies = {id(fn) for _, fn, _ in kernels}
+    outside: list[str] = []
+
+    def visit(node: ast.AST, where: Path) -> None:
+        if id(node) in bodies:
+            return
+        if isinstance(node, ast.FunctionDef) and _decorator(node) is not None:
+            return  # a kernel's body (a test's own kernel may call a helper)
+        # (importing a helper is fine: other modules' kernels call it)
+        name = node.id if isinstance(node, ast.Name) else \
+            node.attr if isinstance(node, ast.Attribute) else None
+        if name in helpers:
+            outside.append(f"{where.relative_to(ROOT)}:{node.lineno}:{name}")  # type: ignore[attr-defined]
+        for child in ast.iter_child_nodes(node):
+            visit(child, where)
+
+    for folder in ("src", "tests", "benchmarks"):
+        for f in (ROOT / folder).rglob("*.py"):
+            visit(ast.parse(f.read_text(encoding="utf-8")), f)
+    assert outside == []
+
+
+def test_a_helper_runs_inside_a_kernel_and_is_private() -> None:
+    """A helper called from Python would crash the process (numba has no
+    entry point to check its arguments), so only private names are helpers."""
+    from specholo.visibility import _ray_kernel
+
+    names = [fn.name for _, fn, call in _kernels()
+             if any(k.arg == "helper" for k in call.keywords)]
+    assert names and all(n.startswith("_") for n in names)
+    out = np.empty(2, dtype=np.bool_)
+    points = np.zeros((2, 3))
+    normals = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
+    eyes = np.array([[0.0, 0.0, 5.0]])
+    _ray_kernel._facing(0, 2, points, normals, eyes, 1, out)  # through the helper _pair
+    assert out.tolist() == [True, False]

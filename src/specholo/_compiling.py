@@ -1,4 +1,4 @@
-"""Telling the user while numba compiles a kernel.
+"""Compiling the project's kernels, and telling the user while numba does.
 
 The compiled kernels are built for the machine they run on the first time each
 is called, then loaded from numba's cache (``cache=True``). A first run spends
@@ -13,9 +13,31 @@ from __future__ import annotations
 import contextlib
 import threading
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import Any, TypeVar
 
+import numba as nb
 from numba.core import event
+
+_Function = TypeVar("_Function", bound=Callable[..., Any])
+
+
+def kernel(*, helper: bool = False, **options: Any) -> Callable[[_Function], _Function]:
+    """``numba.njit`` as every kernel of the project is compiled: cached on disk
+    (``cache=True``), with ``options`` (``nogil``, ``parallel``, ``fastmath``,
+    ``inline``) passed on.
+
+    numba gives each compiled function two wrappers besides its own code, one
+    for calls from Python and one for calls through a C function pointer, and
+    has LLVM optimise and emit each. Nothing here takes a kernel's address, so
+    no kernel gets the second; a ``helper``, called only from other kernels,
+    gets neither (calling one from Python fails). On a first run that spares
+    about 0.03 s per kernel and 0.07 s per helper, several seconds in all.
+    """
+    jit: Any = nb.njit  # (numba's hints name no wrapper options)
+    decorator: Callable[[_Function], _Function] = jit(
+        cache=True, no_cfunc_wrapper=True, no_cpython_wrapper=helper, **options)
+    return decorator
+
 
 #: ``callback(count, name)``: ``count`` of the project's kernels have started
 #: compiling in this process, the newest ``name``; ``name`` is None once compiling has stopped

@@ -9,11 +9,12 @@ their order, NaN after every number.
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 
-@nb.njit(cache=True, nogil=True)
+
+@kernel(nogil=True)
 def stable_argsort(keys: np.ndarray) -> np.ndarray:
     """Indices (n,) that sort ``keys`` (n,) as ``np.argsort(keys, kind="stable")``."""
     n = keys.size
@@ -39,7 +40,7 @@ def stable_argsort(keys: np.ndarray) -> np.ndarray:
     return order
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _before(a: float, b: float) -> bool:
     """numpy's sort order: a before b, NaN after every number."""
     return a < b or (b != b and a == a)

@@ -22,8 +22,10 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 
-@nb.njit(parallel=True, cache=True)
+
+@kernel(parallel=True)
 def _start_layer(a: np.ndarray) -> None:
     for i in nb.prange(a.size):
         a[i] = i

@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
+
+from specholo._compiling import kernel
 
 #: The modal state's slots: position (mm, NaN while unknown), feed (mm/min,
 #: NaN until given), mm per programmed unit, motion mode (-1 for none).
@@ -34,13 +35,13 @@ _MAX_MANTISSA = 10**14  # so a mantissa of 15 digits stays below 2^53
 _NOT_TAKEN, _NOTHING = -1, -2
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _space(c: int) -> bool:
     """Space, tab, line feed, vertical tab, form feed or carriage return."""
     return c == 32 or 9 <= c <= 13
 
 
-@nb.njit(cache=True)
+@kernel()
 def _number(buf: np.ndarray, i: int, b: int, signed: bool) -> tuple[float, int]:
     """The number at buf[i:] and where it ends; NaN where there is none (or it
     may not round as ``float`` would)."""
@@ -72,7 +73,7 @@ def _number(buf: np.ndarray, i: int, b: int, signed: bool) -> tuple[float, int]:
     return sign * (float(mantissa) / _TENS[after]), i
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _plain(buf: np.ndarray, a: int, b: int, words: np.ndarray) -> int:
     """Read the line buf[a:b] (its newline excluded).
 
@@ -138,7 +139,7 @@ def _plain(buf: np.ndarray, a: int, b: int, words: np.ndarray) -> int:
             return _NOT_TAKEN
 
 
-@nb.njit(cache=True)
+@kernel()
 def plain_lines(buf: np.ndarray, starts: np.ndarray, stops: np.ndarray, first: int,
                 number: int, tool_on: float, state: np.ndarray, out: np.ndarray,
                 row: int) -> tuple[int, int]:

@@ -59,9 +59,9 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._threads import chunked, concurrent_kernels_safe
 from specholo.errors import SpecholoError
 from specholo.fabrication import _check_kernel
@@ -550,7 +550,7 @@ def _arc_bounds(m: np.ndarray) -> tuple[np.ndarray, ...]:
     return tuple(out)
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _arc_bounds_rows(first: int, stop: int, m: np.ndarray, out: np.ndarray) -> None:
     """:func:`_arc_bounds` of rows first .. stop - 1 (compiled, on every
     thread), into out (6, k)."""

@@ -63,9 +63,9 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal, TypeVar
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._threads import concurrent_kernels_safe
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
@@ -339,7 +339,7 @@ _OP_TEXT, _OP_CHOICE, _OP_NUMBER, _OP_TRIMMED, _OP_HEX = 0, 1, 2, 3, 4
 _MAX_NUMBER_BYTES = 21
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _write_rows(n: int, ops: np.ndarray, pool: np.ndarray, options: np.ndarray, masks: np.ndarray,
                 columns: np.ndarray, out: np.ndarray) -> int:
     """Write the rows of a :class:`TextRows` into ``out``; returns the bytes written.

@@ -28,6 +28,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import (
@@ -221,7 +222,7 @@ def write_stl(path: str | os.PathLike[str], hm: HeightMap, thickness: float,
 # Ball-end raster finishing
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _dilate_ball(z: np.ndarray, res: float, radius: float, rows: np.ndarray) -> np.ndarray:
     """Lowest tip height of a ball that touches but does not cut the surface,
     on the given rows (r,) of the grid: max over the ball's footprint of
@@ -275,7 +276,7 @@ def tool_tip(hm: HeightMap, radius: float, rows: np.ndarray | None = None) -> np
                         rows)
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _erode_ball(tip: np.ndarray, rows: np.ndarray, ny: int, res: float,
                 radius: float) -> np.ndarray:
     """The surface the ball leaves: min over passes and footprints of tip + ball height
@@ -336,7 +337,7 @@ def _pass_rows(hm: HeightMap, stepover: float | None) -> np.ndarray:
     return rows
 
 
-@nb.njit(cache=True)
+@kernel()
 def _thin(z: np.ndarray, tol: float) -> np.ndarray:
     """Indices of the points of a profile to keep so every dropped point is within
     tol of the chord between its kept neighbours (greedy, first and last kept).

@@ -32,9 +32,9 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._threads import chunked
 from specholo.errors import SpecholoError
 from specholo.toolpaths.grooves import Grooves
@@ -215,7 +215,7 @@ def _reordered(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
     return out_v, out_b
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _reordered_paths(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray,
                      offsets: np.ndarray, order: np.ndarray, flip: np.ndarray,
                      new_offsets: np.ndarray, out_v: np.ndarray, out_b: np.ndarray) -> None:
@@ -239,7 +239,7 @@ def _reordered_paths(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray,
 # kd-tree with counts of live points
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _select(key: np.ndarray, other: np.ndarray, perm: np.ndarray, lo: int, hi: int,
             k: int) -> None:
     """Quickselect on key[lo:hi] (moving other and perm along) so key[k] is the k-th smallest."""
@@ -268,7 +268,7 @@ def _select(key: np.ndarray, other: np.ndarray, perm: np.ndarray, lo: int, hi: i
             return
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _build_tree(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                           np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Balanced kd-tree over pts (n, 2), nodes in heap order (children 2i+1, 2i+2).
@@ -325,14 +325,14 @@ def _build_tree(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
     return perm, xs, ys, lo, hi, box, count, leaf_at, first_leaf
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _box_dist2(box: np.ndarray, node: int, x: float, y: float) -> float:
     dx = max(box[node, 0] - x, 0.0, x - box[node, 2])
     dy = max(box[node, 1] - y, 0.0, y - box[node, 3])
     return dx * dx + dy * dy
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _push_children(box: np.ndarray, node: int, x: float, y: float, stack: np.ndarray,
                    top: int) -> int:
     """Push a node's two children on a search stack, the farther first so the
@@ -348,7 +348,7 @@ def _push_children(box: np.ndarray, node: int, x: float, y: float, stack: np.nda
     return top + 2
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _nearest_live(x: float, y: float, xs: np.ndarray, ys: np.ndarray, alive: np.ndarray,
                   lo: np.ndarray, hi: np.ndarray, box: np.ndarray, count: np.ndarray,
                   first_leaf: int, stack: np.ndarray) -> int:
@@ -390,7 +390,7 @@ def _knn(pts: np.ndarray, out: np.ndarray, shift: int) -> None:
             grain=1024)
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _knn_of(q0: int, q1: int, perm: np.ndarray, xs: np.ndarray, ys: np.ndarray,
             lo: np.ndarray, hi: np.ndarray, box: np.ndarray, first_leaf: int, out: np.ndarray,
             shift: int) -> None:
@@ -432,7 +432,7 @@ def _knn_of(q0: int, q1: int, perm: np.ndarray, xs: np.ndarray, ys: np.ndarray,
             out[row, j] = perm[best_p[j]] + shift
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _shrink_boxes(leaf: int, xs: np.ndarray, ys: np.ndarray, alive: np.ndarray, lo: np.ndarray,
                   hi: np.ndarray, box: np.ndarray, count: np.ndarray) -> None:
     """Fit the boxes from a leaf up to the root to the live points left under them.
@@ -467,7 +467,7 @@ def _shrink_boxes(leaf: int, xs: np.ndarray, ys: np.ndarray, alive: np.ndarray, 
                 y1 = max(y1, box[child, 3])
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _nearest_neighbour_tour(ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Greedy tour from the origin over paths given by their ends.
 
@@ -517,7 +517,7 @@ def _nearest_neighbour_tour(ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 # entry(tour[p + 1]), cyclically.
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _d(pts: np.ndarray, a: int, b: int) -> float:
     if a == 0 or b == 0:
         return 0.0
@@ -526,17 +526,17 @@ def _d(pts: np.ndarray, a: int, b: int) -> float:
     return np.sqrt(dx * dx + dy * dy)
 
 
-@nb.njit(cache=True)
+@kernel()
 def _entry(flip: np.ndarray, v: int) -> int:
     return 2 * v + flip[v]
 
 
-@nb.njit(cache=True)
+@kernel()
 def _exit(flip: np.ndarray, v: int) -> int:
     return 2 * v + 1 - flip[v]
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _reverse(tour: np.ndarray, pos: np.ndarray, flip: np.ndarray, i: int, j: int) -> None:
     """Reverse positions i..j (cyclic) of the tour, or the rest of it if that is shorter."""
     n = len(tour)
@@ -555,13 +555,13 @@ def _reverse(tour: np.ndarray, pos: np.ndarray, flip: np.ndarray, i: int, j: int
         flip[v] = 1 - flip[v]
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _reverse_cost(n: int, i: int, j: int) -> int:
     size = (j - i) % n + 1
     return min(size, n - size)
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _move_run(tour: np.ndarray, pos: np.ndarray, flip: np.ndarray, p: int, size: int,
               q: int, backwards: bool, shift_ahead: bool) -> None:
     """Move tour[p:p + size] (cyclic) to just after position q, maybe reversed."""
@@ -591,7 +591,7 @@ def _move_run(tour: np.ndarray, pos: np.ndarray, flip: np.ndarray, p: int, size:
         pos[v] = (at + k) % n
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _push(queue: np.ndarray, queued: np.ndarray, tail: int, count: int, v: int) -> tuple[int, int]:
     if not queued[v]:
         queued[v] = True
@@ -601,7 +601,7 @@ def _push(queue: np.ndarray, queued: np.ndarray, tail: int, count: int, v: int) 
     return tail, count
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _improve(pts: np.ndarray, cand: np.ndarray, tour: np.ndarray, flip: np.ndarray,
              max_shift: int) -> int:
     """2-opt and Or-opt moves until no candidate move gains; returns the moves made.
@@ -745,7 +745,7 @@ def _improve(pts: np.ndarray, cand: np.ndarray, tour: np.ndarray, flip: np.ndarr
     return moves
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _tour_length(pts: np.ndarray, tour: np.ndarray, flip: np.ndarray) -> float:
     n = len(tour)
     total = 0.0

@@ -34,9 +34,9 @@ import math
 import os
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import (
@@ -198,7 +198,7 @@ def take_paths(grooves: Grooves, paths: np.ndarray) -> Grooves:
     return grooves.take(paths)
 
 
-@nb.njit(cache=True)
+@kernel()
 def _extremes_bounds(centre: np.ndarray, radius: np.ndarray, start: np.ndarray,
                      sweep: np.ndarray, phi: np.ndarray, direction: np.ndarray) -> np.ndarray:
     """(2, 2) bounds of the circles' extreme points in the directions ``phi`` (4,)

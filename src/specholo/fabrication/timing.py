@@ -31,9 +31,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._threads import chunked
 from specholo.errors import SpecholoError
 from specholo.fabrication.order import HOPS, hop_lengths
@@ -96,7 +96,7 @@ def trapezoid_time(length: np.ndarray, cap: np.ndarray | float, accel: float,
     return (2.0 * peak - entry - leave) / accel + cruise
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _trapezoid(length: float, cap: float, accel: float, entry: float, leave: float) -> float:
     """:func:`trapezoid_time` of one move."""
     u2, w2 = entry * entry, leave * leave
@@ -107,7 +107,7 @@ def _trapezoid(length: float, cap: float, accel: float, entry: float, leave: flo
     return (2.0 * peak - entry - leave) / accel + cruise
 
 
-@nb.njit(cache=True)
+@kernel()
 def _plan(length: np.ndarray, cap: np.ndarray, junction: np.ndarray, k: int, accel: float,
           entry: np.ndarray, leave: np.ndarray) -> None:
     """Entry and exit speeds of one path's k segments, starting and ending at rest.
@@ -161,7 +161,7 @@ def _cutting_time(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
     return seconds
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _cutting_blocks(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray,
                     offsets: np.ndarray, feed: float, accel: float, delta: float, longest: int,
                     total: np.ndarray) -> None:

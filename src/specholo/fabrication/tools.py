@@ -20,9 +20,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._threads import chunked
 from specholo.errors import SpecholoError
 from specholo.errors import positive as _positive
@@ -337,7 +337,7 @@ def _sampled_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray,
     return out
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _tilts_of(lo: int, hi: int, points: np.ndarray, stipple: np.ndarray, start: np.ndarray,
               end: np.ndarray, count: np.ndarray, first: np.ndarray, light: np.ndarray,
               point_light: bool, radius: float, height: float, out: np.ndarray) -> None:

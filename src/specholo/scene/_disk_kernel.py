@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
+
+from specholo._compiling import kernel
 
 #: Bits per axis of a cube's packed number (three fit in an int64).
 AXIS_BITS = 21
@@ -22,7 +23,7 @@ _AXIS = 1 << AXIS_BITS
 _GOLDEN = -7046029254386353131  # 0x9E3779B97F4A7C15 as an int64 (2^64 / golden ratio)
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _slot(table: np.ndarray, key: int) -> int:
     """Where cube ``key`` is filed in the table, or the empty slot it would take."""
     mask = table.shape[0] - 1
@@ -32,7 +33,7 @@ def _slot(table: np.ndarray, key: int) -> int:
     return h
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _grown(table: np.ndarray) -> np.ndarray:
     """The table at twice the size, every filed cube moved over."""
     new = np.zeros((2 * table.shape[0], 2), dtype=np.int64)
@@ -43,7 +44,7 @@ def _grown(table: np.ndarray) -> np.ndarray:
     return new
 
 
-@nb.njit(cache=True)
+@kernel()
 def greedy_disk(points: np.ndarray, r: float, lo: np.ndarray, side: float) -> np.ndarray:
     """The greedy set: candidates in order, each kept if none kept is within r.
 

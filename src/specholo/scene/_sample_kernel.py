@@ -7,11 +7,12 @@ million candidates those cost more than the draws.
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 
-@nb.njit(cache=True)
+
+@kernel()
 def _points(vertices: np.ndarray, faces: np.ndarray, face: np.ndarray,
             lengths: np.ndarray) -> np.ndarray:
     """(n, 3) points: face[i]'s first corner plus its two edges times lengths[i]

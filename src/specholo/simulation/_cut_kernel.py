@@ -18,6 +18,8 @@ import math
 import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
+
 # Columns of ``geo``. A move's unit direction and length are not stored: they
 # follow from its ends (:func:`chord`), and a kept table is a field's worth of rows.
 SX, SY, EX, EY, CX, CY, RHO, SWEEP = range(8)
@@ -35,7 +37,7 @@ BODY, SPHERE, CAP = 0, 1, 2
 MAX_CLUSTERS = 8
 
 
-@nb.njit(cache=True)
+@kernel()
 def chord(geo: np.ndarray, m: int) -> tuple[float, float, float]:
     """Unit direction (x, y) and length of move m's chord; (0, 0, 0) when it has none."""
     cx, cy = geo[m, EX] - geo[m, SX], geo[m, EY] - geo[m, SY]
@@ -45,7 +47,7 @@ def chord(geo: np.ndarray, m: int) -> tuple[float, float, float]:
     return cx / length, cy / length, length
 
 
-@nb.njit(cache=True)
+@kernel()
 def profile(r: float, step: float, height: np.ndarray,
             slope: np.ndarray) -> tuple[float, float, float]:
     """Profile height, slope and curvature at distance r from the axis.
@@ -71,7 +73,7 @@ def profile(r: float, step: float, height: np.ndarray,
     return p, dp, ddp
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _inside_arc(vx: float, vy: float, geo: np.ndarray, m: int) -> bool:
     """Whether direction v from the arc's centre lies within its sweep."""
     cx, cy = geo[m, CX], geo[m, CY]
@@ -87,7 +89,7 @@ def _inside_arc(vx: float, vy: float, geo: np.ndarray, m: int) -> bool:
     return not (c1 < 0.0 and c2 < 0.0)
 
 
-@nb.njit(cache=True)
+@kernel()
 def locate(geo: np.ndarray, kind: np.ndarray, m: int, px: float,
            py: float) -> tuple[float, int]:
     """Distance from p to move m, and where its closest point is.
@@ -116,7 +118,7 @@ def locate(geo: np.ndarray, kind: np.ndarray, m: int, px: float,
     return (d0, 1) if d0 <= d1 else (d1, 2)
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _clip(k: float, c: float, lo: float, hi: float, a: float, b: float) -> tuple[float, float]:
     """Intersect [a, b] with the x where lo <= k x + c <= hi."""
     if k > 1e-12 or k < -1e-12:
@@ -129,7 +131,7 @@ def _clip(k: float, c: float, lo: float, hi: float, a: float, b: float) -> tuple
     return 1.0, 0.0
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def sweep(geo: np.ndarray, kind: np.ndarray, box: np.ndarray, shape: np.ndarray,
           band_ptr: np.ndarray, band_moves: np.ndarray, band_rows: int, x0: float, y0: float,
           res: float, depth: float, r_cut: float, step: float, height: np.ndarray,
@@ -186,7 +188,7 @@ def sweep(geo: np.ndarray, kind: np.ndarray, box: np.ndarray, shape: np.ndarray,
                            slope, base, z, move)
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _sweep_row(geo: np.ndarray, kind: np.ndarray, m: int, i0: int, i1: int, j: int,
                x0: float, y: float, res: float, depth: float, r_cut: float, step: float,
                height: np.ndarray, slope: np.ndarray, base: int, z: np.ndarray,
@@ -241,7 +243,7 @@ def _sweep_row(geo: np.ndarray, kind: np.ndarray, m: int, i0: int, i1: int, j: i
             move[j, i] = base + m
 
 
-@nb.njit(cache=True)
+@kernel()
 def group_cells(move: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """Cut cells grouped by move (a counting sort of the flat move array).
 
@@ -264,7 +266,7 @@ def group_cells(move: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     return ptr, cells
 
 
-@nb.njit(cache=True)
+@kernel()
 def mode_of(geo: np.ndarray, kind: np.ndarray, flags: np.ndarray, m: int, px: float,
             py: float) -> tuple[int, float, float]:
     """How the surface at p is modelled, and the sphere's centre if it is one."""
@@ -285,7 +287,7 @@ def mode_of(geo: np.ndarray, kind: np.ndarray, flags: np.ndarray, m: int, px: fl
     return BODY, 0.0, 0.0
 
 
-@nb.njit(cache=True)
+@kernel()
 def surface(geo: np.ndarray, kind: np.ndarray, m: int, mode: int, qx: float, qy: float,
             px: float, py: float, depth: float, step: float, height: np.ndarray,
             slope: np.ndarray) -> tuple[float, float, float, float, float, float]:
@@ -327,7 +329,7 @@ def surface(geo: np.ndarray, kind: np.ndarray, m: int, mode: int, qx: float, qy:
             (ddp - k) * ux * uy, ddp * uy * uy + k * ux * ux)
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _dslope(ax: float, ay: float, az: float, ia: float, bx: float, by: float, bz: float,
             ib: float, hx: float, hy: float, hz: float, gjx: float, gjy: float,
             gjz: float) -> tuple[float, float]:
@@ -340,7 +342,7 @@ def _dslope(ax: float, ay: float, az: float, ia: float, bx: float, by: float, bz
     return (dhx * hz - hx * dhz) / (hz * hz), (dhy * hz - hy * dhz) / (hz * hz)
 
 
-@nb.njit(cache=True)
+@kernel()
 def _half(gx: float, gy: float, gz: float, zx: float, zy: float, eye: np.ndarray,
           light: np.ndarray, point: bool) -> tuple[float, float, float, float, float, float]:
     """Slope of h = u(light - g) + u(eye - g), and its derivative along the surface.
@@ -367,7 +369,7 @@ def _half(gx: float, gy: float, gz: float, zx: float, zy: float, eye: np.ndarray
     return hx / hz, hy / hz, sxx, sxy, syx, syy
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def screen(geo: np.ndarray, kind: np.ndarray, flags: np.ndarray, depth: float, ext: float,
            tol: float, eye: np.ndarray, light: np.ndarray, point: bool) -> np.ndarray:
     """Moves whose body may glint for an eye (k,) bool.
@@ -420,7 +422,7 @@ def screen(geo: np.ndarray, kind: np.ndarray, flags: np.ndarray, depth: float, e
     return ok
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def glints(paths: np.ndarray, path_ptr: np.ndarray, body_ok: np.ndarray, caps: bool,
            cell_ptr: np.ndarray, cells: np.ndarray, nx: int, x0: float, y0: float,
            res: float, geo: np.ndarray, kind: np.ndarray, flags: np.ndarray, depth: float,
@@ -534,7 +536,7 @@ def glints(paths: np.ndarray, path_ptr: np.ndarray, body_ok: np.ndarray, caps: b
     return sums, cap, n_clusters
 
 
-@nb.njit(cache=True)
+@kernel()
 def profile_many(r: np.ndarray, step: float, height: np.ndarray,
                  slope: np.ndarray) -> np.ndarray:
     """Profile heights (n,) at distances r (n,)."""
@@ -544,7 +546,7 @@ def profile_many(r: np.ndarray, step: float, height: np.ndarray,
     return out
 
 
-@nb.njit(cache=True)
+@kernel()
 def surface_at(xy: np.ndarray, moves: np.ndarray, geo: np.ndarray, kind: np.ndarray,
                flags: np.ndarray, depth: float, step: float, height: np.ndarray,
                slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._sort import stable_argsort
 from specholo._threads import chunked
 
@@ -28,7 +28,7 @@ SMOOTH = 1e-9
 _GRAIN = 2048
 
 
-@nb.njit(cache=True)
+@kernel()
 def _h(gx: float, gy: float, gz: float, eye: np.ndarray, light: np.ndarray,
        point: bool) -> tuple[float, float, float]:
     """Normality vector u(light - g) + u(eye - g) (not normalised)."""
@@ -43,7 +43,7 @@ def _h(gx: float, gy: float, gz: float, eye: np.ndarray, light: np.ndarray,
     return ax + bx / m, ay + by / m, az + bz / m
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _wall(px: float, py: float, radius: float, cz: float, eye: np.ndarray,
           light: np.ndarray, point: bool) -> tuple[float, float, float, float, float, float]:
     """Glint point on the ball-end wall about toolpath point p, and h there."""
@@ -56,7 +56,7 @@ def _wall(px: float, py: float, radius: float, cz: float, eye: np.ndarray,
     return gx, gy, gz, hx, hy, hz
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _wall_shift(px: float, py: float, reach: float, eye: np.ndarray, light: np.ndarray,
                 point: bool) -> float:
     """A bound on how much h . t can change between toolpath point p and any
@@ -74,12 +74,12 @@ def _wall_shift(px: float, py: float, reach: float, eye: np.ndarray, light: np.n
     return 2.0 * shift + 1e-12
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _tilt_ok(hx: float, hy: float, hz: float, cos_tilt: float) -> bool:
     return hz >= cos_tilt * math.sqrt(hx * hx + hy * hy + hz * hz)
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _at_row(geo: np.ndarray, i: int, u: float) -> tuple[float, float, float, float]:
     """Point and unit tangent at parameter u of packed row i (see :func:`index_arcs`)."""
     r = geo[i, 2]
@@ -120,7 +120,7 @@ def arc_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: flo
     return ok, pts
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _arc_glints(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: float,
                 depth: float, max_tilt: float, eye: np.ndarray, light: np.ndarray,
                 point: bool, iterations: int, ok: np.ndarray, pts: np.ndarray) -> None:
@@ -197,7 +197,7 @@ def corner_glints(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: 
     return ok, pts
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _corner_glints(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: float,
                    depth: float, max_tilt: float, eye: np.ndarray, light: np.ndarray,
                    point: bool, ok: np.ndarray, pts: np.ndarray) -> None:
@@ -222,7 +222,7 @@ def _corner_glints(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_rad
             pts[j, 0], pts[j, 1], pts[j, 2] = gx, gy, gz
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _arc(sx: float, sy: float, ex: float, ey: float, b: float,
          line_bulge: float) -> tuple[float, float, float, float, float, float, float, float,
                                      float]:
@@ -254,7 +254,7 @@ def _corners(t_start: np.ndarray, sweep: np.ndarray, path: np.ndarray, wide: flo
     return kinked
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _corners_of(lo: int, hi: int, t_start: np.ndarray, sweep: np.ndarray, path: np.ndarray,
                 wide: float, turn: np.ndarray, kinked: np.ndarray) -> None:
     """:func:`_corners` of arcs lo .. hi - 1 (each writes only its own kinked
@@ -310,7 +310,7 @@ def prepare(start: np.ndarray, end: np.ndarray, bulge: np.ndarray, path: np.ndar
     return centre, radius, start_angle, sweep, direction, mid_tangent, turn, chord, kinked
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _prepare(lo: int, hi: int, start: np.ndarray, end: np.ndarray, bulge: np.ndarray,
              line_bulge: float, centre: np.ndarray, radius: np.ndarray,
              start_angle: np.ndarray, sweep: np.ndarray, direction: np.ndarray,
@@ -325,7 +325,7 @@ def _prepare(lo: int, hi: int, start: np.ndarray, end: np.ndarray, bulge: np.nda
         turn[i] = 0.5 * abs(sweep[i])
 
 
-@nb.njit(cache=True)
+@kernel()
 def arcs_of(offsets: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     """The first vertex (k,) and path (k,) of every arc of paths ``offsets``
     over m vertices, numbered as :meth:`~specholo.toolpaths.grooves.Grooves.segments`
@@ -379,7 +379,7 @@ def index_arcs(vertices: np.ndarray, bulges: np.ndarray, first: np.ndarray, path
     return mid_tangent, turn, chord, kinked
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _index_arcs(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray, first: np.ndarray,
                 line_bulge: float, mid: np.ndarray, geo: np.ndarray, mid_tangent: np.ndarray,
                 turn: np.ndarray, chord: np.ndarray, t_start: np.ndarray,
@@ -420,7 +420,7 @@ def extent(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return out_lo, out_hi
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _extent(first: int, stop: int, xy: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
     """:func:`extent` of chunks first .. stop - 1 of lo.shape[0] into lo and hi."""
     k, chunks = xy.shape[0], lo.shape[0]
@@ -443,7 +443,7 @@ def gather_rows(src: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
     chunked(_gather_rows, 0, rows.size, src, rows, out, grain=_GRAIN)
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _gather_rows(lo: int, hi: int, src: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
     """:func:`gather_rows` of rows lo .. hi - 1."""
     c = src.shape[1]
@@ -471,7 +471,7 @@ def cell_keys(mid: np.ndarray, tangent: np.ndarray, narrow: np.ndarray, origin: 
     return cell, angle, nx, ny
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _cell_keys(lo: int, hi: int, mid: np.ndarray, tangent: np.ndarray, narrow: np.ndarray,
                origin: np.ndarray, size: float, ix: np.ndarray, iy: np.ndarray,
                angle: np.ndarray) -> None:
@@ -509,7 +509,7 @@ def sort_by_cell(cell: np.ndarray, angle: np.ndarray,
     return order, keys, cells
 
 
-@nb.njit(cache=True)
+@kernel()
 def _by_cell(cell: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
     """Where each cell's items start (n_cells + 1,) and the items (m,) ordered by
     cell, in order within a cell (a counting sort)."""
@@ -527,7 +527,7 @@ def _by_cell(cell: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
     return first, order
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _sort_cells(c0: int, c1: int, first: np.ndarray, order: np.ndarray, angle: np.ndarray,
                 keys: np.ndarray) -> None:
     """:func:`sort_by_cell` within cells c0 .. c1 - 1: each rewrites only its own
@@ -583,7 +583,7 @@ def _sort_cells(c0: int, c1: int, first: np.ndarray, order: np.ndarray, angle: n
             keys[lo + t] = c * 4.0 + sa[t]
 
 
-@nb.njit(cache=True)
+@kernel()
 def merge_ranges(i0: np.ndarray, i1: np.ndarray, tail0: int,
                  tail1: int) -> tuple[np.ndarray, np.ndarray]:
     """The union of row ranges [i0, i1) (r, c), each column one cell's (cells
@@ -624,7 +624,7 @@ def expand(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     return rows
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _expand(lo: int, hi: int, starts: np.ndarray, ends: np.ndarray, at: np.ndarray,
             rows: np.ndarray) -> None:
     """:func:`expand` of ranges lo .. hi - 1."""

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo.errors import SpecholoError
 from specholo.setup import Light
 from specholo.simulation.cut import MIN_COVERAGE
@@ -67,7 +68,7 @@ TILE_BOXES = 4
 BOX_RADIUS = 0.02
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _slope(zm: float, z0: float, zp: float, ok_m: bool, ok_p: bool,
            res: float) -> tuple[float, bool]:
     """Slope at a cell from its two neighbours, one-sided across a kink."""
@@ -84,7 +85,7 @@ def _slope(zm: float, z0: float, zp: float, ok_m: bool, ok_p: bool,
     return 0.0, False
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _normal(z: np.ndarray, labels: np.ndarray, j: int, i: int,
             res: float) -> tuple[float, float, float, bool]:
     ny, nx = z.shape
@@ -102,7 +103,7 @@ def _normal(z: np.ndarray, labels: np.ndarray, j: int, i: int,
     return -gx / norm, -gy / norm, 1.0 / norm, okx and oky
 
 
-@nb.njit(cache=True)
+@kernel()
 def _half(x: float, y: float, z: float, eye: np.ndarray, light: np.ndarray,
           point: bool) -> tuple[float, float, float]:
     """Unit normality vector h at (x, y, z)."""
@@ -119,7 +120,7 @@ def _half(x: float, y: float, z: float, eye: np.ndarray, light: np.ndarray,
     return hx / q, hy / q, hz / q
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _tile_boxes(z: np.ndarray, labels: np.ndarray, res: float, tile: int, k_boxes: int,
                 radius: float) -> np.ndarray:
     """Per tile of tile x tile cells, up to k_boxes boxes covering the facet slopes
@@ -176,7 +177,7 @@ def _tile_boxes(z: np.ndarray, labels: np.ndarray, res: float, tile: int, k_boxe
     return box
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _tile_target(x0: float, y0: float, res: float, tile: int, ty: int, tx: int,
                  eye: np.ndarray, light: np.ndarray, point: bool, reach: float,
                  spread: float) -> tuple[float, float, float]:
@@ -196,7 +197,7 @@ def _tile_target(x0: float, y0: float, res: float, tile: int, ty: int, tx: int,
     return gx, gy, m
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _candidate_tiles(box: np.ndarray, x0: float, y0: float, res: float, tile: int,
                      eye: np.ndarray, light: np.ndarray, point: bool, reach: float,
                      spread: float) -> np.ndarray:
@@ -217,7 +218,7 @@ def _candidate_tiles(box: np.ndarray, x0: float, y0: float, res: float, tile: in
     return flag
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _lit_cells(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
                tile: int, tiles: np.ndarray, eye: np.ndarray, light: np.ndarray, point: bool,
                cos_cut: float, reach: float, spread: float) -> tuple[np.ndarray, np.ndarray]:
@@ -252,7 +253,7 @@ def _lit_cells(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: flo
     return out, count
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _height_at(z: np.ndarray, x0: float, y0: float, res: float, x: float,
                y: float) -> float:
     """Bilinear height; 0 (the plate surface) outside the field."""
@@ -269,7 +270,7 @@ def _height_at(z: np.ndarray, x0: float, y0: float, res: float, x: float,
             + (1 - a) * b * z[j + 1, i] + a * b * z[j + 1, i + 1])
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _blocked(z: np.ndarray, x0: float, y0: float, res: float, sx: float, sy: float,
              sz: float, dx: float, dy: float, dz: float) -> bool:
     """Whether the ray from (sx, sy, sz) along the unit (dx, dy, dz) meets the
@@ -291,7 +292,7 @@ def _blocked(z: np.ndarray, x0: float, y0: float, res: float, sx: float, sy: flo
         t += dt
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _spots(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
            flat: np.ndarray, eye: np.ndarray, light: np.ndarray, point: bool, lobe: float,
            shadows: bool) -> np.ndarray:

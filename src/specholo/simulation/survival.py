@@ -34,9 +34,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._threads import chunked
 from specholo.errors import SpecholoError
 from specholo.fabrication.tools import TILT_TOLERANCE, BallEnd, Laser, RoundCone, VBit
@@ -197,7 +197,7 @@ def on_real_wall(glints: Glints, model: Tool, cutter: Any, depth: float, light: 
 # Compiled: every glint against every other path
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _arc_distance(px: float, py: float, ax: float, ay: float, bx: float, by: float,
                   bulge: float) -> float:
     """Plan distance from p to the arc from a to b of the given bulge, mm.
@@ -240,7 +240,7 @@ def _arc_distance(px: float, py: float, ax: float, ay: float, bx: float, by: flo
 # Not inline="always": numba would type and compile it again at each of
 # _sweep's three calls (seconds on a first run), and a call per box costs
 # nothing beside the cells it scans.
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _visit(lo_x: float, lo_y: float, hi_x: float, hi_y: float, path: int, ax: float,
            ay: float, bx: float, by: float, bulge: float, qx: np.ndarray, qy: np.ndarray,
            qr: np.ndarray, qpath: np.ndarray, ptr: np.ndarray, x0: float, y0: float,
@@ -263,7 +263,7 @@ def _visit(lo_x: float, lo_y: float, hi_x: float, hi_y: float, path: int, ax: fl
                     removed[g] = True
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
            offsets: np.ndarray, qx: np.ndarray, qy: np.ndarray, qr: np.ndarray, qpath: np.ndarray,
            ptr: np.ndarray, x0: float, y0: float, size: float, nx: int, ny: int, reach: float,
@@ -326,7 +326,7 @@ def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
                 sx, sy = ex, ey
 
 
-@nb.njit(cache=True)
+@kernel()
 def _by_cell(cell: np.ndarray, cells: int) -> tuple[np.ndarray, np.ndarray]:
     """Counting sort: ptr (cells + 1,) and the items (g,) in cell order (stable)."""
     count = np.zeros(cells + 1, np.int64)

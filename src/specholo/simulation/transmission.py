@@ -41,6 +41,7 @@ import math
 import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo.errors import SpecholoError
 from specholo.setup import BackLight
 from specholo.simulation.cut import MIN_COVERAGE
@@ -65,7 +66,7 @@ EXIT_LOBE = 2.0
 REACH_SAFETY = 2.0
 
 
-@nb.njit(cache=True)
+@kernel()
 def refract(dx: float, dy: float, dz: float, nx: float, ny: float, nz: float, eta1: float,
             eta2: float) -> tuple[float, float, float, bool]:
     """Snell's law in vector form for one ray (see
@@ -85,7 +86,7 @@ def refract(dx: float, dy: float, dz: float, nx: float, ny: float, nz: float, et
     return r * dx + f * nx, r * dy + f * ny, r * dz + f * nz, True
 
 
-@nb.njit(cache=True)
+@kernel()
 def in_plate(x: float, y: float, z: float, light: np.ndarray, point: bool, n: float,
              zback: float) -> tuple[float, float, float]:
     """Unit direction, inside the plate, of the light that reaches (x, y, z) there
@@ -128,7 +129,7 @@ def in_plate(x: float, y: float, z: float, light: np.ndarray, point: bool, n: fl
     return dx, dy, dz
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _through_glass(z: np.ndarray, x0: float, y0: float, res: float, sx: float, sy: float,
                    sz: float, dx: float, dy: float, dz: float, floor: float) -> bool:
     """Whether the in-plate ray reaching (sx, sy, sz) along the unit (dx, dy, dz)
@@ -150,7 +151,7 @@ def _through_glass(z: np.ndarray, x0: float, y0: float, res: float, sx: float, s
         t += dt
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _tile_target(x0: float, y0: float, res: float, tile: int, ty: int, tx: int,
                  eye: np.ndarray, light: np.ndarray, point: bool, n: float, zback: float,
                  reach: float, spread: float) -> tuple[float, float, float]:
@@ -178,7 +179,7 @@ def _tile_target(x0: float, y0: float, res: float, tile: int, ty: int, tx: int,
     return gx, gy, m
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _candidate_tiles(box: np.ndarray, x0: float, y0: float, res: float, tile: int,
                      eye: np.ndarray, light: np.ndarray, point: bool, n: float,
                      zback: float, reach: float, spread: float) -> np.ndarray:
@@ -201,7 +202,7 @@ def _candidate_tiles(box: np.ndarray, x0: float, y0: float, res: float, tile: in
     return flag
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _exit_mismatch(nx_: float, ny_: float, nz_: float, x: float, y: float, h: float,
                    eye: np.ndarray, light: np.ndarray, point: bool, n: float,
                    zback: float) -> tuple[float, float, bool, float, float, float]:
@@ -226,7 +227,7 @@ def _exit_mismatch(nx_: float, ny_: float, nz_: float, x: float, y: float, h: fl
     return m1, m2, True, dx, dy, dz
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _lit_cells(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
                tile: int, tiles: np.ndarray, eye: np.ndarray, light: np.ndarray, point: bool,
                n: float, zback: float, cut: float, reach: float,
@@ -265,7 +266,7 @@ def _lit_cells(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: flo
     return out, count
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _spots(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
            flat: np.ndarray, eye: np.ndarray, light: np.ndarray, point: bool, n: float,
            zback: float, sigma: float, shadows: bool, floor: float) -> np.ndarray:
@@ -313,7 +314,7 @@ def in_plate_directions(light: BackLight, s: np.ndarray) -> np.ndarray:
     return _in_plate_many(s, *light_vector(light), float(light.index), -float(light.thickness))
 
 
-@nb.njit(cache=True)
+@kernel()
 def _in_plate_many(s: np.ndarray, light: np.ndarray, point: bool, n: float,
                    zback: float) -> np.ndarray:
     out = np.empty_like(s)

@@ -27,9 +27,9 @@ from __future__ import annotations
 import math
 from concurrent.futures import ThreadPoolExecutor
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._threads import chunked
 from specholo.toolpaths import _stripe_kernel as sk
 
@@ -55,7 +55,7 @@ _GRAIN = 512
 _COARSE = 8
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _leaf(th0: float, th1: float, px: float, py: float, pz: float, params: sk.Params,
           dx_target: float, du_target: float, delta: float, w: float, out: np.ndarray) -> int:
     """Walk the leaf through the band's centre at th0 over [th0, th1], moved back
@@ -106,7 +106,7 @@ def _leaf(th0: float, th1: float, px: float, py: float, pz: float, params: sk.Pa
         y = y1
 
 
-@nb.njit(cache=True, inline="always")
+@kernel(inline="always", helper=True)
 def _cell(x: float, y: float, h: float) -> tuple[int, int]:
     return int(math.floor(x / h)), int(math.floor(y / h))
 
@@ -116,7 +116,7 @@ def table_bits(points: int) -> int:
     return min(max(int(points).bit_length() + 1, MIN_TABLE_BITS), MAX_TABLE_BITS)
 
 
-@nb.njit(cache=True, inline="always")
+@kernel(inline="always", helper=True)
 def _slot(ix: int, iy: int, mask: int, side: int) -> int:
     """The cells wrapped onto the table as a square grid, row by row: a query's
     3 x 3 cells are three runs of neighbouring slots (a scattering hash puts
@@ -126,7 +126,7 @@ def _slot(ix: int, iy: int, mask: int, side: int) -> int:
     return (iy * side + ix) & mask
 
 
-@nb.njit(cache=True, inline="always")
+@kernel(inline="always", helper=True)
 def _chain_near(i: int, x: float, y: float, reach: float, pts: np.ndarray) -> bool:
     while i >= 0:
         dx, dy = pts[i, 0] - x, pts[i, 1] - y
@@ -137,7 +137,7 @@ def _chain_near(i: int, x: float, y: float, reach: float, pts: np.ndarray) -> bo
     return False
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _near(x: float, y: float, reach: float, head: np.ndarray, pts: np.ndarray,
           h: float, side: int, r_max: float) -> bool:
     """Whether a stored point lies closer to (x, y) than ``reach`` plus its own radius.
@@ -169,7 +169,7 @@ def _near(x: float, y: float, reach: float, head: np.ndarray, pts: np.ndarray,
     return False
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _grown(pts: np.ndarray, n: int) -> np.ndarray:
     """The n points in twice the room, in the same rows (chains link rows).
 
@@ -183,7 +183,7 @@ def _grown(pts: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: int,
             h: float, side: int, occ: np.ndarray, hc: float) -> None:
     """Store point n (``pts`` has room for it) and mark its cell of the coarse map."""
@@ -195,7 +195,7 @@ def _insert(x: float, y: float, r: float, head: np.ndarray, pts: np.ndarray, n: 
     occ[_slot(ix, iy, occ.size - 1, side)] = 1
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _clear(x0: float, y0: float, x1: float, y1: float, occ: np.ndarray, hc: float,
            side: int) -> bool:
     """Whether no coarse cell meeting the box [x0, x1] x [y0, y1] is marked (two
@@ -210,7 +210,7 @@ def _clear(x0: float, y0: float, x1: float, y1: float, occ: np.ndarray, hc: floa
     return True
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _walk(r: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray,
           w: float, leaves: int, dx_target: float, leaf: np.ndarray
           ) -> tuple[int, np.ndarray, np.ndarray]:
@@ -243,7 +243,7 @@ def _walk(r: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: n
     return m, lo, hi
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _costs(j0: int, j1: int, leaf: np.ndarray, lo: np.ndarray, hi: np.ndarray, w: float,
            delta: float, r_tip: float, margin: float, head_c: np.ndarray, cen: np.ndarray,
            head_g: np.ndarray, gli: np.ndarray, h: float, side: int, r_max_g: float,
@@ -290,7 +290,7 @@ def _costs(j0: int, j1: int, leaf: np.ndarray, lo: np.ndarray, hi: np.ndarray, w
             here[j, L - lo[j]] = cost
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: int,
             lo: np.ndarray, hi: np.ndarray, here: np.ndarray, back: np.ndarray, w: float,
             leaves: int, spacing: float, dx_target: float, jump_cost: float,

@@ -13,9 +13,9 @@ from __future__ import annotations
 import math
 from typing import cast
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._threads import chunked
 from specholo.toolpaths.arcs import _biarc
 from specholo.toolpaths.grooves import measure_paths
@@ -45,26 +45,26 @@ FIRST_STEPS = cast(int, np.int64(4))
 NEAR_STEPS = cast(int, np.int64(1))
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always", helper=True)
 def _unpacked(packed: np.ndarray) -> Params:
     """The setup's floats out of their array."""
     return (packed[0], packed[1], packed[2], packed[3], packed[4], packed[5], packed[6],
             packed[7], packed[8], packed[9])
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always", helper=True)
 def _along(a: Vec, s: float, b: Vec) -> Vec:
     """a + s b."""
     return a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2]
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always", helper=True)
 def _apart(a: Vec, b: Vec) -> float:
     """|a - b| in the 1-norm."""
     return abs(a[0] - b[0]) + abs(a[1] - b[1]) + abs(a[2] - b[2])
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always")
 def _unit(vx: float, vy: float, vz: float, v_t: Vec, v_y: Vec) -> tuple[Vec, Vec, Vec]:
     """v / |v| and its two derivatives, from v's (v_t, v_y).
 
@@ -80,7 +80,7 @@ def _unit(vx: float, vy: float, vz: float, v_t: Vec, v_y: Vec) -> tuple[Vec, Vec
             ((v_y[0] - ux * b) * inv, (v_y[1] - uy * b) * inv, (v_y[2] - uz * b) * inv))
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always", helper=True)
 def _wall(y: float, px: float, py: float, ex: float, ey: float, ez: float, inv_dz: float,
           dinv_dz: float, r: float, zc: float, n: Vec, n_t: Vec,
           n_y: Vec) -> tuple[Vec, Vec, Vec, float, float, float]:
@@ -104,7 +104,7 @@ def _wall(y: float, px: float, py: float, ex: float, ey: float, ez: float, inv_d
             ey + tau * ay, tau_t * ay, tau_y * ay)
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always")
 def _half(g: Vec, g_t: Vec, g_y: Vec, ex: float, ey: float, ez: float,
           params: Params) -> tuple[Vec, Vec, Vec]:
     """Normality vector (the half vector) at glint g and its two derivatives."""
@@ -119,7 +119,7 @@ def _half(g: Vec, g_t: Vec, g_y: Vec, ex: float, ey: float, ez: float,
             (l_y[0] + v_y[0], l_y[1] + v_y[1], l_y[2] + v_y[2]))
 
 
-@nb.njit(fastmath=_FAST, cache=True)
+@kernel(fastmath=_FAST)
 def solve(theta: float, y: float, px: float, py: float, pz: float, params: Params, n: Vec,
           n_t: Vec, n_y: Vec, iterations: int) -> Solved:
     """Toolpath x, band centre and h for the eye at theta, toolpath height y,
@@ -161,7 +161,7 @@ def solve(theta: float, y: float, px: float, py: float, pz: float, params: Param
             g_y[0] + r * n_y[0], line_y + r * n_y[1], n_t, n_y, h_y)
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always", helper=True)
 def _moved(s: Solved, dy: float) -> Solved:
     """A solve carried to dy higher at the same theta, to first order.
 
@@ -173,7 +173,7 @@ def _moved(s: Solved, dy: float) -> Solved:
             s[4], s[5], s[6], s[7], s[8], s[9], s[10])
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always", helper=True)
 def _slopes(s: Solved) -> tuple[float, float, float]:
     """dy/dtheta of the path, and dx/dtheta and d centre/dtheta along it.
 
@@ -184,13 +184,13 @@ def _slopes(s: Solved) -> tuple[float, float, float]:
     return dy, s[4] + s[6] * dy, s[5] + s[7] * dy
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always")
 def target(theta: float, y: float, px: float, py: float, pz: float, params: Params) -> Solved:
     """:func:`solve` from the plate normal (four steps reach ~1e-10 mm)."""
     return solve(theta, y, px, py, pz, params, _UP, _ZERO, _ZERO, FIRST_STEPS)
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always", helper=True)
 def _path_slope(x_th: float, x_y: float, hx: float, hy: float) -> float:
     """dy/dtheta of the path with (x', y') . h = 0 and x' = x_th + x_y y'."""
     return -x_th * hx / (hy + x_y * hx)
@@ -215,7 +215,7 @@ def start_offsets(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: n
     return u0, valid, cap
 
 
-@nb.njit(fastmath=_FAST, cache=True, nogil=True)
+@kernel(fastmath=_FAST, nogil=True)
 def _start_offsets(lo: int, hi: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray,
                    packed: np.ndarray, w: float, min_light_tilt: float, u0: np.ndarray,
                    valid: np.ndarray, cap: np.ndarray) -> None:
@@ -226,7 +226,7 @@ def _start_offsets(lo: int, hi: int, start: np.ndarray, end: np.ndarray, pts: np
                                           params, w, min_light_tilt)
 
 
-@nb.njit(fastmath=_FAST, cache=True)
+@kernel(fastmath=_FAST, helper=True)
 def _offset(th0: float, th_end: float, px: float, py: float, pz: float, params: Params,
             w: float, min_light_tilt: float) -> tuple[float, bool, int]:
     """One run of :func:`start_offsets`: u0, validity and capacity."""
@@ -291,7 +291,7 @@ def _offset(th0: float, th_end: float, px: float, py: float, pz: float, params: 
     return u_first, valid, cap
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always", helper=True)
 def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: float,
           params: Params, s: Solved) -> tuple[float, float, Solved]:
     """A Heun step from the solve ``s`` at (th, y) with slope k1.
@@ -312,7 +312,7 @@ def _heun(th: float, y: float, k1: float, dth: float, px: float, py: float, pz: 
     return y1, y1 - e[1], e
 
 
-@nb.njit(fastmath=_FAST, cache=True, inline="always")
+@kernel(fastmath=_FAST, inline="always", helper=True)
 def _put(s: Solved, slot: int, point_out: np.ndarray,
          tangent_out: np.ndarray) -> tuple[float, float, float]:
     """Write a sample's x and direction from its solve; returns :func:`_slopes`."""
@@ -342,7 +342,7 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
     return count
 
 
-@nb.njit(fastmath=_FAST, cache=True, nogil=True)
+@kernel(fastmath=_FAST, nogil=True)
 def _integrate(lo: int, hi: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray,
                u0: np.ndarray, packed: np.ndarray, w: float, spacing: float,
                offsets: np.ndarray, stripe_out: np.ndarray, point_out: np.ndarray,
@@ -355,7 +355,7 @@ def _integrate(lo: int, hi: int, start: np.ndarray, end: np.ndarray, pts: np.nda
                          tangent_out)
 
 
-@nb.njit(fastmath=_FAST, cache=True)
+@kernel(fastmath=_FAST)
 def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
           params: Params, w: float, spacing: float, first: int, stop: int,
           stripe_out: np.ndarray, point_out: np.ndarray, tangent_out: np.ndarray) -> int:
@@ -489,7 +489,7 @@ def chain_counts(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, poi
     return kept, paths
 
 
-@nb.njit(fastmath=_FAST, cache=True, nogil=True)
+@kernel(fastmath=_FAST, nogil=True)
 def _chain_counts(lo: int, hi: int, offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray,
                   point: np.ndarray, min_spacing: float, keep: np.ndarray, kept: np.ndarray,
                   paths: np.ndarray) -> None:
@@ -543,7 +543,7 @@ def chain_fill(offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray, point
             length, grain=_GRAIN)
 
 
-@nb.njit(fastmath=_FAST, cache=True, nogil=True)
+@kernel(fastmath=_FAST, nogil=True)
 def _chain_fill(lo: int, hi: int, offsets: np.ndarray, count: np.ndarray, stripe: np.ndarray,
                 point: np.ndarray, tangent: np.ndarray, keep: np.ndarray, ids: np.ndarray,
                 vertex_base: np.ndarray, path_base: np.ndarray, first_vertex: int,

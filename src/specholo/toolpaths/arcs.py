@@ -13,8 +13,10 @@ import math
 import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 
-@nb.njit(cache=True)
+
+@kernel(helper=True)
 def _half_turn_bulge(ax: float, ay: float, bx: float, by: float) -> float:
     """tan(angle from a to b / 2): the bulge of an arc making that angle with its chord."""
     # tan(phi / 2) = sin / (1 + cos) = (1 - cos) / sin, whichever does not cancel.
@@ -27,7 +29,7 @@ def _half_turn_bulge(ax: float, ay: float, bx: float, by: float) -> float:
     return math.tan(0.5 * math.atan2(cross, dot))  # exactly reversed
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _biarc(p0x: float, p0y: float, t0x: float, t0y: float, p1x: float, p1y: float,
            t1x: float, t1y: float) -> tuple[float, float, float, float]:
     """Joint and bulges of the equal-leg biarc from (p0, t0) to (p1, t1)."""
@@ -49,7 +51,7 @@ def _biarc(p0x: float, p0y: float, t0x: float, t0y: float, p1x: float, p1y: floa
     return jx, jy, b1, b2
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _biarcs(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray,
             t1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     k = p0.shape[0]
@@ -81,7 +83,7 @@ def biarc(p0: np.ndarray, t0: np.ndarray, p1: np.ndarray,
                    f(t1, dtype=float))
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _fill_chain(points: np.ndarray, tangents: np.ndarray, pair: np.ndarray, slot: np.ndarray,
                 vertices: np.ndarray, bulges: np.ndarray) -> None:
     m = points.shape[0]

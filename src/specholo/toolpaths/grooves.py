@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._pages import small_pages
 from specholo._threads import chunked
 from specholo.errors import SpecholoError
@@ -43,7 +44,7 @@ def _arc_geometry(start: np.ndarray, end: np.ndarray,
     return centre, radius, start_angle, sweep
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _arc_geometry_of(lo: int, hi: int, start: np.ndarray, end: np.ndarray, bulge: np.ndarray,
                      centre: np.ndarray, radius: np.ndarray, start_angle: np.ndarray,
                      sweep: np.ndarray) -> None:
@@ -65,7 +66,7 @@ def _arc_geometry_of(lo: int, hi: int, start: np.ndarray, end: np.ndarray, bulge
         start_angle[i] = math.atan2(start[i, 1] - centre[i, 1], start[i, 0] - centre[i, 0])
 
 
-@nb.njit(cache=True)
+@kernel()
 def path_length(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int) -> float:
     """Length of the arcs of vertices a .. b - 1, mm."""
     part = 0.0
@@ -76,7 +77,7 @@ def path_length(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int) -> flo
     return part
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _arc_over_chord(t: float) -> float:
     """An arc's length over its chord for |bulge| t: sweep / (2 sin(sweep / 2)) with
     sweep = 4 atan(t), which is atan(t) (1 + t^2) / t."""
@@ -88,7 +89,7 @@ def _arc_over_chord(t: float) -> float:
     return math.atan(t) * (1.0 + t2) / t
 
 
-@nb.njit(cache=True)
+@kernel()
 def grow_box(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int, lo_x: float,
              lo_y: float, hi_x: float, hi_y: float) -> tuple[float, float, float, float]:
     """The box (lo_x, lo_y, hi_x, hi_y) grown by the arcs of the path of vertices
@@ -127,7 +128,7 @@ def grow_box(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int, lo_x: flo
     return lo_x, lo_y, hi_x, hi_y
 
 
-@nb.njit(cache=True)
+@kernel()
 def measure_paths(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, base: int,
                   first: int, stop: int, end: int) -> tuple[float, float, float, float, float]:
     """Box (lo_x, lo_y, hi_x, hi_y) and total length (mm) of paths first .. stop - 1,
@@ -153,7 +154,7 @@ def measure_paths(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
     return lo_x, lo_y, hi_x, hi_y, total
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _extent(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
             offsets: np.ndarray, box: np.ndarray, lengths: np.ndarray) -> None:
     """Corners of the centrelines of chunks first .. stop - 1 of the paths (of

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._sort import stable_argsort
 from specholo._threads import chunked
 from specholo.toolpaths.grooves import Grooves
@@ -128,7 +129,7 @@ def _sample_arcs(vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray, pat
     return pts, owner, share
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _arc_counts(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray,
                 path: np.ndarray, step: float, u0: np.ndarray, u1: np.ndarray,
                 count: np.ndarray, length: np.ndarray) -> None:
@@ -148,7 +149,7 @@ def _arc_counts(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray, arcs
         count[i] = max(1, int(math.ceil(length[i] / step))) + (1 if last else 0)
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _arc_points(i0: int, i1: int, vertices: np.ndarray, bulges: np.ndarray, arcs: np.ndarray,
                 path: np.ndarray, u0: np.ndarray, u1: np.ndarray, count: np.ndarray,
                 length: np.ndarray, first: np.ndarray, pts: np.ndarray, owner: np.ndarray,
@@ -180,7 +181,7 @@ def _arc_points(i0: int, i1: int, vertices: np.ndarray, bulges: np.ndarray, arcs
             q += 1
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _on_arc(sx: float, sy: float, dx: float, dy: float, b: float, chord: float,
             heading: float, half: float, sin_half: float, u: float) -> tuple[float, float]:
     """The point a fraction u of the sweep along the arc from (sx, sy) with chord
@@ -229,7 +230,7 @@ _ROW_BITS = 31
 _MARKS = 1 << 24
 
 
-@nb.njit(cache=True)
+@kernel()
 def _buckets(pts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                      int, float, float, float]:
     """Points bucketed by square cells, for finding those within ``reach`` of any place.
@@ -286,7 +287,7 @@ def _buckets(pts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.
     return order, table, marks, f, x0, y0, cell
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _slot(table: np.ndarray, tag: int) -> int:
     """Where the cell numbered ``tag`` - 1 is filed, or the empty slot it would take."""
     mask = table.shape[0] - 1
@@ -296,7 +297,7 @@ def _slot(table: np.ndarray, tag: int) -> int:
     return h
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _marked(marks: np.ndarray, f: int, gx: float, gy: float) -> bool:
     """Whether any bucketed point may lie in the 3 x 3 cells around cell (gx, gy)."""
     if gx < -1.0 or gy < -1.0:
@@ -305,7 +306,7 @@ def _marked(marks: np.ndarray, f: int, gx: float, gy: float) -> bool:
     return i < marks.shape[0] and j < marks.shape[1] and marks[i, j] != 0
 
 
-@nb.njit(cache=True)
+@kernel()
 def _run(table: np.ndarray, gx: float, gy: float) -> tuple[int, int]:
     """The run [lo, hi) of :func:`_buckets`' order in cell (gx, gy) (empty if none)."""
     if gx < 0.0 or gy < 0.0 or gx >= 2.0 ** (_ROW_BITS - 1) or gy >= 2.0 ** (_ROW_BITS - 1):
@@ -344,7 +345,7 @@ def _crossed(pts: np.ndarray, stipple: np.ndarray, width: float, query: np.ndarr
     return out
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _crossed_blocks(lo: int, hi: int, pts: np.ndarray, stipple: np.ndarray, w2: float,
                     qx: np.ndarray, qy: np.ndarray, own: np.ndarray, table: np.ndarray,
                     marks: np.ndarray, f: int, x0: float, y0: float, cell: float,
@@ -366,7 +367,7 @@ def _crossed_blocks(lo: int, hi: int, pts: np.ndarray, stipple: np.ndarray, w2: 
                             found[blk, q] = True
 
 
-@nb.njit(cache=True)
+@kernel()
 def _budget(stipple: np.ndarray, n_pairs: int, min_pairs: int) -> int:
     """Sample pairs each pair of neighbouring paths may compare: the whole budget
     shared out, at least ``min_pairs``."""
@@ -377,7 +378,7 @@ def _budget(stipple: np.ndarray, n_pairs: int, min_pairs: int) -> int:
     return max(min_pairs, MAX_PAIRS // max(pairs_of, 1))
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _gap(pts: np.ndarray, first: np.ndarray, p: int, budget: int) -> float:
     """Closest distance between path p's points and path p + 1's."""
     best = np.inf  # squared: one root per pair of paths
@@ -391,7 +392,7 @@ def _gap(pts: np.ndarray, first: np.ndarray, p: int, budget: int) -> float:
     return math.sqrt(best)
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _tally(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, p: int, budget: int,
            limit: float, near: np.ndarray, closest: np.ndarray, b: int) -> None:
     """Path p's gap to path p + 1, when both draw one stipple, into block b's count
@@ -422,7 +423,7 @@ def _neighbour_gaps(pts: np.ndarray, first: np.ndarray, stipple: np.ndarray, lim
     return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _gap_blocks(lo: int, hi: int, pts: np.ndarray, first: np.ndarray, stipple: np.ndarray,
                 n_pairs: int, budget: int, limit: float, near: np.ndarray,
                 closest: np.ndarray) -> None:
@@ -452,7 +453,7 @@ def _scan(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray, stipple
     return int(near.sum()), float(closest.min()) if blocks > 0 else math.inf, passes
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _scan_blocks(lo: int, hi: int, vertices: np.ndarray, bulges: np.ndarray,
                  offsets: np.ndarray, stipple: np.ndarray, n_pairs: int, budget: int,
                  limit: float, chosen: np.ndarray, x0: float, y0: float, side: float,
@@ -491,7 +492,7 @@ def _intersections(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray,
     return out
 
 
-@nb.njit(cache=True)
+@kernel()
 def _query_chords(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray, query: np.ndarray,
                   order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The queried chords copied out in bucket order (n_query, 4), read one after
@@ -509,7 +510,7 @@ def _query_chords(pts: np.ndarray, path: np.ndarray, stipple: np.ndarray, query:
     return chord, own
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _intersection_blocks(lo: int, hi: int, pts: np.ndarray, path: np.ndarray,
                          stipple: np.ndarray, chord: np.ndarray, own: np.ndarray,
                          table: np.ndarray, marks: np.ndarray, f: int, x0: float, y0: float,
@@ -543,7 +544,7 @@ def _intersection_blocks(lo: int, hi: int, pts: np.ndarray, path: np.ndarray,
                         hits[blk, q] += 1
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _path_near(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int, chosen: np.ndarray,
                x0: float, y0: float, side: float, reach: float) -> bool:
     """Whether the path of vertices a .. b - 1 may come within ``reach`` of a chosen
@@ -562,7 +563,7 @@ def _path_near(vertices: np.ndarray, bulges: np.ndarray, a: int, b: int, chosen:
     return _touches(chosen, lo_x, lo_y, hi_x, hi_y, reach + sag, x0, y0, side)
 
 
-@nb.njit(cache=True)
+@kernel()
 def _near_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
                   passes: np.ndarray, chosen: np.ndarray, x0: float, y0: float, side: float,
                   reach: float, piece: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -630,7 +631,7 @@ def _near_windows(vertices: np.ndarray, bulges: np.ndarray, offsets: np.ndarray,
     return out[:q].copy(), u0[:q].copy(), u1[:q].copy()
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _grown(a: np.ndarray, n: int, size: int) -> np.ndarray:
     """A copy of a[:n] with room for ``size``."""
     out = np.empty(size, a.dtype)
@@ -639,7 +640,7 @@ def _grown(a: np.ndarray, n: int, size: int) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _touches(chosen: np.ndarray, lo_x: float, lo_y: float, hi_x: float, hi_y: float,
              pad: float, x0: float, y0: float, side: float) -> bool:
     """Whether the box, grown by ``pad``, meets a chosen window."""
@@ -655,7 +656,7 @@ def _touches(chosen: np.ndarray, lo_x: float, lo_y: float, hi_x: float, hi_y: fl
     return False
 
 
-@nb.njit(cache=True)
+@kernel()
 def _in_chosen(pts: np.ndarray, chosen: np.ndarray, x0: float, y0: float,
                side: float) -> np.ndarray:
     """(q,) indices of the points inside a chosen window, in order."""

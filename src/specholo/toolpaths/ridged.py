@@ -44,6 +44,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo.errors import SpecholoError
 from specholo.hosts.flat import sightline_crossing
 from specholo.optics.surfaces import ImplicitOptics, Kind, PointOptics, Source
@@ -368,7 +369,7 @@ def view_grid(viewer: Viewer, options: RidgeOptions) -> tuple[np.ndarray, np.nda
     return _grid(viewer.design_range, options.view_step), _grid(el_half, options.view_step)
 
 
-@nb.njit(cache=True)
+@kernel()
 def _patches(points: np.ndarray, box: np.ndarray, bx0: float, by0: float, block: float,
              nbx: int, eye_y: float, radius: float, az0: float, daz: float, el0: float,
              del_: float, visible: np.ndarray, dot: np.ndarray,
@@ -448,7 +449,7 @@ def _eye_through(points: np.ndarray, xy: np.ndarray, viewer: Viewer) -> np.ndarr
     return points + t[:, None] * d
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _phi(x: float, y: float, z: float, px: float, py: float, pz: float, sg: float,
          point: bool, lx: float, ly: float, lz: float) -> tuple[float, float]:
     """phi of a mirror optic and d phi / dz at (x, y, z)."""
@@ -461,7 +462,7 @@ def _phi(x: float, y: float, z: float, px: float, py: float, pz: float, sg: floa
     return -(lx * x + ly * y + lz * z) + sg * rp, -lz + sg * dz / rp
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _back_path(x: float, y: float, z: float, ix: float, iy: float, iz: float, n: float,
                zback: float) -> tuple[float, float]:
     """The Fermat path from a point light behind the back face z = zback to a point
@@ -493,7 +494,7 @@ def _back_path(x: float, y: float, z: float, ix: float, iy: float, iz: float, n:
     return math.sqrt(r * r + a * a) + n * big_c, n * c / big_c
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _phi_refract(x: float, y: float, z: float, px: float, py: float, pz: float, sg: float,
                  fermat: bool, point: bool, fx: float, fy: float, fz: float, n: float,
                  zback: float, const: float) -> tuple[float, float]:
@@ -515,7 +516,7 @@ def _phi_refract(x: float, y: float, z: float, px: float, py: float, pz: float, 
     return -(big_l + sg * rp), -(lz + sg * dz / rp)
 
 
-@nb.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _raster(block_labels: np.ndarray, ratio: int, x0: float, y0: float, res: float,
             points: np.ndarray, sigma: np.ndarray, level0: np.ndarray, step: np.ndarray,
             apex: np.ndarray, dot: np.ndarray, dot_radius: float, point: bool,

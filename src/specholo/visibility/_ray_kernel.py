@@ -11,18 +11,25 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
+from specholo._compiling import kernel
 from specholo._threads import chunked
 
 
-@nb.njit(cache=True)
+@kernel(helper=True)
 def _pair(k: int, grid: int) -> tuple[np.int64, np.int64]:
     q = np.int64(k)  # an unsigned index: int64 // uint64 would be a float
     if grid > 0:
         return q // grid, q % grid
     return q, q
+
+
+def _c_order(*arrays: np.ndarray) -> list[np.ndarray]:
+    """The arrays in C order (copied only when not): numba compiles a kernel
+    anew for each memory layout it is handed, and the design's eyes are C-ordered
+    where verify's come transposed, which cost verify two compiles on a first run."""
+    return [np.ascontiguousarray(a) for a in arrays]
 
 
 #: Fewest rays per thread worth a thread's start.
@@ -33,11 +40,12 @@ def facing(points: np.ndarray, normals: np.ndarray, eyes: np.ndarray, grid: int,
            n_rays: int) -> np.ndarray:
     """(n_rays,) True where the eye is on the outer side of the point's face."""
     out = np.empty(n_rays, dtype=np.bool_)
+    points, normals, eyes = _c_order(points, normals, eyes)
     chunked(_facing, 0, n_rays, points, normals, eyes, grid, out, grain=_GRAIN)
     return out
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _facing(lo: int, hi: int, points: np.ndarray, normals: np.ndarray, eyes: np.ndarray,
             grid: int, out: np.ndarray) -> None:
     """:func:`facing` of rays lo .. hi - 1."""
@@ -61,12 +69,13 @@ def rays(points: np.ndarray, normals: np.ndarray, eyes: np.ndarray, grid: int,
     k = idx.size
     o32 = np.empty((k, 3), dtype=np.float32)
     d32 = np.empty((k, 3), dtype=np.float32)
+    points, normals, eyes = _c_order(points, normals, eyes)
     chunked(_rays, 0, k, points, normals, eyes, grid, idx, offset, origin, scale, o32, d32,
             grain=_GRAIN)
     return o32, d32
 
 
-@nb.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _rays(lo: int, hi: int, points: np.ndarray, normals: np.ndarray, eyes: np.ndarray,
           grid: int, idx: np.ndarray, offset: float, origin: np.ndarray, scale: float,
           o32: np.ndarray, d32: np.ndarray) -> None:
