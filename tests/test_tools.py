@@ -176,7 +176,7 @@ def test_cut_plate_keeps_about_exp_minus_coverage_of_the_glints():
     from specholo.simulation.cut import cut_design, find_cut_glints
     from specholo.simulation.glints import Engraved, find_glints
 
-    d = design(BUNNY, DesignConfig(stipples=400, tool="ball"))
+    d = design(BUNNY, DesignConfig(stipples=400, tool="ball"), check_overlaps=True)
     assert d.overlaps is not None
     loaded = Loaded(d.config, d.points, d.normals, d.grooves, d.model.mesh)
     field = cut_design(loaded, resolution=0.02)
@@ -257,3 +257,16 @@ def test_a_long_groove_is_sampled_only_where_it_passes_a_window():
     assert np.all(np.abs(pts[:, 0] - r) < 0.01)
     assert np.abs(pts[:, 1]).max() <= 0.25 + reach + overlap.PIECE + 1e-9
     assert share.sum() == pytest.approx(part, rel=1e-9)
+
+
+def test_a_design_states_what_survives_exactly_or_roughly():
+    """The exact as-cut figure where the design finds it, the coverage's rough
+    share where it leaves that to ``verify --cut``: never neither."""
+    from specholo.pipeline import DesignConfig, design
+
+    exact = design(BUNNY, DesignConfig(stipples=60))
+    assert exact.as_cut is not None and exact.overlaps is None
+    rough = design(BUNNY, DesignConfig(stipples=60), expect_as_cut=False)
+    assert rough.as_cut is None and rough.overlaps is not None
+    assert 0.0 < rough.overlaps.surviving <= 1.0
+    assert np.array_equal(exact.grooves.vertices, rough.grooves.vertices)

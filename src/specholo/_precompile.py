@@ -2,11 +2,14 @@
 
 On a fresh install a design spends most of its time having numba compile
 kernels, one after another in one thread: the stipples', occlusion's and
-toolpaths' first, then those of the overlap figure, the as-cut estimate, the
-ordering, the G-code and its check. :func:`start` runs the later stages on a
+toolpaths' first, then those of the as-cut estimate (or the overlap figure),
+the ordering, the G-code and its check. :func:`start` runs the later stages on a
 tiny made-up design in a process of its own while the design's own first stages
 compile and run, so the later kernels are compiled on another core and written
 to numba's on-disk cache, which the design then loads instead of compiling them.
+The grooves' last step, chaining the walked samples into biarcs, is among
+them: the design reaches it only after its placement, long after this process
+has compiled it.
 
 Only when the cache is cold (:func:`cache_is_cold`); a run whose kernels are
 cached starts nothing. The second process runs at a lower priority, so the
@@ -86,7 +89,7 @@ def _run(config: Any) -> None:
 
     import numpy as np
 
-    from specholo.pipeline import Design, expected_as_cut, write_design
+    from specholo.pipeline import AS_CUT_MAX_STIPPLES, Design, expected_as_cut, write_design
     from specholo.toolpaths.common import make_runs
     from specholo.toolpaths.overlap import groove_overlaps
 
@@ -97,15 +100,41 @@ def _run(config: Any) -> None:
     half = math.radians(config.view_range)
     runs = make_runs(points, np.arange(n, dtype=np.int64), np.full(n, -half),
                      np.full(n, half))
-    width = config.cutter().section(config.depth_mm).width
-    extent, total = grooves.extent_and_length()
-    overlaps = groove_overlaps(grooves, width, extent=extent, total_length=total)
-    as_cut = expected_as_cut(config, points, runs, grooves)
+    # What the design finds after its grooves, as it decides (see design()):
+    # the as-cut estimate, or past it the overlap tallies.
+    overlaps = as_cut = None
+    if (config.stipples or 0) > AS_CUT_MAX_STIPPLES:
+        width = config.cutter().section(config.depth_mm).width
+        extent, total = grooves.extent_and_length()
+        overlaps = groove_overlaps(grooves, width, extent=extent, total_length=total)
+    else:
+        as_cut = expected_as_cut(config, points, runs, grooves)
+    _chains()
     model = _Model()
     d = Design(config, model, points, None, runs, grooves, np.zeros(0, np.int64), {},
                overlaps=overlaps, as_cut=as_cut)
     with tempfile.TemporaryDirectory(prefix="specholo-precompile-") as tmp:
         write_design(d, Path(tmp) / "out", command=["specholo"])
+
+
+def _chains() -> None:
+    """The striped design's last step, biarc chains through walked samples,
+    on two made-up runs of a stripe each: the design compiles its walks and
+    placement itself, early, but reaches this step only after them."""
+    import numpy as np
+
+    from specholo.toolpaths.grooves import GroovesBuilder
+    from specholo.toolpaths.striped import chain_samples
+
+    count = np.array([4, 3], dtype=np.int64)
+    slots = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+    m = int(slots[-1])
+    x = np.arange(m, dtype=float)
+    point = np.ascontiguousarray(np.stack([0.3 * x, 0.01 * x * x], axis=1))
+    tangent = np.ascontiguousarray(np.stack([np.full(m, 0.3), 0.02 * x], axis=1))
+    samples = (slots[:-1], count, np.zeros(m, dtype=np.int64), point, tangent,
+               np.empty(m, dtype=np.uint8))
+    chain_samples(GroovesBuilder(), samples, np.arange(2, dtype=np.int64))
 
 
 class _Model:
@@ -117,7 +146,8 @@ class _Model:
 def _tiny(config: Any) -> tuple[Any, Any]:
     """A few stipples below the plate and, for each, a path of half circles
     about the point under it (every direction of groove, so each eye finds
-    glints), two stipples' paths crossing; dots for two more. The half circles
+    glints), two stipples' paths crossing; a path of nearly straight arcs;
+    dots for two more. The half circles
     turn one way and the other along a line, so the path's direction never
     jumps, as a design's never does: a corner would compile the corners'
     glint kernel, which no design of the README's kind needs."""
@@ -140,6 +170,16 @@ def _tiny(config: Any) -> tuple[Any, Any]:
             bulges[-1] = 0.0
             offsets.append(offsets[-1] + len(vertices) - start)
             stipple.append(s)
+    # Nearly straight arcs along a line, bending one way and the other (as a
+    # striped design's biarcs do): the glint index sorts such arcs by cell
+    # and direction, kernels the half circles above never reach.
+    start = len(vertices)
+    for k in range(6):
+        vertices.append([-4.0 + 0.7 * k, 1.0])
+        bulges.append(0.002 if k % 2 else -0.002)
+    bulges[-1] = 0.0
+    offsets.append(offsets[-1] + len(vertices) - start)
+    stipple.append(1)
     for s in (4, 5):  # dots: one vertex each
         vertices.append([float(points[s, 0]), float(points[s, 1])])
         bulges.append(0.0)

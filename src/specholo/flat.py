@@ -272,7 +272,7 @@ def fitted_size(model: Any, config: DesignConfig) -> float:
 
 
 def design(model_path: str | os.PathLike[str], config: DesignConfig,
-           rng: np.random.Generator | None = None, check_overlaps: bool = True,
+           rng: np.random.Generator | None = None, check_overlaps: bool | None = None,
            expect_as_cut: bool | None = None) -> Design:
     """Load, place, stipple, crop by occlusion, check the tool, design the grooves.
 
@@ -280,7 +280,10 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
         model_path: mesh or point-cloud file.
         config: the options.
         rng: random generator for stippling; default seeded from ``config.seed``.
-        check_overlaps: measure where grooves cut into each other.
+        check_overlaps: count where grooves cut into each other (crossings,
+            neighbouring stripes, their coverage); None for designs that
+            skip the as-cut estimate, which then gives the rough share of
+            glints that survive from the coverage.
         expect_as_cut: find which glints survive the other grooves' cuts
             (:func:`expected_as_cut`); None for designs of at most
             :data:`AS_CUT_MAX_STIPPLES` stipples.
@@ -332,6 +335,13 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
             f"{n}: {r}" for r, n in sorted(why.items())) + ")"
         raise SpecholoError(f"no stipple gets a groove: {cover.reasons(reasons)}")
     section = cutter.section(config.depth_mm)
+    if expect_as_cut is None:
+        expect_as_cut = len(points) <= AS_CUT_MAX_STIPPLES
+    if check_overlaps is None:
+        # The as-cut estimate says what survives from the grooves themselves;
+        # the tallies would add a rougher figure and, on a first run, about
+        # 5 s of compiling.
+        check_overlaps = not expect_as_cut
     # One pass over the arcs (or none, when the walk found them), for the plate and
     # the overlaps (which need the length).
     if check_overlaps:
@@ -344,8 +354,6 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
                                total_length=total) if check_overlaps else None
     timings["overlaps"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    if expect_as_cut is None:
-        expect_as_cut = len(points) <= AS_CUT_MAX_STIPPLES
     as_cut = expected_as_cut(config, points, runs, grooves) if expect_as_cut else None
     timings["as cut"] = time.perf_counter() - t0
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,

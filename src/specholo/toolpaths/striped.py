@@ -403,20 +403,33 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     for idx in np.split(np.arange(len(far)), np.unique(bounds)):
         if len(idx) == 0:
             continue
-        offsets, count, stripe, pts, tangent, keep = _integrate(
-            far.take(idx), params, u0[idx], cap[idx], w, spacing, scratch)
-        kept, paths = kernel.chain_counts(offsets, count, stripe, pts, MIN_SPACING, keep)
-        n_vertices = 2 * kept - paths
-        path_base = np.cumsum(paths) - paths
-        base, v, b, o, s = out.extend(int(n_vertices.sum()), int(paths.sum()))
-        # Run r's vertices start at vertex_base[r] of the part, its paths' offsets
-        # count from the first vertex of the whole.
-        vertex_base = np.cumsum(n_vertices) - n_vertices
-        box, length = np.empty((len(idx), 4)), np.empty(len(idx))
-        kernel.chain_fill(offsets, count, stripe, pts, tangent, keep, far.stipple[idx],
-                          vertex_base, path_base, base, v, b, o, s, box, length)
-        # The extent and length, found on the way, spare a pass over the grooves.
-        out.note(np.array([box[:, 0].min(), box[:, 1].min(), box[:, 2].max(),
-                           box[:, 3].max()]), float(length.sum()))
+        chain_samples(out, _integrate(far.take(idx), params, u0[idx], cap[idx], w, spacing,
+                                      scratch), far.stipple[idx])
     out.add(dots_for(near, setup))
     return out.build(), dropped
+
+
+def chain_samples(out: GroovesBuilder, samples: tuple[np.ndarray, ...],
+                  ids: np.ndarray) -> None:
+    """Add to ``out`` the biarc chains through runs' walked samples.
+
+    Args:
+        out: the grooves being built.
+        samples: offsets (r,), count (r,), stripe (slots,), point (slots, 2),
+            tangent (slots, 2) and keep (slots,), as :func:`_integrate` gives them.
+        ids: (r,) each run's stipple.
+    """
+    offsets, count, stripe, pts, tangent, keep = samples
+    kept, paths = kernel.chain_counts(offsets, count, stripe, pts, MIN_SPACING, keep)
+    n_vertices = 2 * kept - paths
+    path_base = np.cumsum(paths) - paths
+    base, v, b, o, s = out.extend(int(n_vertices.sum()), int(paths.sum()))
+    # Run r's vertices start at vertex_base[r] of the part, its paths' offsets
+    # count from the first vertex of the whole.
+    vertex_base = np.cumsum(n_vertices) - n_vertices
+    box, length = np.empty((len(ids), 4)), np.empty(len(ids))
+    kernel.chain_fill(offsets, count, stripe, pts, tangent, keep, ids,
+                      vertex_base, path_base, base, v, b, o, s, box, length)
+    # The extent and length, found on the way, spare a pass over the grooves.
+    out.note(np.array([box[:, 0].min(), box[:, 1].min(), box[:, 2].max(),
+                       box[:, 3].max()]), float(length.sum()))
