@@ -424,7 +424,7 @@ def test_out_as_the_current_folder_or_a_symlink_to_one(
 def test_a_failed_verify_leaves_the_old_verification(
         design_folder: Path, monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str], failure: BaseException, status: int) -> None:
-    from specholo.preview import preview
+    from specholo.preview.chart import ChartDrawer
 
     before = snapshot(design_folder)
     assert {"verify.json", "verify.png"} <= set(before)
@@ -432,7 +432,7 @@ def test_a_failed_verify_leaves_the_old_verification(
     def full_disk(*args: Any, **kwargs: Any) -> None:
         raise failure  # verify.json is written by then, verify.png is not
 
-    monkeypatch.setattr(preview, "plot_verification", full_disk)
+    monkeypatch.setattr(ChartDrawer, "plot_verification", full_disk)
     code, _, err = run(["verify", design_folder, "--step", "2.5"], capsys)
     assert code == status and err.count("\n") == 1, err
     assert snapshot(design_folder) == before

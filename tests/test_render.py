@@ -324,3 +324,33 @@ def test_preview_dots_are_the_glints_each_eye_sees(small_design: Path, tmp_path:
                       axis=1)
         inside = (cols > uv[:, 0].min() - 3) & (cols < uv[:, 0].max() + 3)
         assert np.all(near[inside] < 3.0) or math.isclose(len(points), 0)
+
+
+# -- the verification chart, drawn in a second process --------------------------------
+
+_ROWS = [{"azimuth": a, "median_error": 0.05 + 0.001 * a, "p95_error": 0.15,
+          "p95_depth_error": 0.1, "visibility": 0.99, "false_glints": 0.0}
+         for a in (-45.0, -20.0, 0.0, 20.0, 45.0)]
+
+
+def test_the_chart_drawn_in_a_second_process_is_the_same_png(tmp_path: Path):
+    from PIL import Image
+
+    from specholo.preview.chart import ChartDrawer, verification_png
+
+    here = verification_png(_ROWS, "striped: stereo verification")
+    with ChartDrawer() as drawer:
+        assert drawer._process is not None and drawer._process.is_alive()
+        drawer.plot_verification(_ROWS, tmp_path / "verify.png", "striped: stereo verification")
+    assert (tmp_path / "verify.png").read_bytes() == here
+    assert Image.open(tmp_path / "verify.png").size == (700, 600)
+
+
+def test_the_chart_is_drawn_here_when_its_process_is_gone(tmp_path: Path):
+    from specholo.preview.chart import ChartDrawer, verification_png
+
+    drawer = ChartDrawer()
+    drawer._process.terminate()
+    drawer._process.join()
+    assert drawer.verification_png(_ROWS) == verification_png(_ROWS)
+    assert drawer._process is None  # closed: later charts are drawn here too

@@ -167,6 +167,18 @@ class FlatJob:
             loaded.grooves, loaded.config.setup(), into / "preview.png")}
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
+        from specholo.preview.chart import ChartDrawer
+
+        # matplotlib is imported in a second process while the eyes are simulated.
+        chart = ChartDrawer()
+        try:
+            return self._verify(folder, options, status, chart)
+        except BaseException:
+            chart.close()
+            raise
+
+    def _verify(self, folder: Path, options: VerifyOptions, status: Status,
+                chart: Any) -> Verification:
         from specholo.folder import write_verify_json
         from specholo.pipeline import (
             DEFAULT_RESOLUTION,
@@ -175,7 +187,6 @@ class FlatJob:
             verify_cut_design,
             verify_design,
         )
-        from specholo.preview.preview import plot_verification
         from specholo.simulation.verify import reports_to_dicts, summarise
 
         cut = options.cut
@@ -230,7 +241,8 @@ class FlatJob:
                                          else None}, name="verify_cut.json")
 
         def verify_png(into: Path) -> None:
-            plot_verification(rows, into / "verify.png", f"{name}: stereo verification")
+            chart.plot_verification(rows, into / "verify.png", f"{name}: stereo verification")
+            chart.close()
 
         files: dict[str, Callable[[Path], object]] = {"verify.json": verify_json,
                                                       "verify.png": verify_png}
