@@ -1,4 +1,5 @@
-"""Simulated views of the engraved plate under its light."""
+"""Simulated views of the engraved plate under its light, and the chart of a
+verification over azimuth and elevation (the flat one is :mod:`specholo.preview.chart`)."""
 
 from __future__ import annotations
 
@@ -77,17 +78,6 @@ def render_field_preview(heights: HeightMap, setup: Setup, path: str | os.PathLi
     _draw_views(az, eyes, seen, lo, hi, path)
 
 
-def _figure(**kwargs: Any) -> Any:
-    """A matplotlib figure drawn by Agg, without pyplot: pyplot's import (its
-    backends and state) costs more than drawing a small design's preview."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(**kwargs)
-    FigureCanvasAgg(fig)
-    return fig
-
-
 #: One panel of the preview, pixels: wide, high, and the title's band above the plate.
 PANEL = (462, 484, 34)
 #: Blank pixels around the plate's outline in its panel.
@@ -156,36 +146,6 @@ def _draw_views(az: list[float], eyes: np.ndarray, seen: list[np.ndarray],
     img = Image.fromarray(pixels, "RGB")
     buf = io.BytesIO()
     img.save(buf, format="PNG", optimize=False)
-    with atomic_open(path, "wb", encoding=None) as fh:
-        fh.write(buf.getvalue())
-
-
-def plot_verification(rows: list[dict[str, float]], path: str | os.PathLike[str],
-                      title: str = "") -> None:
-    """Write a PNG of error and visibility by azimuth (rows from verification)."""
-    az = [r["azimuth"] for r in rows]
-    fig = _figure(figsize=(7, 6))
-    ax1, ax2 = fig.subplots(2, 1, sharex=True)
-    ax1.plot(az, [r["median_error"] for r in rows], "o-", label="median")
-    ax1.plot(az, [r["p95_error"] for r in rows], "s-", label="95th percentile")
-    ax1.plot(az, [r["p95_depth_error"] for r in rows], "^--", label="95th pct, depth only")
-    ax1.set_ylabel("apparent-point error (mm)")
-    ax1.legend()
-    ax1.grid(alpha=0.3)
-    ax2.plot(az, [r["visibility"] for r in rows], "o-", label="visibility")
-    ax2.plot(az, [r["false_glints"] for r in rows], "s-", label="false glints")
-    ax2.set_ylim(-0.02, 1.02)
-    ax2.set_xlabel("head azimuth (degrees)")
-    ax2.legend()
-    ax2.grid(alpha=0.3)
-    if title:
-        ax1.set_title(title)
-    # Margins set, not fitted: the figure's size and labels never change, and
-    # fitting them measures every text (a tenth of a second of a verify).
-    fig.subplots_adjust(left=0.1, right=0.975, bottom=0.08, top=0.94 if title else 0.975,
-                        hspace=0.06)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
     with atomic_open(path, "wb", encoding=None) as fh:
         fh.write(buf.getvalue())
 
