@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from specholo.jobs.base import (
     Designed,
@@ -17,6 +17,9 @@ from specholo.jobs.base import (
     VerifyOptions,
     WriteOptions,
 )
+
+if TYPE_CHECKING:
+    from specholo.preview.chart import ChartDrawer
 
 
 def design_summary(d: Any, written: Any, out: Path) -> Summary:
@@ -178,7 +181,7 @@ class FlatJob:
             raise
 
     def _verify(self, folder: Path, options: VerifyOptions, status: Status,
-                chart: Any) -> Verification:
+                chart: ChartDrawer) -> Verification:
         from specholo.folder import write_verify_json
         from specholo.pipeline import (
             DEFAULT_RESOLUTION,

@@ -59,13 +59,6 @@ def verification_png(rows: Rows, title: str = "") -> bytes:
     return buf.getvalue()
 
 
-def plot_verification(rows: Rows, path: str | os.PathLike[str], title: str = "") -> None:
-    """Write a PNG of error and visibility by azimuth (rows from verification)."""
-    png = verification_png(rows, title)
-    with atomic_open(path, "wb", encoding=None) as fh:
-        fh.write(png)
-
-
 class ChartDrawer:
     """Draws verification charts in a second process, which imports matplotlib
     as soon as it starts: start one before a verification, hand it the rows
@@ -108,7 +101,7 @@ class ChartDrawer:
 
     def plot_verification(self, rows: Rows, path: str | os.PathLike[str],
                           title: str = "") -> None:
-        """:func:`plot_verification`, drawn by the second process when it runs."""
+        """Write the chart of :func:`verification_png` to ``path`` (atomically)."""
         png = self.verification_png(rows, title)
         with atomic_open(path, "wb", encoding=None) as fh:
             fh.write(png)
