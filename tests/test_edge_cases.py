@@ -57,7 +57,8 @@ def _glints(setup, grooves, theta_deg: float):  # type: ignore[no-untyped-def]
 AZIMUTHS = (-46.0, -30.0, -10.0, 0.0, 10.0, 30.0, 46.0)
 
 
-@pytest.mark.parametrize("z", [0.0, 1e-9, -1e-6, 0.02, -0.03])
+# Half the default tip's groove width is 0.016 mm: a point within it is a dimple.
+@pytest.mark.parametrize("z", [0.0, 1e-9, -1e-6, 0.012, -0.016])
 def test_a_stipple_on_the_plate_is_a_dimple_glinting_at_its_xy_for_every_eye(z: float) -> None:
     setup, pts, grooves, dropped = _design([[4.0, -3.0, z]])
     assert len(dropped) == 0

@@ -284,8 +284,9 @@ def test_survival_agrees_with_the_height_field_cut() -> None:
     from specholo.pipeline import DesignConfig, design
     from specholo.visibility.occlusion import Intervals
 
+    # A 0.05 mm tip: 5 um is a tenth of its radius.
     d = design("examples/bunny.obj", DesignConfig(size=20.0, center_z=-15.0, stipples=400,
-                                                  seed=3, method="hyperbola"),
+                                                  seed=3, method="hyperbola", tool_radius=0.05),
                check_overlaps=False, expect_as_cut=False)
     setup: Setup = d.config.setup()
     seen_from = Intervals(d.runs.stipple, d.runs.start, d.runs.end)

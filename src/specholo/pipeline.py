@@ -77,7 +77,7 @@ __all__ = [
     "CUT_METHODS",
     "Coverage",
     "DEFAULT_FORMATS",
-    "DEFAULT_RESOLUTION",
+    "default_resolution",
     "DEFAULT_STIPPLES",
     "Design",
     "DesignConfig",
@@ -460,8 +460,21 @@ def verify_design(loaded: Loaded, max_step_deg: float = 5.0) -> list[Any]:
 
 #: How ``verify --cut`` finds what the cutting leaves (:func:`cut_method`).
 CUT_METHODS = ("survival", "field")
-#: Height-field sample spacing when none is given, mm.
-DEFAULT_RESOLUTION = 0.02
+#: Height-field samples across a tool radius when no spacing is given: the
+#: wall's normal turns by spacing / R from one sample to the next, so a finer
+#: tip needs finer samples (at 0.02 mm a 0.025 mm tip's groove is one sample wide).
+SAMPLES_PER_RADIUS = 5
+#: Coarsest height-field sample spacing when none is given, mm.
+MAX_DEFAULT_RESOLUTION = 0.02
+
+
+def default_resolution(config: DesignConfig) -> float:
+    """Height-field sample spacing for a design when none is given, mm: the
+    tool's (round model's) radius over :data:`SAMPLES_PER_RADIUS`, to the
+    micrometre below, at most :data:`MAX_DEFAULT_RESOLUTION`."""
+    radius = config.setup().tool.radius
+    return max(0.001, min(MAX_DEFAULT_RESOLUTION,
+                          math.floor(radius / SAMPLES_PER_RADIUS * 1000.0) / 1000.0))
 
 
 def cut_method(method: str | None, resolution: float | None, stl: object | None) -> str:
@@ -498,7 +511,7 @@ def verify_cut_design(loaded: Loaded, max_step_deg: float = 5.0,
     Args:
         loaded: the design (grooves read back from its G-code, usually).
         max_step_deg: largest azimuth step between eye pairs, degrees.
-        resolution: height-field sample spacing, mm (default :data:`DEFAULT_RESOLUTION`).
+        resolution: height-field sample spacing, mm (default :func:`default_resolution`).
         stl: also write the cut plate here as a watertight STL (height field only).
         method: ``survival`` or ``field`` (default: see :func:`cut_method`).
 
@@ -519,7 +532,7 @@ def verify_cut_design(loaded: Loaded, max_step_deg: float = 5.0,
         return as_cut.reports, None
     from specholo.simulation.cut import cut_design, verify_cut, write_stl
 
-    resolution = DEFAULT_RESOLUTION if resolution is None else resolution
+    resolution = default_resolution(loaded.config) if resolution is None else resolution
     if not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
         raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
     field = cut_design(loaded, resolution)

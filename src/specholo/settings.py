@@ -46,7 +46,7 @@ TILT_MARGIN = math.radians(2.0)
 #: against 70 strokes of 0.5 mm at 0.2; docs/fabrication.md).
 BAND = 0.2
 HAND_BAND = 1.0
-TOOL_DEFAULTS = {"ball": (0.08, 12000.0), "drag": (0.012, 0.0), "scriber": (0.012, 0.0),
+TOOL_DEFAULTS = {"ball": (0.08, 12000.0), "drag": (0.006, 0.0), "scriber": (0.012, 0.0),
                  "vbit": (0.05, 12000.0), "laser": (0.04, 0.0)}
 
 

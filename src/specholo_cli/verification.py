@@ -31,7 +31,7 @@ from specholo_cli.app import (
                    "grooves [default], or field, a simulated height field of the plate "
                    "[the default with --resolution or --stl].")
 @click.option("--resolution", type=float, default=None,
-              help="Height-field cut: sample spacing, mm [0.02].")
+              help="Height-field cut: sample spacing, mm [the tool radius / 5, at most 0.02].")
 @click.option("--stl", type=click.Path(path_type=Path), default=None,
               help="Height-field cut: write the cut plate as a watertight STL here.")
 def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: str | None,

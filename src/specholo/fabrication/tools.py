@@ -108,7 +108,11 @@ class RoundCone:
         max_depth: deepest groove the tip can drag or scratch, mm.
     """
 
-    tip_radius: float = 0.05
+    # A glint is lost where another cut's centreline passes within R sin(tilt)
+    # of it (same depth), so the tip radius sets what survives the crossings:
+    # 0.025 mm keeps 87% of the README example's stipples in stereo as cut,
+    # 0.05 mm 64% (docs: verification, *As cut*).
+    tip_radius: float = 0.025
     angle: float = math.radians(90.0)
     max_depth: float = 0.3
     kind = "drag"

@@ -184,8 +184,8 @@ class FlatJob:
                 chart: ChartDrawer) -> Verification:
         from specholo.folder import write_verify_json
         from specholo.pipeline import (
-            DEFAULT_RESOLUTION,
             cut_method,
+            default_resolution,
             load_design,
             verify_cut_design,
             verify_design,
@@ -195,9 +195,9 @@ class FlatJob:
         cut = options.cut
         method = cut_method(options.cut_method, options.resolution, options.stl) if cut else None
         resolution = options.resolution
-        if method == "field" and resolution is None:
-            resolution = DEFAULT_RESOLUTION
         loaded = load_design(folder, from_gcode=options.from_gcode or cut)
+        if method == "field" and resolution is None:
+            resolution = default_resolution(loaded.config)
         status("simulating eye pairs...")
         reports = verify_design(loaded, options.step_deg)
         rows = reports_to_dicts(reports)
