@@ -2,7 +2,7 @@
 
 Usage: python benchmarks/density_curve.py [--scene readme|unseen]
        [--stipples 500 1000 2000 4000 8000] [--methods striped arc hyperbola]
-       [--json out.json] [--plot out.png]
+       [--set KEY=VALUE ...] [--json out.json] [--plot out.png]
 
 Designs a scene in-process at each stipple count with each method (the default
 settings otherwise: the striped design places its stripes as ``--placement
@@ -18,6 +18,9 @@ Scenes:
   centre z -30 mm, a point light 800 mm away at 35 deg, eyes 600 mm away and
   150 mm above the plate's centre over +-50 deg, a 60 deg drag tip, since the
   raised eyes need walls tilted up to 49 deg, more than a 90 deg cone offers).
+
+``--set`` changes a design setting of the scene (``hologram.json``'s names),
+e.g. ``--set tool_radius=0.05`` for the 0.05 mm drag tip.
 
 For each design it prints the lowest and mean as-cut stereo visibility over the
 azimuths, the mean number of stipples seen in stereo on the cut plate ("stereo
@@ -56,10 +59,12 @@ SCENES: dict[str, tuple[Path, dict[str, Any]]] = {
 }
 
 
-def measure(scene: str, method: str, stipples: int) -> dict[str, Any]:
+def measure(scene: str, method: str, stipples: int,
+            changes: dict[str, Any] | None = None) -> dict[str, Any]:
     """One design at one density: its as-cut and ideal figures per azimuth."""
     model, settings = SCENES[scene]
-    config = DesignConfig.from_dict({**settings, "stipples": stipples, "method": method})
+    config = DesignConfig.from_dict({**settings, **(changes or {}), "stipples": stipples,
+                                     "method": method})
     d = design(model, config, check_overlaps=False, expect_as_cut=False)
     setup = d.config.setup()
     mesh, normals = d.model.mesh, d.normals
@@ -120,6 +125,16 @@ def plot(rows: list[dict[str, Any]], path: Path, scene: str) -> None:
     fig.savefig(path, dpi=110)
 
 
+def _setting(text: str) -> tuple[str, Any]:
+    key, sep, value = text.partition("=")
+    if not sep:
+        raise SystemExit(f"--set takes KEY=VALUE, got {text!r}")
+    try:
+        return key, json.loads(value)
+    except json.JSONDecodeError:
+        return key, value  # a word, e.g. placement=avoid
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -127,16 +142,19 @@ def main() -> None:
     ap.add_argument("--stipples", type=int, nargs="+", default=[500, 1000, 2000, 4000, 8000])
     ap.add_argument("--methods", nargs="+", default=["striped", "arc", "hyperbola"],
                     choices=["striped", "arc", "hyperbola"])
+    ap.add_argument("--set", dest="changes", action="append", default=[],
+                    metavar="KEY=VALUE", help="change a design setting of the scene")
     ap.add_argument("--json", type=Path, help="write every figure here")
     ap.add_argument("--plot", type=Path, help="draw the curves here (PNG)")
     args = ap.parse_args()
+    changes = dict(_setting(c) for c in args.changes)
     rows = []
     print("| method | stipples | placement | as cut, lowest / mean | stereo points, mean "
           "| as cut p95 mm | ideal lowest | groove m | paths |")
     print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
     for method in args.methods:
         for n in args.stipples:
-            r = measure(args.scene, method, n)
+            r = measure(args.scene, method, n, changes)
             rows.append(r)
             print(f"| {method} | {n} | {r['placement']} | {r['cut_min']:.3f} / "
                   f"{r['cut_mean']:.3f} | {r['stereo_points_mean']:.0f} | "

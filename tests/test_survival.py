@@ -306,6 +306,30 @@ def test_survival_agrees_with_the_height_field_cut() -> None:
     assert np.all(ideal.surviving < ideal.glints)
 
 
+def test_cutting_every_groove_deeper_removes_no_more_glints() -> None:
+    """A glint tilted a on a round tip sits R (1 - cos a) above the tip, so a cut
+    of the same depth removes it only within R sin a of its own centreline,
+    however deep both are: a plate cut deeper throughout (into the cone's
+    flanks, three times the design's depth) keeps exactly the same glints,
+    and the finer tip keeps more of them."""
+    from specholo.pipeline import DesignConfig, design
+
+    az = np.radians([-30.0, 0.0, 30.0])
+    kept = {}
+    for radius in (0.025, 0.05):
+        d = design("examples/bunny.obj", DesignConfig(size=20.0, center_z=-15.0, stipples=300,
+                                                      seed=3, tool_radius=radius),
+                   check_overlaps=False, expect_as_cut=False)
+        setup, cutter, depth = d.config.setup(), d.config.cutter(), d.config.depth_mm
+        assert depth < cutter.tip_radius * (1.0 - math.sin(0.5 * cutter.angle))  # round part
+        shallow = verify_as_cut(d.grooves, d.points, setup, cutter, depth, azimuths=az)
+        deep = verify_as_cut(d.grooves, d.points, setup, cutter, 3.0 * depth, azimuths=az)
+        assert np.all(shallow.surviving < shallow.glints)  # crossings remove glints here
+        assert np.array_equal(shallow.surviving, deep.surviving)
+        kept[radius] = shallow.surviving.sum() / shallow.glints.sum()
+    assert kept[0.025] > kept[0.05]
+
+
 def test_design_states_and_verify_checks_what_survives(tmp_path, capsys) -> None:
     """The design prints and records the stereo visibility it expects as cut;
     ``verify --cut`` finds it again on the G-code's grooves by default, never
