@@ -72,7 +72,8 @@ def plain_sum(path: Path) -> dict[str, Any]:
     factor = 1.0
     with open(path, encoding="ascii") as fh:
         for raw in fh:
-            line = re.sub(r"\(.*?\)", "", raw.split(";")[0]).strip().upper()
+            # Parenthesised comments first: one may hold a ';' (the plate-zero note).
+            line = re.sub(r"\(.*?\)", "", raw).split(";")[0].strip().upper()
             if not line:
                 continue
             words = dict(_WORD.findall(line.replace(" ", "")))
