@@ -39,6 +39,7 @@ if TYPE_CHECKING:
 from specholo.settings import (
     BAND,
     DEFAULT_STIPPLES,
+    DEPTH_ALLOWANCE,
     TILT_MARGIN,
     DesignConfig,
 )
@@ -174,8 +175,9 @@ def check_points(points: np.ndarray, setup: Setup) -> None:
 
 def auto_depth(cutter: Cutter, config: DesignConfig, points: np.ndarray, runs: Runs,
                tilts: np.ndarray | None = None) -> float:
-    """Shallowest depth, to the micrometre above, whose walls serve every view, plus
-    :data:`TILT_MARGIN`; the tool's fallback depth when no depth can (a V-bit).
+    """Shallowest depth whose walls serve every view with :data:`TILT_MARGIN` to
+    spare, plus :data:`DEPTH_ALLOWANCE` for a machine's depth error, to the
+    micrometre above; the tool's fallback depth when no depth can (a V-bit).
     ``tilts`` are the runs' :func:`needed_tilts`, if already known."""
     if tilts is None:
         setup = config.setup()
@@ -185,7 +187,7 @@ def auto_depth(cutter: Cutter, config: DesignConfig, points: np.ndarray, runs: R
     depth = depth_for(cutter, min(need, 0.5 * math.pi - 1e-6))
     if depth is None:
         return config.depth_mm
-    depth = math.ceil(depth * 1000.0) / 1000.0
+    depth = math.ceil((depth + DEPTH_ALLOWANCE) * 1000.0 - 1e-9) / 1000.0
     # A ball or round tip shallower than its reach: beyond it the walls stop at the shank.
     try:
         cutter.check_depth(depth)

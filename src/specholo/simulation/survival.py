@@ -58,6 +58,9 @@ from specholo.toolpaths.grooves import Grooves
 EPS = 1e-9
 #: Bulges below this are straight segments (as the glint search takes them).
 LINE_BULGE = 1e-9
+#: A sweep's per-path depths: each glint's z (g,), each path's depth (n_paths,)
+#: and the tool's profile (:func:`_profile`); three empty arrays for one depth.
+CutDepths = tuple[np.ndarray, np.ndarray, np.ndarray]
 #: Grid cells per glint at most (a sparse design on a wide plate gets larger cells).
 CELLS_PER_GLINT = 4
 #: Smallest grid cell, mm.
@@ -114,6 +117,36 @@ def removal_radius(cutter: Any, depth: float, lift: np.ndarray) -> np.ndarray:
     else:
         raise SpecholoError(f"no removal radius for the tool {cutter!r}")
     return np.where(z > 0.0, r, 0.0)
+
+
+def _profile(cutter: Any) -> np.ndarray:
+    """The removal radius in closed form, for cuts of differing depths: (R, h_j,
+    r_j, t) with r(lift) = sqrt(lift (2R - lift)) up to h_j, then r_j + (lift - h_j) t
+    (a ball stops at its radius, a round cone goes on along its flank, a V-bit
+    is all flank from its tip flat). A laser's trough scales with its depth
+    and has no single profile."""
+    if isinstance(cutter, Tool | BallEnd):
+        R = float(cutter.radius)
+        return np.array([R, R, R, 0.0])
+    if isinstance(cutter, RoundCone):
+        R, half = float(cutter.tip_radius), 0.5 * float(cutter.angle)
+        return np.array([R, R * (1.0 - math.sin(half)), R * math.cos(half), math.tan(half)])
+    if isinstance(cutter, VBit):
+        return np.array([0.0, 0.0, 0.5 * float(cutter.tip_flat),
+                         math.tan(0.5 * float(cutter.angle))])
+    raise SpecholoError(f"cuts of differing depths are not simulated for the tool {cutter!r}")
+
+
+@kernel(helper=True)
+def _reach(lift: float, profile: np.ndarray) -> float:
+    """:func:`_profile`'s removal radius at ``lift`` mm above the cutting tip."""
+    up = lift - EPS
+    if up <= 0.0:
+        return 0.0
+    R, hj = profile[0], profile[1]
+    if up <= hj:
+        return math.sqrt(up * (2.0 * R - up))
+    return profile[2] + (up - hj) * profile[3]
 
 
 def _exact_model(cutter: Any, depth: float) -> bool:
@@ -244,8 +277,13 @@ def _arc_distance(px: float, py: float, ax: float, ay: float, bx: float, by: flo
 def _visit(lo_x: float, lo_y: float, hi_x: float, hi_y: float, path: int, ax: float,
            ay: float, bx: float, by: float, bulge: float, qx: np.ndarray, qy: np.ndarray,
            qr: np.ndarray, qpath: np.ndarray, ptr: np.ndarray, x0: float, y0: float,
-           size: float, nx: int, ny: int, removed: np.ndarray) -> None:
-    """Mark the glints in the cells under the box that the arc (a, b, bulge) removes."""
+           size: float, nx: int, ny: int, removed: np.ndarray, cut: CutDepths) -> None:
+    """Mark the glints in the cells under the box that the arc (a, b, bulge) removes.
+
+    ``cut``: (qz, depths, profile) where the paths' depths differ (each glint's
+    removal radius then depends on the path cutting), else three empty arrays
+    and each glint's radius is ``qr``."""
+    qz, depths, profile = cut
     i0 = max(int(math.floor((lo_x - x0) / size)), 0)
     i1 = min(int(math.floor((hi_x - x0) / size)), nx - 1)
     j0 = max(int(math.floor((lo_y - y0) / size)), 0)
@@ -255,7 +293,7 @@ def _visit(lo_x: float, lo_y: float, hi_x: float, hi_y: float, path: int, ax: fl
             for g in range(ptr[c], ptr[c + 1]):
                 if removed[g] or qpath[g] == path:
                     continue
-                r = qr[g]
+                r = qr[g] if depths.size == 0 else _reach(qz[g] + depths[path], profile)
                 x, y = qx[g], qy[g]
                 if x < lo_x or x > hi_x or y < lo_y or y > hi_y:
                     continue
@@ -267,7 +305,7 @@ def _visit(lo_x: float, lo_y: float, hi_x: float, hi_y: float, path: int, ax: fl
 def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
            offsets: np.ndarray, qx: np.ndarray, qy: np.ndarray, qr: np.ndarray, qpath: np.ndarray,
            ptr: np.ndarray, x0: float, y0: float, size: float, nx: int, ny: int, reach: float,
-           removed: np.ndarray) -> None:
+           removed: np.ndarray, cut: CutDepths) -> None:
     """Mark every glint (sorted by grid cell) that the sweep of one of paths
     first .. stop - 1, not its own, holds.
 
@@ -282,7 +320,7 @@ def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
         if b - a == 1:  # a dot: one plunge
             vx, vy = vertices[a, 0], vertices[a, 1]
             _visit(vx - reach, vy - reach, vx + reach, vy + reach, q, vx, vy, vx, vy, 0.0,
-                   qx, qy, qr, qpath, ptr, x0, y0, size, nx, ny, removed)
+                   qx, qy, qr, qpath, ptr, x0, y0, size, nx, ny, removed, cut)
             continue
         for i in range(a, b - 1):
             ax, ay = vertices[i, 0], vertices[i, 1]
@@ -300,7 +338,7 @@ def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
                 pad = 0.5 * chord * t + reach  # the sagitta bounds the bulge
                 _visit(min(ax, bx) - pad, min(ay, by) - pad, max(ax, bx) + pad,
                        max(ay, by) + pad, q, ax, ay, bx, by, beta, qx, qy, qr, qpath, ptr,
-                       x0, y0, size, nx, ny, removed)
+                       x0, y0, size, nx, ny, removed, cut)
                 continue
             # Piece ends from the start along the chord of each partial sweep,
             # 2 rho sin(phi / 2) long and turned phi / 2 from the start tangent.
@@ -322,7 +360,7 @@ def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
                     ey = ay + ln * math.sin(theta + 0.5 * phi)
                 _visit(min(sx, ex) - pad, min(sy, ey) - pad, max(sx, ex) + pad,
                        max(sy, ey) + pad, q, ax, ay, bx, by, beta, qx, qy, qr, qpath, ptr,
-                       x0, y0, size, nx, ny, removed)
+                       x0, y0, size, nx, ny, removed, cut)
                 sx, sy = ex, ey
 
 
@@ -343,23 +381,41 @@ def _by_cell(cell: np.ndarray, cells: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def survivors(grooves: Grooves, points: np.ndarray, path: np.ndarray, cutter: Any,
-              depth: float) -> np.ndarray:
+              depth: float | np.ndarray) -> np.ndarray:
     """Which wall points survive the cuts of every other path.
 
     Args:
         grooves: all grooves cut into the plate.
         points: (g, 3) points on the walls, mm (a glint on its own groove's wall).
         path: (g,) the path whose wall each point is on (its own cut is not tested).
-        cutter: the tool (see :func:`removal_radius`); depth: groove depth, mm.
+        cutter: the tool (see :func:`removal_radius`).
+        depth: groove depth, mm; or (n_paths,) the depth each path is cut to
+            (not for a laser, whose trough's shape goes with its depth).
 
     Returns:
         (g,) True where no other path's swept tool holds the point.
+
+    Raises:
+        SpecholoError: per-path depths of the wrong shape, or for a laser.
     """
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     g = len(points)
     if g == 0 or grooves.n_paths == 0:
         return np.ones(g, dtype=bool)
-    radius = removal_radius(cutter, depth, points[:, 2] + depth)
+    none = np.zeros(0)
+    cut: CutDepths = (none, none, none)
+    depths = np.asarray(depth, dtype=float)
+    if depths.ndim == 0:
+        radius = removal_radius(cutter, float(depths), points[:, 2] + float(depths))
+    else:
+        if depths.shape != (grooves.n_paths,) or not np.all(np.isfinite(depths)):
+            raise SpecholoError(f"path depths must be {grooves.n_paths} finite numbers, got "
+                                f"shape {depths.shape}")
+        profile = _profile(cutter)
+        cut = (np.ascontiguousarray(points[:, 2]), np.ascontiguousarray(depths), profile)
+        # each glint's radius under the deepest cut bounds its radius under any
+        top = float(depths.max())
+        radius = removal_radius(cutter, top, points[:, 2] + top)
     reach = float(radius.max())
     if reach <= 0.0:
         return np.ones(g, dtype=bool)
@@ -392,7 +448,8 @@ def survivors(grooves: Grooves, points: np.ndarray, path: np.ndarray, cutter: An
         removed = np.zeros(len(live), dtype=np.bool_)
         chunked(_sweep, first, stop, vertices, bulges, offsets, f(points[live, 0]),
                 f(points[live, 1]), f(radius[live]), f(path[live]), ptr, float(lo[0]),
-                float(lo[1]), float(size), nx, ny, reach, removed)
+                float(lo[1]), float(size), nx, ny, reach, removed,
+                cut if cut[1].size == 0 else (f(cut[0][live]), cut[1], cut[2]))
         alive = live[~removed]
         if alive.size == 0:
             break
@@ -448,7 +505,8 @@ class AsCut:
 def verify_as_cut(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: Any,
                   depth: float, visible: VisibilityFn | None = None,
                   azimuths: np.ndarray | None = None,
-                  chunk_vertices: int = CHUNK_VERTICES) -> AsCut:
+                  chunk_vertices: int = CHUNK_VERTICES,
+                  path_depths: np.ndarray | None = None) -> AsCut:
     """:func:`~specholo.simulation.verify.verify` on the plate as cut.
 
     Each eye's designed glints are found on the ideal grooves, those some other
@@ -464,6 +522,10 @@ def verify_as_cut(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: An
         visible: occlusion test; None means every stipple is unoccluded.
         azimuths: head azimuths in radians; default every <= 5 degrees over the range.
         chunk_vertices: groove vertices searched for glints at once (memory grows with it).
+        path_depths: (n_paths,) the depth each path is really cut to, mm, where
+            it strays from ``depth`` (a machine's Z, a drag spring's force):
+            each glint moves down or up with its groove, and one whose wall
+            would stand above the plate is gone.
 
     Returns:
         Per azimuth, the reports and the glint counts.
@@ -488,8 +550,18 @@ def verify_as_cut(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: An
         del eng
     per_eye = [_join(parts) for parts in found]
     sizes = np.array([len(gl.path) for gl in per_eye], dtype=np.int64)
-    keep = survivors(grooves, np.concatenate([gl.point for gl in per_eye]),
-                     np.concatenate([gl.path for gl in per_eye]), cutter, depth)
+    at = np.concatenate([gl.point for gl in per_eye])
+    on = np.concatenate([gl.path for gl in per_eye])
+    if path_depths is None:
+        keep = survivors(grooves, at, on, cutter, depth)
+    else:
+        cut_to = np.asarray(path_depths, dtype=float)
+        if cut_to.shape != (grooves.n_paths,):
+            raise SpecholoError(f"path depths must be {grooves.n_paths} numbers, got shape "
+                                f"{cut_to.shape}")
+        lift = at[:, 2] + depth  # the glint's height above its own groove's tip
+        moved = np.column_stack([at[:, :2], lift - cut_to[on]])
+        keep = survivors(grooves, moved, on, cutter, cut_to) & (lift <= cut_to[on])
     kept = np.split(keep, np.cumsum(sizes)[:-1])
     reports = []
     counts = np.zeros((k, 2), dtype=np.int64)
