@@ -49,12 +49,13 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
      "in memory and time, else phase [auto]."),
     ("tool", click.Choice(["ball", "vbit", "drag", "scriber", "laser"]),
      "Cutting tool: ball-end mill, V-bit, diamond drag tip, hand scriber or laser [drag]."),
-    ("tool-radius", float, "Ball or tip radius, mm [ball 0.25, drag 0.05, scriber 0.05]."),
+    ("tool-radius", float, "Ball or tip radius, mm [ball 0.25, drag 0.025, scriber 0.05]."),
     ("tool-angle", float, "Included angle of a V-bit or tip cone, degrees "
      "[vbit 60, drag 90, scriber 60]."),
     ("tip-flat", float, "Width of a V-bit's tip flat, mm [0]."),
     ("spot", float, "Laser spot diameter (1/e^2), mm [0.1]."),
-    ("depth", float, "Groove depth, mm [ball 0.08, vbit 0.05, laser 0.04, else 0.012]."),
+    ("depth", float, "Groove depth, mm [deep enough for the steepest wall the views need, plus 0.005; "
+     "a V-bit 0.05]."),
     ("dialect", click.Choice(["grbl", "linuxcnc", "marlin"]),
      "G-code for GRBL, LinuxCNC, or Marlin driving a laser [grbl]."),
     ("units", click.Choice(["mm", "inch"]), "G-code units [mm]."),
