@@ -54,8 +54,8 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
      "[vbit 60, drag 90, scriber 60]."),
     ("tip-flat", float, "Width of a V-bit's tip flat, mm [0]."),
     ("spot", float, "Laser spot diameter (1/e^2), mm [0.1]."),
-    ("depth", float, "Groove depth, mm [deep enough for the steepest wall the views need, plus 0.005; "
-     "a V-bit 0.05]."),
+    ("depth", float, "Groove depth, mm [deep enough for the steepest wall the views "
+     "need, plus 0.005; a V-bit 0.05]."),
     ("dialect", click.Choice(["grbl", "linuxcnc", "marlin"]),
      "G-code for GRBL, LinuxCNC, or Marlin driving a laser [grbl]."),
     ("units", click.Choice(["mm", "inch"]), "G-code units [mm]."),
