@@ -2,7 +2,8 @@
 cut to other depths than designed.
 
 Usage: python benchmarks/depth_tolerance.py [--scene readme|unseen] [--stipples 2000]
-       [--errors 0.001 0.002 0.003 0.005 0.008] [--seed 0]
+       [--errors 0.001 0.002 0.003 0.005 0.008] [--seed 0] [--set KEY=VALUE ...]
+       [--tiers]
 
 Designs the scene (the density curve's scenes, default settings: the depth is
 what the steepest wall needs plus ``DEPTH_ALLOWANCE``) and verifies it as cut
@@ -13,7 +14,14 @@ to a depth of its own:
 - every groove at its own depth, drawn uniformly within +-e of the design's
   (neighbouring grooves at independent depths: the worst case for crossings,
   as a drag spring's force or a machine's Z wandering from groove to groove);
-- the same about the depth the walls need, without the allowance.
+- the same about the depth the walls need, without the allowance;
+- with ``--tiers``, two depth classes: a share of the stipples (drawn at
+  random) has all its grooves cut some micrometres deeper. A deep groove's
+  glints then sit below the shallow grooves' reach, at the price of its
+  wider cut at the surface.
+
+``--set`` changes a design setting as in ``density_curve.py`` (e.g.
+``--set placement=avoid``).
 
 A groove cut shallower than a glint's wall needs loses that glint; a deeper
 crossing groove reaches further into its neighbours' walls. It prints the
@@ -31,7 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from density_curve import SCENES  # noqa: E402
+from density_curve import SCENES, _setting  # noqa: E402
 
 from specholo.pipeline import DesignConfig, design  # noqa: E402
 from specholo.settings import DEPTH_ALLOWANCE  # noqa: E402
@@ -48,9 +56,14 @@ def main() -> None:
     ap.add_argument("--errors", type=float, nargs="+",
                     default=[0.001, 0.002, 0.003, 0.005, 0.008])
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--set", dest="changes", action="append", default=[],
+                    metavar="KEY=VALUE", help="change a design setting of the scene")
+    ap.add_argument("--tiers", action="store_true", help="also two depth classes")
     args = ap.parse_args()
     model, settings = SCENES[args.scene]
-    d = design(model, DesignConfig.from_dict({**settings, "stipples": args.stipples}),
+    changes = dict(_setting(c) for c in args.changes)
+    d = design(model, DesignConfig.from_dict({**settings, **changes,
+                                              "stipples": args.stipples}),
                check_overlaps=False, expect_as_cut=False)
     setup, cutter, depth = d.config.setup(), d.config.cutter(), d.config.depth_mm
     mesh, normals = d.model.mesh, d.normals
@@ -67,7 +80,8 @@ def main() -> None:
               f"{np.nanmin(vis):.3f} / {np.nanmean(vis):.3f} |", flush=True)
 
     print(f"{args.scene}, {args.stipples} stipples, {cutter.describe()}, designed "
-          f"{1000 * depth:.0f} um deep ({1000 * DEPTH_ALLOWANCE:.0f} um of it allowance)")
+          f"{1000 * depth:.0f} um deep ({1000 * DEPTH_ALLOWANCE:.0f} um of it allowance), "
+          f"placed by {(d.placement or {}).get('placement', '')}")
     print("| grooves cut | depths, um | as cut, lowest / mean |")
     print("|---|---:|---:|")
     row("at the design's depth", np.full(n, depth))
@@ -79,6 +93,13 @@ def main() -> None:
     for e in args.errors:
         row(f"each within ±{1000 * e:g} um of the walls' need",
             np.maximum(need + rng.uniform(-e, e, n), 1e-6))
+    if args.tiers:
+        stipple = d.grooves.stipple
+        for share in (0.3, 0.5):
+            deep = np.random.default_rng(args.seed).random(len(d.points)) < share
+            for step in (0.004, 0.006, 0.010):
+                row(f"{share:.0%} of the stipples {1000 * step:g} um deeper",
+                    np.where(deep[stipple], depth + step, depth))
 
 
 if __name__ == "__main__":
