@@ -158,16 +158,17 @@ def test_striping_keeps_one_stipples_grooves_a_width_apart():
     assert o.neighbours == 0 and o.closest_neighbours >= width - 1e-3
 
 
-def test_default_depth_is_just_deep_enough_for_the_views():
+def test_default_depth_is_just_deep_enough_for_the_views_plus_the_allowance():
     from specholo.pipeline import TILT_MARGIN, DesignConfig, design
+    from specholo.settings import DEPTH_ALLOWANCE
 
     d = design(BUNNY, DesignConfig(stipples=60), check_overlaps=False)
     assert d.views is not None and d.views.lost == 0
     tip = d.config.cutter()
     assert isinstance(tip, RoundCone)
-    need = d.views.needed[1] + TILT_MARGIN
-    assert d.config.depth == pytest.approx(tip.tip_radius * (1 - math.cos(need)), abs=1e-3)
-    assert d.config.depth >= tip.tip_radius * (1 - math.cos(need))
+    need = tip.tip_radius * (1 - math.cos(d.views.needed[1] + TILT_MARGIN))
+    assert d.config.depth == pytest.approx(need + DEPTH_ALLOWANCE, abs=1e-3)
+    assert d.config.depth >= need + DEPTH_ALLOWANCE
 
 
 def test_cut_plate_keeps_about_exp_minus_coverage_of_the_glints():
@@ -197,8 +198,8 @@ def test_large_design_overlaps_estimated_in_windows_agree_with_the_full_count(mo
     import specholo.toolpaths.overlap as overlap
     from specholo.pipeline import DesignConfig, design
 
-    # (a 0.05 mm tip: its wider grooves cross more than a thousand times)
-    d = design(BUNNY, DesignConfig(stipples=400, size=30.0, tool_radius=0.05),
+    # (a 0.05 mm tip within its sphere: its wider grooves cross more than a thousand times)
+    d = design(BUNNY, DesignConfig(stipples=400, size=30.0, tool_radius=0.05, depth=0.012),
                check_overlaps=False)
     width = d.config.cutter().section(d.config.depth_mm).width
     full = groove_overlaps(d.grooves, width, sample=None)

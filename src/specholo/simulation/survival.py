@@ -138,7 +138,7 @@ def _profile(cutter: Any) -> np.ndarray:
 
 
 @kernel(helper=True)
-def _reach(lift: float, profile: np.ndarray) -> float:
+def _removal_at(lift: float, profile: np.ndarray) -> float:
     """:func:`_profile`'s removal radius at ``lift`` mm above the cutting tip."""
     up = lift - EPS
     if up <= 0.0:
@@ -293,7 +293,7 @@ def _visit(lo_x: float, lo_y: float, hi_x: float, hi_y: float, path: int, ax: fl
             for g in range(ptr[c], ptr[c + 1]):
                 if removed[g] or qpath[g] == path:
                     continue
-                r = qr[g] if depths.size == 0 else _reach(qz[g] + depths[path], profile)
+                r = qr[g] if depths.size == 0 else _removal_at(qz[g] + depths[path], profile)
                 x, y = qx[g], qy[g]
                 if x < lo_x or x > hi_x or y < lo_y or y > hi_y:
                     continue
