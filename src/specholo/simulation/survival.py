@@ -78,6 +78,24 @@ MIN_BATCH = 250_000
 # The tool: how close another cut must pass to remove a wall point
 
 
+def _profile(cutter: Any) -> np.ndarray:
+    """The tool's removal radius in closed form, whatever the cut's depth: (R,
+    h_j, r_j, t) with r(lift) = sqrt(lift (2R - lift)) up to h_j, then
+    r_j + (lift - h_j) t (a ball stops at its radius, a round cone goes on
+    along its flank, a V-bit is all flank from its tip flat). A laser's trough
+    scales with its depth and has no such profile."""
+    if isinstance(cutter, Tool | BallEnd):
+        R = float(cutter.radius)
+        return np.array([R, R, R, 0.0])
+    if isinstance(cutter, RoundCone):
+        R, half = float(cutter.tip_radius), 0.5 * float(cutter.angle)
+        return np.array([R, R * (1.0 - math.sin(half)), R * math.cos(half), math.tan(half)])
+    if isinstance(cutter, VBit):
+        return np.array([0.0, 0.0, 0.5 * float(cutter.tip_flat),
+                         math.tan(0.5 * float(cutter.angle))])
+    raise SpecholoError(f"no removal radius, whatever the depth, for the tool {cutter!r}")
+
+
 def removal_radius(cutter: Any, depth: float, lift: np.ndarray) -> np.ndarray:
     """Plan distance within which another cut's centreline removes wall points.
 
@@ -97,44 +115,17 @@ def removal_radius(cutter: Any, depth: float, lift: np.ndarray) -> np.ndarray:
     """
     z = np.asarray(lift, dtype=float) - EPS
     up = np.maximum(z, 0.0)
-    if isinstance(cutter, Tool | BallEnd):
-        R = float(cutter.radius)
-        c = np.minimum(up, R)
-        r = np.sqrt(c * (2.0 * R - c))
-    elif isinstance(cutter, RoundCone):
-        R, half = float(cutter.tip_radius), 0.5 * float(cutter.angle)
-        rj, hj = R * math.cos(half), R * (1.0 - math.sin(half))
-        c = np.minimum(up, hj)
-        r = np.where(up <= hj, np.sqrt(c * (2.0 * R - c)), rj + (up - hj) * math.tan(half))
-    elif isinstance(cutter, VBit):
-        r = 0.5 * float(cutter.tip_flat) + up * math.tan(0.5 * float(cutter.angle))
-    elif isinstance(cutter, Laser):
+    if isinstance(cutter, Laser):
         # depth (1 - exp(-2 r^2 / w0^2)) = lift; the trough's tails are cut off
         # three waists out (the height there is within 2e-8 of the depth).
         w0 = 0.5 * float(cutter.spot)
         frac = np.minimum(up / depth, 1.0 - 1e-12)
         r = np.minimum(w0 * np.sqrt(-0.5 * np.log1p(-frac)), 3.0 * w0)
     else:
-        raise SpecholoError(f"no removal radius for the tool {cutter!r}")
+        R, hj, rj, t = _profile(cutter)
+        c = np.minimum(up, hj)
+        r = np.where(up <= hj, np.sqrt(c * (2.0 * R - c)), rj + (up - hj) * t)
     return np.where(z > 0.0, r, 0.0)
-
-
-def _profile(cutter: Any) -> np.ndarray:
-    """The removal radius in closed form, for cuts of differing depths: (R, h_j,
-    r_j, t) with r(lift) = sqrt(lift (2R - lift)) up to h_j, then r_j + (lift - h_j) t
-    (a ball stops at its radius, a round cone goes on along its flank, a V-bit
-    is all flank from its tip flat). A laser's trough scales with its depth
-    and has no single profile."""
-    if isinstance(cutter, Tool | BallEnd):
-        R = float(cutter.radius)
-        return np.array([R, R, R, 0.0])
-    if isinstance(cutter, RoundCone):
-        R, half = float(cutter.tip_radius), 0.5 * float(cutter.angle)
-        return np.array([R, R * (1.0 - math.sin(half)), R * math.cos(half), math.tan(half)])
-    if isinstance(cutter, VBit):
-        return np.array([0.0, 0.0, 0.5 * float(cutter.tip_flat),
-                         math.tan(0.5 * float(cutter.angle))])
-    raise SpecholoError(f"cuts of differing depths are not simulated for the tool {cutter!r}")
 
 
 @kernel(helper=True)
