@@ -49,9 +49,7 @@ PLACEMENTS = ("auto", "avoid", "phase")
 #: placed by "avoid"; a larger design is placed by "phase", which takes seconds
 #: where the placement would take many minutes (the README example has 8e6
 #: plan samples at 2,000 stipples, and each costs more as the grooves crowd).
-#: With the 0.025 mm tip the example's 8,000 stipples (3.4e7) place in 33 s,
-#: keeping twice phase's stipples as cut; 10,000 (4.3e7) would take 43 s.
-AUTO_MAX_PLAN_SAMPLES = 40_000_000
+AUTO_MAX_PLAN_SAMPLES = 25_000_000
 #: Memory of the plan per sample, bytes: each placed sample is a point of two
 #: indexes (32 bytes each), and an index doubling holds old and new at once.
 PLAN_BYTES_PER_SAMPLE = 3 * 2 * 32
