@@ -229,3 +229,17 @@ def test_auto_falls_back_to_phase_where_the_plan_outgrows_its_estimate() -> None
     assert d.placement is not None and d.placement["placement"] == "phase"
     assert "does not settle" in d.placement["fallback"]
     assert d.grooves.n_paths > 0
+
+
+def test_auto_places_a_nearly_flat_trough_by_phase_at_once():
+    # A laser trough 0.1 um deep curves with a radius of 6 mm and offers walls
+    # a few hundredths of a millimetre from its centre: the avoiding plan's
+    # searches would scan that radius in cells of the walls' reach (minutes for
+    # 8 stipples). "auto" places it by phase and says why.
+    from specholo.pipeline import DesignConfig, design
+
+    bunny = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
+    d = design(bunny, DesignConfig(stipples=8, size=653.0, depth=0.0001, tool="laser"),
+               check_overlaps=False, expect_as_cut=False)
+    assert d.placement is not None and d.placement["placement"] == "phase"
+    assert "wall radius" in d.placement["fallback"]

@@ -50,6 +50,9 @@ PLACEMENTS = ("auto", "avoid", "phase")
 #: where the placement would take many minutes (the README example has 8e6
 #: plan samples at 2,000 stipples, and each costs more as the grooves crowd).
 AUTO_MAX_PLAN_SAMPLES = 25_000_000
+#: "auto": largest wall radius, in glint reaches (R sin of the steepest wall),
+#: placed by "avoid"; the round tools of every default are under 1.5.
+AVOID_MAX_RADIUS_OVER_OFFSET = 20.0
 #: Memory of the plan per sample, bytes: each placed sample is a point of two
 #: indexes (32 bytes each), and an index doubling holds old and new at once.
 PLAN_BYTES_PER_SAMPLE = 3 * 2 * 32
@@ -280,8 +283,17 @@ def _plan_memory(sample_cap: np.ndarray, likely: int) -> str | None:
     return None
 
 
-def _avoid_refusal(sample_cap: np.ndarray, likely: int) -> str | None:
+def _avoid_refusal(sample_cap: np.ndarray, likely: int, setup: Setup) -> str | None:
     """Why "auto" places the stripes by phase rather than avoid (None: it need not)."""
+    tool = setup.tool
+    offset = tool.radius * math.sin(tool.max_tilt)
+    if tool.radius > AVOID_MAX_RADIUS_OVER_OFFSET * offset:
+        # The plan looks for a view's glint R sin(tilt) from the centreline,
+        # in cells as wide as the walls' own reach: a nearly flat trough (a
+        # laser barely deeper than nothing) would have each search scan
+        # (R / offset)^2 cells, and its walls serve almost no view anyway.
+        return (f"the walls reach {offset:.2g} mm from the centreline, under "
+                f"1/{AVOID_MAX_RADIUS_OVER_OFFSET:g} of the {tool.radius:.2g} mm wall radius")
     if likely > AUTO_MAX_PLAN_SAMPLES:
         return (f"avoid would take ~{likely:.2g} plan samples (over "
                 f"{AUTO_MAX_PLAN_SAMPLES:.2g})")
@@ -371,7 +383,7 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     used = "phase"
     if opts.placement != "phase" and spacing <= AVOID_MAX_SPACING * w:
         sample_cap, likely = _plan_estimate(far, setup, opts)
-        why = _avoid_refusal(sample_cap, likely) if opts.placement == "auto" else None
+        why = _avoid_refusal(sample_cap, likely, setup) if opts.placement == "auto" else None
         planned = None
         if why is None:
             try:
