@@ -1,14 +1,18 @@
 """As-cut stereo visibility against stipple count: striped beside arc and hyperbola.
 
 Usage: python benchmarks/density_curve.py [--scene readme|unseen]
-       [--stipples 500 1000 2000 4000 8000] [--methods striped arc hyperbola]
-       [--set KEY=VALUE ...] [--json out.json] [--plot out.png]
+       [--stipples 500 1000 2000 4000 8000]
+       [--methods striped arc:off hyperbola:off arc] [--set KEY=VALUE ...]
+       [--json out.json] [--plot out.png]
 
 Designs a scene in-process at each stipple count with each method (the default
 settings otherwise: the striped design places its stripes as ``--placement
-auto`` does) and verifies it per head azimuth (every 5 deg), ideally and as cut
-by the survival test (:func:`specholo.simulation.survival.verify_as_cut`, what
-``specholo verify --cut`` reports by default), with the model's occlusion.
+auto`` does, and the design thins a crowded plate as ``--thin auto`` does; a
+method written ``METHOD:off`` is designed with ``--thin off``, every stipple
+cut, as other tools cut their arcs) and verifies it per head azimuth (every
+5 deg), ideally and as cut by the survival test
+(:func:`specholo.simulation.survival.verify_as_cut`, what ``specholo verify
+--cut`` reports by default), with the model's occlusion.
 
 Scenes:
 
@@ -63,9 +67,10 @@ def measure(scene: str, method: str, stipples: int,
             changes: dict[str, Any] | None = None) -> dict[str, Any]:
     """One design at one density: its as-cut and ideal figures per azimuth."""
     model, settings = SCENES[scene]
+    name, _, thin = method.partition(":")
     config = DesignConfig.from_dict({**settings, **(changes or {}), "stipples": stipples,
-                                     "method": method})
-    d = design(model, config, check_overlaps=False, expect_as_cut=False)
+                                     "method": name, **({"thin": thin} if thin else {})})
+    d = design(model, config, check_overlaps=False)
     setup = d.config.setup()
     mesh, normals = d.model.mesh, d.normals
 
@@ -82,6 +87,7 @@ def measure(scene: str, method: str, stipples: int,
     return {
         "scene": scene, "method": method, "stipples": stipples,
         "placement": (d.placement or {}).get("placement", ""),
+        "thinned": 0 if d.thinned is None else len(d.thinned),
         "paths": int(d.grooves.n_paths), "groove_m": d.grooves.total_length() / 1000.0,
         "azimuths_deg": [round(math.degrees(a), 3) for a in az],
         "ideal_visibility": [r.visibility for r in ideal],
@@ -140,8 +146,10 @@ def main() -> None:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scene", choices=sorted(SCENES), default="readme")
     ap.add_argument("--stipples", type=int, nargs="+", default=[500, 1000, 2000, 4000, 8000])
-    ap.add_argument("--methods", nargs="+", default=["striped", "arc", "hyperbola"],
-                    choices=["striped", "arc", "hyperbola"])
+    ap.add_argument("--methods", nargs="+",
+                    default=["striped", "arc:off", "hyperbola:off", "arc"],
+                    choices=[f"{m}{t}" for m in ("striped", "arc", "hyperbola")
+                             for t in ("", ":off", ":on")])
     ap.add_argument("--set", dest="changes", action="append", default=[],
                     metavar="KEY=VALUE", help="change a design setting of the scene")
     ap.add_argument("--json", type=Path, help="write every figure here")
@@ -149,14 +157,14 @@ def main() -> None:
     args = ap.parse_args()
     changes = dict(_setting(c) for c in args.changes)
     rows = []
-    print("| method | stipples | placement | as cut, lowest / mean | stereo points, mean "
-          "| as cut p95 mm | ideal lowest | groove m | paths |")
-    print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
+    print("| method | stipples | placement | thinned | as cut, lowest / mean "
+          "| stereo points, mean | as cut p95 mm | ideal lowest | groove m | paths |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|")
     for method in args.methods:
         for n in args.stipples:
             r = measure(args.scene, method, n, changes)
             rows.append(r)
-            print(f"| {method} | {n} | {r['placement']} | {r['cut_min']:.3f} / "
+            print(f"| {method} | {n} | {r['placement']} | {r['thinned']} | {r['cut_min']:.3f} / "
                   f"{r['cut_mean']:.3f} | {r['stereo_points_mean']:.0f} | "
                   f"{r['cut_worst_p95_mm']:.3f} | {r['ideal_min']:.3f} | "
                   f"{r['groove_m']:.1f} | {r['paths']} |", flush=True)

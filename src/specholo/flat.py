@@ -63,6 +63,8 @@ class Design:
     coverage: Coverage | None = None  # which stipples got a groove
     as_cut: AsCut | None = None  # what survives the cutting, per azimuth
     placement: dict[str, str] | None = None  # striped: "placement" used, "fallback" why
+    thinned: np.ndarray | None = None  # stipple ids left uncut by thinning
+    thinning: dict[str, Any] | None = None  # its stereo points as cut, before and after
 
 
 @dataclass(frozen=True)
@@ -75,12 +77,15 @@ class Coverage:
             or they face away from every eye): they get no groove.
         dropped: stipples seen but whose groove the method could not design.
         grooved: stipples with at least one path.
+        thinned: stipples left uncut by thinning (:mod:`specholo.simulation.thinning`):
+            other grooves' cuts would take their glints, and theirs others'.
     """
 
     stipples: int
     hidden: int
     dropped: int
     grooved: int
+    thinned: int = 0
 
     @property
     def ungrooved(self) -> int:
@@ -101,7 +106,10 @@ class Coverage:
                          f"every view ({_HIDDEN_WHY})")
         if self.dropped:
             parts.append(f"{self.dropped} could not be designed{dropped_why}")
-        rest = self.ungrooved - self.hidden - self.dropped
+        if self.thinned:
+            parts.append(f"{self.thinned} {'is' if self.thinned == 1 else 'are'} left uncut "
+                         f"({THINNED_WHY})")
+        rest = self.ungrooved - self.hidden - self.dropped - self.thinned
         if rest > 0:
             parts.append(f"{rest} got no path")
         return ", ".join(parts)
@@ -116,10 +124,15 @@ class Coverage:
 
 #: Why a stipple is hidden from every view.
 _HIDDEN_WHY = "the model hides them or they face away from every eye"
+#: Why thinning leaves a stipple uncut.
+THINNED_WHY = ("thinned: on the cut plate the grooves crossing them would take their "
+               "glints, and theirs more of the others'")
 
 
-def coverage(n: int, runs: Runs, grooves: Grooves, dropped: np.ndarray) -> Coverage:
-    """Count the stipples with a groove, those hidden from every view and those dropped.
+def coverage(n: int, runs: Runs, grooves: Grooves, dropped: np.ndarray,
+             thinned: int = 0) -> Coverage:
+    """Count the stipples with a groove, those hidden from every view, those
+    dropped and those thinning left uncut.
 
     One pass over the runs and the paths (no sort): cheap beside the design.
     """
@@ -129,7 +142,7 @@ def coverage(n: int, runs: Runs, grooves: Grooves, dropped: np.ndarray) -> Cover
     ids = np.asarray(grooves.stipple)
     has[ids[(ids >= 0) & (ids < n)]] = True
     return Coverage(n, n - int(np.count_nonzero(seen)), int(len(dropped)),
-                    int(np.count_nonzero(has)))
+                    int(np.count_nonzero(has)), thinned)
 
 
 def groove_extent(grooves: Grooves) -> np.ndarray:
@@ -344,6 +357,13 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
         # the tallies would add a rougher figure and, on a first run, about
         # 5 s of compiling.
         check_overlaps = not expect_as_cut
+    t0 = time.perf_counter()
+    as_cut, thinned, thinning = None, np.zeros(0, dtype=np.int64), None
+    if expect_as_cut:
+        as_cut, grooves, thinned, thinning = thin_as_cut(config, points, runs, grooves)
+        if len(thinned):
+            cover = coverage(len(points), runs, grooves, dropped, len(thinned))
+    timings["as cut"] = time.perf_counter() - t0
     # One pass over the arcs (or none, when the walk found them), for the plate and
     # the overlaps (which need the length).
     if check_overlaps:
@@ -355,15 +375,17 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     overlaps = groove_overlaps(grooves, section.width, extent=extent,
                                total_length=total) if check_overlaps else None
     timings["overlaps"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    as_cut = expected_as_cut(config, points, runs, grooves) if expect_as_cut else None
-    timings["as cut"] = time.perf_counter() - t0
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
-                  views, overlaps, plate, cover, as_cut, placement=placed or None)
+                  views, overlaps, plate, cover, as_cut, placement=placed or None,
+                  thinned=thinned if len(thinned) else None, thinning=thinning)
 
 
 #: Head azimuths of the design's as-cut estimate are at most this far apart, degrees.
 AS_CUT_STEP_DEG = 5.0
+#: "auto" thins where the plate as cut shows at least this share more stereo
+#: points: on the README example 0.2% at 2,000 stipples (kept whole), 4.6% at
+#: 4,000, 44% at 8,000.
+THIN_MIN_GAIN = 0.02
 #: Most stipples whose as-cut figures a design finds by itself. Finding every
 #: eye's glints costs about a verification (~30 s at 10^5 stipples, against a
 #: ~5 s walk), so larger designs leave it to ``specholo verify --cut``.
@@ -383,7 +405,26 @@ def expected_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
     view intervals (``runs``, what the grooves were designed to serve) rather
     than by casting rays again: the same edges to ~0.01 degrees, at no cost.
     """
-    from specholo.simulation.survival import verify_as_cut
+    return thin_as_cut(dataclasses.replace(config, thin="off"), points, runs, grooves)[0]
+
+
+def thin_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
+                grooves: Grooves) -> tuple[AsCut, Grooves, np.ndarray, dict[str, Any] | None]:
+    """The plate as cut (:func:`expected_as_cut`), thinned as ``config.thin`` says.
+
+    Thinning (:func:`~specholo.simulation.thinning.thin`) leaves uncut the
+    stipples whose grooves take more stereo points from the others than they
+    show. "on" keeps it wherever it shows more; "auto" where it shows at
+    least :data:`THIN_MIN_GAIN` more (a plate that loses a few glints keeps
+    every stipple its drawing has); "off" never thins.
+
+    Returns:
+        The figures, the grooves to cut, the ids of the stipples left uncut, and
+        (where thinning was weighed) the stereo points as cut, mean per azimuth,
+        with every stipple cut and thinned, and whether it thinned.
+    """
+    from specholo.simulation.survival import as_cut_report, eye_glints, survivors
+    from specholo.simulation.thinning import thin
     from specholo.simulation.verify import view_azimuths
     from specholo.visibility.occlusion import Intervals
 
@@ -395,7 +436,23 @@ def expected_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
         return seen_from.contains(np.arange(len(p)), np.arctan2(eyes[:, 0], eyes[:, 2]))
 
     az = view_azimuths(setup.viewer.half_range, math.radians(AS_CUT_STEP_DEG))
-    return verify_as_cut(grooves, points, setup, config.cutter(), config.depth_mm, vis, az)
+    cutter, depth = config.cutter(), config.depth_mm
+    glints = eye_glints(grooves, points, setup, cutter, depth, az)
+    none = np.zeros(0, dtype=np.int64)
+    if config.thin == "off":
+        keep = survivors(grooves, glints.point, glints.path, cutter, depth)
+        return as_cut_report(glints, keep, points, vis), grooves, none, None
+    th = thin(grooves, glints, glints.unoccluded(points, vis), cutter, depth)
+    need = th.shown_all * (1.0 + (THIN_MIN_GAIN if config.thin == "auto" else 0.0))
+    done = bool(th.shown > need and th.keep.any())
+    info = {"thinned": done, "stipples_left_uncut": len(th.left_uncut),
+            "stereo_points_all_cut": th.shown_all / len(az),
+            "stereo_points_thinned": th.shown / len(az)}
+    if not done:
+        return as_cut_report(glints, th.alive_all, points, vis), grooves, none, info
+    paths = np.flatnonzero(th.keep[np.asarray(grooves.stipple, dtype=np.int64)])
+    return (as_cut_report(glints, th.alive, points, vis), grooves.take(paths), th.left_uncut,
+            info)
 
 
 def as_cut_json(as_cut: AsCut) -> dict[str, Any]:
@@ -474,6 +531,8 @@ def hologram_json(d: Design) -> dict[str, Any]:
                   "dropped_reasons": drop_reasons(d.points, d.dropped, setup),
                   "hidden_stipples": cover.hidden,
                   "stipples_with_grooves": cover.grooved,
+                  "thinned_stipples": [] if d.thinned is None else d.thinned.tolist(),
+                  "thinning": d.thinning,
                   # what "auto" chose, and why it fell back (settings keep "auto")
                   **({"placement": d.placement["placement"],
                       "placement_fallback": d.placement.get("fallback")}

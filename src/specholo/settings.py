@@ -34,6 +34,8 @@ from specholo.setup import (
 from specholo.toolpaths.striped import PLACEMENTS
 
 METHODS = ("striped", "hyperbola", "arc", "ridged")
+#: Thinning a crowded plate (see :func:`specholo.flat.thin_as_cut`).
+THINNING = ("auto", "on", "off")
 DEFAULT_STIPPLES = 2000
 #: Fallback groove depth (mm) and spindle speed (rpm) by tool. A design without a
 #: depth cuts just deep enough for the wall tilts its views need (see
@@ -197,6 +199,7 @@ class DesignConfig:
     method: str = "striped"
     band: float | None = None
     placement: str = "auto"
+    thin: str = "auto"
     tool: str = "drag"
     tool_radius: float | None = None
     tool_angle: float | None = None
@@ -254,6 +257,8 @@ class DesignConfig:
         if self.placement not in PLACEMENTS:
             raise SpecholoError(f"placement must be one of {', '.join(PLACEMENTS)}, got "
                                 f"{self.placement!r}")
+        if self.thin not in THINNING:
+            raise SpecholoError(f"thin must be one of {', '.join(THINNING)}, got {self.thin!r}")
         if self.method not in METHODS:
             raise SpecholoError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.stipples is not None and self.spacing is not None:

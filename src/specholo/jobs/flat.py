@@ -64,6 +64,13 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
         surviving = o.surviving
     else:
         surviving = math.nan
+    if d.thinned is not None and d.thinning is not None:
+        t = d.thinning
+        lines.append(f"thinned: {len(d.thinned)} of {d.coverage.grooved + len(d.thinned)} "
+                     "grooved stipples left uncut, whose glints the crossing grooves would "
+                     "take: the plate as cut shows "
+                     f"{t['stereo_points_thinned']:.0f} stipples in both eyes per view instead "
+                     f"of {t['stereo_points_all_cut']:.0f} (--thin off keeps them)")
     if surviving < 0.5:
         warnings.append("most stipples will not show in both eyes on the cut plate; use "
                         "fewer stipples (`--visibility 0.6` finds how many), a finer tip or a "

@@ -61,6 +61,12 @@ LINE_BULGE = 1e-9
 #: A sweep's per-path depths: each glint's z (g,), each path's depth (n_paths,)
 #: and the tool's profile (:func:`_profile`); three empty arrays for one depth.
 CutDepths = tuple[np.ndarray, np.ndarray, np.ndarray]
+#: What a sweep does with a glint it holds: ``(mode, at, dest)``. MARK sets
+#: its ``removed`` flag; COUNT adds one to ``at[path]``; FILL writes the
+#: glint's index at ``dest[at[path]]`` and moves ``at[path]`` on. Each path
+#: writes only its own entries, so threads over chunks of paths never race.
+Hits = tuple[int, np.ndarray, np.ndarray]
+MARK, COUNT, FILL = 0, 1, 2
 #: Grid cells per glint at most (a sparse design on a wide plate gets larger cells).
 CELLS_PER_GLINT = 4
 #: Smallest grid cell, mm.
@@ -268,12 +274,13 @@ def _arc_distance(px: float, py: float, ax: float, ay: float, bx: float, by: flo
 def _visit(lo_x: float, lo_y: float, hi_x: float, hi_y: float, path: int, ax: float,
            ay: float, bx: float, by: float, bulge: float, qx: np.ndarray, qy: np.ndarray,
            qr: np.ndarray, qpath: np.ndarray, ptr: np.ndarray, x0: float, y0: float,
-           size: float, nx: int, ny: int, removed: np.ndarray, cut: CutDepths) -> None:
+           size: float, nx: int, ny: int, removed: np.ndarray, cut: CutDepths,
+           hits: Hits) -> None:
     """Mark the glints in the cells under the box that the arc (a, b, bulge) removes.
 
     ``cut``: (qz, depths, profile) where the paths' depths differ (each glint's
     removal radius then depends on the path cutting), else three empty arrays
-    and each glint's radius is ``qr``."""
+    and each glint's radius is ``qr``. ``hits``: (mode, at, dest), see :data:`Hits`."""
     qz, depths, profile = cut
     i0 = max(int(math.floor((lo_x - x0) / size)), 0)
     i1 = min(int(math.floor((hi_x - x0) / size)), nx - 1)
@@ -289,16 +296,22 @@ def _visit(lo_x: float, lo_y: float, hi_x: float, hi_y: float, path: int, ax: fl
                 if x < lo_x or x > hi_x or y < lo_y or y > hi_y:
                     continue
                 if _arc_distance(x, y, ax, ay, bx, by, bulge) < r:
-                    removed[g] = True
+                    mode, at, dest = hits
+                    if mode == MARK:
+                        removed[g] = True
+                    else:
+                        if mode == FILL:
+                            dest[at[path]] = g
+                        at[path] += 1
 
 
 @kernel(nogil=True)
 def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
            offsets: np.ndarray, qx: np.ndarray, qy: np.ndarray, qr: np.ndarray, qpath: np.ndarray,
            ptr: np.ndarray, x0: float, y0: float, size: float, nx: int, ny: int, reach: float,
-           removed: np.ndarray, cut: CutDepths) -> None:
+           removed: np.ndarray, cut: CutDepths, hits: Hits) -> None:
     """Mark every glint (sorted by grid cell) that the sweep of one of paths
-    first .. stop - 1, not its own, holds.
+    first .. stop - 1, not its own, holds (or count or list them: ``hits``).
 
     Each arc is visited in pieces of at most ``size`` along it: a piece's box,
     grown by its sagitta and by ``reach`` (the largest removal radius), covers
@@ -311,7 +324,7 @@ def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
         if b - a == 1:  # a dot: one plunge
             vx, vy = vertices[a, 0], vertices[a, 1]
             _visit(vx - reach, vy - reach, vx + reach, vy + reach, q, vx, vy, vx, vy, 0.0,
-                   qx, qy, qr, qpath, ptr, x0, y0, size, nx, ny, removed, cut)
+                   qx, qy, qr, qpath, ptr, x0, y0, size, nx, ny, removed, cut, hits)
             continue
         for i in range(a, b - 1):
             ax, ay = vertices[i, 0], vertices[i, 1]
@@ -329,7 +342,7 @@ def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
                 pad = 0.5 * chord * t + reach  # the sagitta bounds the bulge
                 _visit(min(ax, bx) - pad, min(ay, by) - pad, max(ax, bx) + pad,
                        max(ay, by) + pad, q, ax, ay, bx, by, beta, qx, qy, qr, qpath, ptr,
-                       x0, y0, size, nx, ny, removed, cut)
+                       x0, y0, size, nx, ny, removed, cut, hits)
                 continue
             # Piece ends from the start along the chord of each partial sweep,
             # 2 rho sin(phi / 2) long and turned phi / 2 from the start tangent.
@@ -351,8 +364,57 @@ def _sweep(first: int, stop: int, vertices: np.ndarray, bulges: np.ndarray,
                     ey = ay + ln * math.sin(theta + 0.5 * phi)
                 _visit(min(sx, ex) - pad, min(sy, ey) - pad, max(sx, ex) + pad,
                        max(sy, ey) + pad, q, ax, ay, bx, by, beta, qx, qy, qr, qpath, ptr,
-                       x0, y0, size, nx, ny, removed, cut)
+                       x0, y0, size, nx, ny, removed, cut, hits)
                 sx, sy = ex, ey
+
+
+_NONE_INT = np.zeros(0, dtype=np.int64)
+
+
+class _Grid:
+    """Glints sorted into cells a few removal radii wide, and the sweep over them."""
+
+    def __init__(self, grooves: Grooves, points: np.ndarray, radius: np.ndarray,
+                 path: np.ndarray) -> None:
+        g = len(points)
+        self.reach = reach = float(radius.max())
+        lo, hi = points[:, :2].min(axis=0) - reach, points[:, :2].max(axis=0) + reach
+        # Cells a few removal radii wide: a piece of arc then visits a handful of
+        # cells holding few glints it cannot reach. Larger when the glints are
+        # sparse on a wide plate, so the grid stays a few cells per glint.
+        size = max(4.0 * reach, MIN_CELL)
+        span = hi - lo
+        size = max(size, math.sqrt(float(span[0] * span[1]) / (CELLS_PER_GLINT * g + 1024)),
+                   float(span.max()) / 65536.0)
+        self.nx, self.ny = (int(v) for v in np.floor(span / size).astype(np.int64) + 1)
+        ij = np.floor((points[:, :2] - lo) / size).astype(np.int64)
+        self.cell = ij[:, 0] * self.ny + ij[:, 1]
+        self.lo, self.size = lo, size
+        f = np.ascontiguousarray
+        self.points, self.radius = points, radius
+        self.path = np.asarray(path, dtype=np.int64)
+        self.vertices = f(grooves.vertices, dtype=float)
+        self.bulges = f(grooves.bulges, dtype=float)
+        self.offsets = f(grooves.offsets, dtype=np.int64)
+
+    def sweep(self, glints: np.ndarray, first: int, stop: int, cut: CutDepths,
+              hits: Hits) -> tuple[np.ndarray, np.ndarray]:
+        """Sweep paths first .. stop - 1 over the given glints (indices).
+
+        Returns:
+            The glints in the order the sweep saw them (what ``hits`` lists),
+            and which of them it marked removed.
+        """
+        f = np.ascontiguousarray
+        ptr, order = _by_cell(self.cell[glints], self.nx * self.ny)
+        live = glints[order]
+        removed = np.zeros(len(live), dtype=np.bool_)
+        chunked(_sweep, first, stop, self.vertices, self.bulges, self.offsets,
+                f(self.points[live, 0]), f(self.points[live, 1]), f(self.radius[live]),
+                f(self.path[live]), ptr, float(self.lo[0]), float(self.lo[1]),
+                float(self.size), self.nx, self.ny, self.reach, removed,
+                cut if cut[1].size == 0 else (f(cut[0][live]), cut[1], cut[2]), hits)
+        return live, removed
 
 
 @kernel()
@@ -410,21 +472,7 @@ def survivors(grooves: Grooves, points: np.ndarray, path: np.ndarray, cutter: An
     reach = float(radius.max())
     if reach <= 0.0:
         return np.ones(g, dtype=bool)
-    lo, hi = points[:, :2].min(axis=0) - reach, points[:, :2].max(axis=0) + reach
-    # Cells a few removal radii wide: a piece of arc then visits a handful of
-    # cells holding few glints it cannot reach. Larger when the glints are
-    # sparse on a wide plate, so the grid stays a few cells per glint.
-    size = max(4.0 * reach, MIN_CELL)
-    span = hi - lo
-    size = max(size, math.sqrt(float(span[0] * span[1]) / (CELLS_PER_GLINT * g + 1024)),
-               float(span.max()) / 65536.0)
-    nx, ny = (int(v) for v in np.floor(span / size).astype(np.int64) + 1)
-    ij = np.floor((points[:, :2] - lo) / size).astype(np.int64)
-    cell = ij[:, 0] * ny + ij[:, 1]
-    path = np.asarray(path, dtype=np.int64)
-    f = np.ascontiguousarray
-    vertices, bulges = f(grooves.vertices, dtype=float), f(grooves.bulges, dtype=float)
-    offsets = f(grooves.offsets, dtype=np.int64)
+    grid = _Grid(grooves, points, radius, path)
     # The paths a batch at a time, the grid rebuilt of the glints still standing
     # in between: on a dense plate most are gone after the first batches, and
     # later arcs no longer wade through them (the pairs tested would otherwise
@@ -434,19 +482,55 @@ def survivors(grooves: Grooves, points: np.ndarray, path: np.ndarray, cutter: An
     batch = max(-(-n_paths // BATCHES), MIN_BATCH)
     for first in range(0, n_paths, batch):
         stop = min(first + batch, n_paths)
-        ptr, order = _by_cell(cell[alive], nx * ny)
-        live = alive[order]
-        removed = np.zeros(len(live), dtype=np.bool_)
-        chunked(_sweep, first, stop, vertices, bulges, offsets, f(points[live, 0]),
-                f(points[live, 1]), f(radius[live]), f(path[live]), ptr, float(lo[0]),
-                float(lo[1]), float(size), nx, ny, reach, removed,
-                cut if cut[1].size == 0 else (f(cut[0][live]), cut[1], cut[2]))
+        live, removed = grid.sweep(alive, first, stop, cut, (MARK, _NONE_INT, _NONE_INT))
         alive = live[~removed]
         if alive.size == 0:
             break
     keep = np.zeros(g, dtype=bool)
     keep[alive] = True
     return keep
+
+
+def conflicts(grooves: Grooves, points: np.ndarray, path: np.ndarray, cutter: Any,
+              depth: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every (wall point, other path) pair where the path's cut removes the point.
+
+    What :func:`survivors` decides for each point, with every path that
+    decides it: a point survives exactly when it is in no pair.
+
+    Args:
+        grooves, points, path, cutter: as for :func:`survivors`.
+        depth: groove depth, mm.
+
+    Returns:
+        point (m,) and path (m,): the pairs, sorted by point, then path.
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    none = np.zeros(0, dtype=np.int64)
+    if len(points) == 0 or grooves.n_paths == 0:
+        return none, none
+    radius = removal_radius(cutter, float(depth), points[:, 2] + float(depth))
+    if float(radius.max()) <= 0.0:
+        return none, none
+    grid = _Grid(grooves, points, radius, path)
+    empty = np.zeros(0)
+    n_paths = grooves.n_paths
+    # Counted first, then listed: each path writes its own slice.
+    count = np.zeros(n_paths, dtype=np.int64)
+    grid.sweep(np.arange(len(points)), 0, n_paths, (empty, empty, empty),
+               (COUNT, count, none))
+    start = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+    dest = np.empty(int(start[-1]), dtype=np.int64)
+    live, _ = grid.sweep(np.arange(len(points)), 0, n_paths, (empty, empty, empty),
+                         (FILL, start[:-1].copy(), dest))
+    point = live[dest]
+    by = np.repeat(np.arange(n_paths, dtype=np.int64), count)
+    order = np.lexsort((by, point))
+    point, by = point[order], by[order]
+    # A point near where two arcs (or two pieces of one) meet is found by each.
+    first = np.ones(len(point), dtype=bool)
+    first[1:] = (point[1:] != point[:-1]) | (by[1:] != by[:-1])
+    return point[first], by[first]
 
 
 # ---------------------------------------------------------------------------
@@ -493,6 +577,98 @@ class AsCut:
                 f"(lowest {low:.0%} at {at:+.0f} deg)")
 
 
+@dataclass(frozen=True)
+class EyeGlints:
+    """Every eye's designed glints on the ideal grooves, eye after eye.
+
+    Attributes:
+        azimuths: (k,) head azimuths, radians.
+        eyes: per azimuth, the (left, right) eye positions, (3,) each.
+        sizes: (2 k,) glints of the left then right eye of each azimuth, in order.
+        point: (m, 3) where each glint sits on its real wall, mm.
+        path: (m,) the path it is on; stipple: (m,) the stipple it shows.
+    """
+
+    azimuths: np.ndarray
+    eyes: list[tuple[np.ndarray, np.ndarray]]
+    sizes: np.ndarray
+    point: np.ndarray
+    path: np.ndarray
+    stipple: np.ndarray
+
+    @property
+    def slot(self) -> np.ndarray:
+        """(m,) each glint's eye: 2 j for the left eye of azimuth j, 2 j + 1 the right."""
+        return np.repeat(np.arange(len(self.sizes), dtype=np.int64), self.sizes)
+
+    def unoccluded(self, points: np.ndarray, visible: VisibilityFn | None) -> np.ndarray:
+        """(k, n) whether both eyes of each azimuth see each stipple past the model."""
+        n = len(points)
+        both = np.ones((len(self.azimuths), n), dtype=bool)
+        if visible is None or n == 0:
+            return both
+        for j, (eye_l, eye_r) in enumerate(self.eyes):
+            both[j] = (visible(points, np.broadcast_to(eye_l, (n, 3)))
+                       & visible(points, np.broadcast_to(eye_r, (n, 3))))
+        return both
+
+
+def eye_glints(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: Any,
+               depth: float, azimuths: np.ndarray,
+               chunk_vertices: int = CHUNK_VERTICES) -> EyeGlints:
+    """Each eye's designed glints, found on the ideal grooves as
+    :func:`~specholo.simulation.verify.verify` finds them, on the real walls."""
+    n = len(points)
+    eyes = [tuple(e[0] for e in setup.viewer.stereo(np.array([theta]))) for theta in azimuths]
+    k = len(azimuths)
+    # Every eye's glints first (a few per stipple and eye): the survival test
+    # then streams the grooves once for all of them.
+    found: list[list[Glints]] = [[] for _ in range(2 * k)]
+    for _, _, paths in _chunks(grooves, n, chunk_vertices):
+        part = grooves.take(paths) if len(paths) != grooves.n_paths else grooves
+        eng = Engraved.from_grooves(part, setup.tool)
+        for j, pair in enumerate(eyes):
+            for side, eye in enumerate(pair):
+                gl = find_glints(eng, eye, setup.light)
+                point = on_real_wall(gl, setup.tool, cutter, depth, setup.light, eye)
+                found[2 * j + side].append(Glints(paths[gl.path], gl.stipple, point))
+        del eng
+    per_eye = [_join(parts) for parts in found]
+    return EyeGlints(np.asarray(azimuths, dtype=float), eyes,  # type: ignore[arg-type]
+                     np.array([len(gl.path) for gl in per_eye], dtype=np.int64),
+                     np.concatenate([gl.point for gl in per_eye]).reshape(-1, 3),
+                     np.concatenate([gl.path for gl in per_eye]).astype(np.int64),
+                     np.concatenate([gl.stipple for gl in per_eye]).astype(np.int64))
+
+
+def as_cut_report(glints: EyeGlints, keep: np.ndarray, points: np.ndarray,
+                  visible: VisibilityFn | None) -> AsCut:
+    """The figures per azimuth of the glints kept (``keep``, (m,)), as
+    :func:`~specholo.simulation.verify.verify` gives them for all."""
+    n = len(points)
+    k = len(glints.azimuths)
+    kept = np.split(keep, np.cumsum(glints.sizes)[:-1])
+    bounds = np.concatenate([[0], np.cumsum(glints.sizes)])
+    reports = []
+    counts = np.zeros((k, 2), dtype=np.int64)
+    for j, theta in enumerate(glints.azimuths):
+        eye_l, eye_r = glints.eyes[j]
+        if visible is None or n == 0:
+            vis_l = vis_r = np.ones(n, dtype=bool)
+        else:
+            vis_l = visible(points, np.broadcast_to(eye_l, (n, 3)))
+            vis_r = visible(points, np.broadcast_to(eye_r, (n, 3)))
+        side = []
+        for s in (0, 1):
+            sl = slice(bounds[2 * j + s], bounds[2 * j + s + 1])
+            m = kept[2 * j + s]
+            side.append(Glints(glints.path[sl][m], glints.stipple[sl][m], glints.point[sl][m]))
+        counts[j] = (int(kept[2 * j].sum()), int(kept[2 * j + 1].sum()))
+        reports.append(view_report(float(theta), points, side[0], side[1], eye_l, eye_r,
+                                   vis_l, vis_r))
+    return AsCut(reports, glints.sizes.reshape(k, 2), counts)
+
+
 def verify_as_cut(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: Any,
                   depth: float, visible: VisibilityFn | None = None,
                   azimuths: np.ndarray | None = None,
@@ -522,27 +698,10 @@ def verify_as_cut(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: An
         Per azimuth, the reports and the glint counts.
     """
     points = np.asarray(points, dtype=float)
-    n = len(points)
     if azimuths is None:
         azimuths = view_azimuths(setup.viewer.half_range)
-    k = len(azimuths)
-    eyes = [tuple(e[0] for e in setup.viewer.stereo(np.array([theta]))) for theta in azimuths]
-    # Every eye's glints first (a few per stipple and eye): the survival test
-    # then streams the grooves once for all of them.
-    found: list[list[Glints]] = [[] for _ in range(2 * k)]
-    for _, _, paths in _chunks(grooves, n, chunk_vertices):
-        part = grooves.take(paths) if len(paths) != grooves.n_paths else grooves
-        eng = Engraved.from_grooves(part, setup.tool)
-        for j, pair in enumerate(eyes):
-            for side, eye in enumerate(pair):
-                gl = find_glints(eng, eye, setup.light)
-                point = on_real_wall(gl, setup.tool, cutter, depth, setup.light, eye)
-                found[2 * j + side].append(Glints(paths[gl.path], gl.stipple, point))
-        del eng
-    per_eye = [_join(parts) for parts in found]
-    sizes = np.array([len(gl.path) for gl in per_eye], dtype=np.int64)
-    at = np.concatenate([gl.point for gl in per_eye])
-    on = np.concatenate([gl.path for gl in per_eye])
+    gl = eye_glints(grooves, points, setup, cutter, depth, azimuths, chunk_vertices)
+    at, on = gl.point, gl.path
     if path_depths is None:
         keep = survivors(grooves, at, on, cutter, depth)
     else:
@@ -553,20 +712,7 @@ def verify_as_cut(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: An
         lift = at[:, 2] + depth  # the glint's height above its own groove's tip
         moved = np.column_stack([at[:, :2], lift - cut_to[on]])
         keep = survivors(grooves, moved, on, cutter, cut_to) & (lift <= cut_to[on])
-    kept = np.split(keep, np.cumsum(sizes)[:-1])
-    reports = []
-    counts = np.zeros((k, 2), dtype=np.int64)
-    for j, theta in enumerate(azimuths):
-        eye_l, eye_r = eyes[j]
-        if visible is None or n == 0:
-            vis_l = vis_r = np.ones(n, dtype=bool)
-        else:
-            vis_l = visible(points, np.broadcast_to(eye_l, (n, 3)))
-            vis_r = visible(points, np.broadcast_to(eye_r, (n, 3)))
-        gl, gr = (_take(per_eye[2 * j + s], kept[2 * j + s]) for s in (0, 1))
-        counts[j] = (int(kept[2 * j].sum()), int(kept[2 * j + 1].sum()))
-        reports.append(view_report(float(theta), points, gl, gr, eye_l, eye_r, vis_l, vis_r))
-    return AsCut(reports, sizes.reshape(k, 2), counts)
+    return as_cut_report(gl, keep, points, visible)
 
 
 def _join(parts: list[Glints]) -> Glints:
@@ -576,7 +722,3 @@ def _join(parts: list[Glints]) -> Glints:
     return Glints(np.concatenate([p.path for p in parts]),
                   np.concatenate([p.stipple for p in parts]),
                   np.concatenate([p.point for p in parts]))
-
-
-def _take(g: Glints, keep: np.ndarray) -> Glints:
-    return Glints(g.path[keep], g.stipple[keep], g.point[keep])

@@ -48,8 +48,9 @@ PLACEMENTS = ("auto", "avoid", "phase")
 #: "auto": most plan samples (by the runs' estimate, see :func:`_plan_estimate`)
 #: placed by "avoid"; a larger design is placed by "phase", which takes seconds
 #: where the placement would take many minutes (the README example has 8e6
-#: plan samples at 2,000 stipples, and each costs more as the grooves crowd).
-AUTO_MAX_PLAN_SAMPLES = 25_000_000
+#: plan samples at 2,000 stipples, 3.4e7 at 8,000, placed in about 35 s on
+#: two cores, and each costs more as the grooves crowd).
+AUTO_MAX_PLAN_SAMPLES = 40_000_000
 #: "auto": largest wall radius, in glint reaches (R sin of the steepest wall),
 #: placed by "avoid"; the round tools of every default are under 1.5.
 AVOID_MAX_RADIUS_OVER_OFFSET = 20.0
