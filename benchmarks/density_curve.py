@@ -100,6 +100,13 @@ def measure(scene: str, method: str, stipples: int,
     }
 
 
+def label(method: str) -> str:
+    """A method's name in the legend: "arc:off" is "arc, every stipple cut"."""
+    name, _, thin = method.partition(":")
+    return {"off": f"{name}, every stipple cut", "on": f"{name}, thinned (on)"}.get(
+        thin, f"{name}, thinned (auto)")
+
+
 def plot(rows: list[dict[str, Any]], path: Path, scene: str) -> None:
     import matplotlib
 
@@ -112,10 +119,11 @@ def plot(rows: list[dict[str, Any]], path: Path, scene: str) -> None:
         mine = [r for r in rows if r["method"] == method]
         n = [r["stipples"] for r in mine]
         colour = f"C{i}"
-        a.plot(n, [r["cut_mean"] for r in mine], "o-", color=colour, label=f"{method}, mean")
+        name = label(method)
+        a.plot(n, [r["cut_mean"] for r in mine], "o-", color=colour, label=f"{name}, mean")
         a.plot(n, [r["cut_min"] for r in mine], "x--", color=colour,
-               label=f"{method}, lowest view")
-        b.plot(n, [r["stereo_points_mean"] for r in mine], "o-", color=colour, label=method)
+               label=f"{name}, lowest view")
+        b.plot(n, [r["stereo_points_mean"] for r in mine], "o-", color=colour, label=name)
     for ax in (a, b):
         ax.set_xscale("log")
         ax.set_xticks(counts, [f"{c:,}" for c in counts])
