@@ -3,6 +3,7 @@ stipples left uncut are those whose grooves take more glints than they show."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -131,3 +132,37 @@ def test_a_sparse_design_keeps_every_stipple() -> None:
     assert auto.thinned is None
     assert np.array_equal(auto.grooves.vertices, off.grooves.vertices)
     assert auto.thinning is not None and not auto.thinning["thinned"]
+
+
+def test_the_folder_and_the_report_say_which_stipples_were_left_uncut(tmp_path, capsys) -> None:
+    """`specholo design` on the crowded bunny: the summary says how many it left
+    uncut and what the plate shows with and without them; hologram.json lists
+    them, the written grooves and G-code hold none of their paths, and the
+    report page names them. `--thin off` cuts every stipple."""
+    from specholo.toolpaths.grooves import Grooves
+    from specholo_cli.cli import main
+
+    base = ["design", "examples/bunny.obj", "--size", "20", "--center-z", "-15",
+            "--stipples", "1200", "--placement", "phase", "--formats", "gcode"]
+    out = tmp_path / "thin"
+    assert main([*base, "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    info = json.loads((out / "hologram.json").read_text())
+    gone = info["stats"]["thinned_stipples"]
+    assert gone and info["stats"]["thinning"]["thinned"]
+    line = next(ln for ln in said.splitlines() if ln.startswith("thinned: "))
+    assert line.startswith(f"thinned: {len(gone)} of ")
+    t = info["stats"]["thinning"]
+    assert f"shows {t['stereo_points_thinned']:.0f} stipples" in line
+    assert t["stereo_points_thinned"] > t["stereo_points_all_cut"]
+    assert not np.isin(gone, Grooves.load(str(out / "grooves.npz")).stipple).any()
+    assert info["stats"]["paths"] == Grooves.load(str(out / "grooves.npz")).n_paths
+    assert main(["report", str(out)]) == 0
+    capsys.readouterr()
+    assert f"{len(gone):,} stipples whose glints" in (out / "report.html").read_text()
+    whole = tmp_path / "whole"
+    assert main([*base, "--out", str(whole), "--thin", "off"]) == 0
+    assert "thinned:" not in capsys.readouterr().out
+    info = json.loads((whole / "hologram.json").read_text())
+    assert info["stats"]["thinned_stipples"] == [] and info["stats"]["thinning"] is None
+    assert info["stats"]["paths"] > Grooves.load(str(out / "grooves.npz")).n_paths

@@ -61,6 +61,14 @@ def fabrication_figures(info: dict[str, Any]) -> list[tuple[str, str]]:
     if "hidden_stipples" in stats:
         rows.append(("hidden from every view", f"{int(stats['hidden_stipples']):,} stipples "
                      "(no groove)"))
+    thinned = stats.get("thinned_stipples")
+    if thinned:
+        # the thinning's own figures, as the design's summary gives them
+        t = stats["thinning"]
+        rows.append(("left uncut (thinned)", f"{len(thinned):,} stipples whose glints the "
+                     "crossing grooves would take: "
+                     f"{float(t['stereo_points_thinned']):.0f} stipples in both eyes per view "
+                     f"as cut, not {float(t['stereo_points_all_cut']):.0f}"))
     plate = info["plate"].get("plate_mm")
     if plate:
         (px0, py0), (px1, py1) = plate
