@@ -450,7 +450,8 @@ def thin_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
             "stereo_points_thinned": th.shown / len(az)}
     if not done:
         return as_cut_report(glints, th.alive_all, points, vis), grooves, none, info
-    paths = np.flatnonzero(th.keep[np.asarray(grooves.stipple, dtype=np.int64)])
+    ids = np.asarray(grooves.stipple, dtype=np.int64)
+    paths = np.flatnonzero(~np.isin(ids, th.left_uncut))
     return (as_cut_report(glints, th.alive, points, vis), grooves.take(paths), th.left_uncut,
             info)
 

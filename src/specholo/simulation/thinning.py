@@ -78,14 +78,17 @@ def thin(grooves: Grooves, glints: EyeGlints, unoccluded: np.ndarray, cutter: An
     view, side = slot // 2, slot % 2
     g_pt, g_path = conflicts(grooves, glints.point, glints.path, cutter, depth)
     cutter_st = np.asarray(grooves.stipple, dtype=np.int64)[g_path]
-    # A glint under another stripe of its own stipple goes with that stipple.
+    # A glint under another stripe of its own stipple goes with that stipple,
+    # and one under a path of no stipple stays gone.
+    fixed = (cutter_st == g_st[g_pt]) | (cutter_st < 0) | (cutter_st >= n)
     dead = np.zeros(len(g_st), dtype=bool)
-    dead[g_pt[cutter_st == g_st[g_pt]]] = True
-    other = cutter_st != g_st[g_pt]
+    dead[g_pt[fixed]] = True
+    other = ~fixed
     pairs = np.unique(g_pt[other] * n + cutter_st[other])
     pg, ps = pairs // n, pairs % n
     keep = np.zeros(n, dtype=bool)
-    keep[np.asarray(grooves.stipple, dtype=np.int64)] = True
+    ids = np.asarray(grooves.stipple, dtype=np.int64)
+    keep[ids[(ids >= 0) & (ids < n)]] = True
     has_groove = keep.copy()
 
     def shown(alive: np.ndarray) -> np.ndarray:
