@@ -2,8 +2,8 @@
 
 Every groove cut takes glints away from the grooves it crosses, so the share of
 stipples both eyes see on the cut plate falls as stipples are added (on the
-README's example, lowest over the views: 0.96 at 500 stipples, 0.64 at 2,000,
-0.26 at 4,000; ``benchmarks/density_curve.py``). A maker asking for a
+README's example, lowest over the views: 0.97 at 500 stipples, 0.87 at 2,000,
+0.64 at 4,000 and 0.36 at 8,000, thinned; ``benchmarks/density_curve.py``). A maker asking for a
 visibility gets the most stipples whose design reaches it at every view.
 
 Each try is a whole design, its as-cut figures found from its own grooves
