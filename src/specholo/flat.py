@@ -445,7 +445,9 @@ def thin_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
     th = thin(grooves, glints, glints.unoccluded(points, vis), cutter, depth)
     need = th.shown_all * (1.0 + (THIN_MIN_GAIN if config.thin == "auto" else 0.0))
     done = bool(th.shown > need and th.keep.any())
-    info = {"thinned": done, "stipples_left_uncut": len(th.left_uncut),
+    # Weighed but not kept (auto, under its gain), the figures say what it would give.
+    info = {"thinned": done, "stipples_left_uncut": len(th.left_uncut) if done else 0,
+            "stipples_thinning_leaves_uncut": len(th.left_uncut),
             "stereo_points_all_cut": th.shown_all / len(az),
             "stereo_points_thinned": th.shown / len(az)}
     if not done:
