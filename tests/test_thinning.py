@@ -166,3 +166,20 @@ def test_the_folder_and_the_report_say_which_stipples_were_left_uncut(tmp_path, 
     info = json.loads((whole / "hologram.json").read_text())
     assert info["stats"]["thinned_stipples"] == [] and info["stats"]["thinning"] is None
     assert info["stats"]["paths"] > Grooves.load(str(out / "grooves.npz")).n_paths
+
+
+def test_verify_says_the_stipples_left_uncut_count_as_not_shown(tmp_path, capsys) -> None:
+    """`specholo verify` on a thinned folder says how many stipples the design
+    left uncut, which its figures count as not shown."""
+    from specholo_cli.cli import main
+
+    out = tmp_path / "thin"
+    assert main(["design", "examples/bunny.obj", "--size", "20", "--center-z", "-15",
+                 "--stipples", "1200", "--placement", "phase", "--formats", "gcode",
+                 "--out", str(out)]) == 0
+    capsys.readouterr()
+    gone = json.loads((out / "hologram.json").read_text())["stats"]["thinned_stipples"]
+    assert main(["verify", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert (f"{len(gone)} stipples were left uncut by thinning (their glints would be cut "
+            "away) and count as not shown") in said

@@ -364,6 +364,7 @@ class Loaded:
     normals: np.ndarray | None
     grooves: Grooves
     mesh: Any
+    thinned: int = 0  # stipples the design left uncut (thinning)
 
 
 def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loaded:
@@ -396,7 +397,10 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
     # A model.ply that exists is read (or refused): skipping one that cannot be
     # read would verify without the occlusion the design had.
     mesh = read_mesh(folder / "model.ply") if (folder / "model.ply").exists() else None
-    return Loaded(config, points, normals, grooves, mesh)
+    stats = info.get("stats")
+    thinned = stats.get("thinned_stipples") if isinstance(stats, dict) else None
+    return Loaded(config, points, normals, grooves, mesh,
+                  len(thinned) if isinstance(thinned, list) else 0)
 
 
 def design_json(folder: Path) -> dict[str, Any]:

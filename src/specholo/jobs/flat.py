@@ -238,6 +238,9 @@ class FlatJob:
             lines.append(f"cut plate ({how}): worst p95 error "
                          f"{cut_summary['worst_p95_error']:.3f} mm, min visibility "
                          f"{cut_summary['min_visibility']:.3f} (other grooves cut away the rest)")
+        if loaded.thinned:
+            lines.append(f"{loaded.thinned} stipples were left uncut by thinning (their glints "
+                         "would be cut away) and count as not shown")
         source = "hologram.gcode" if options.from_gcode or cut else "grooves.npz"
 
         def verify_json(into: Path) -> None:
