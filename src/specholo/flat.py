@@ -383,8 +383,8 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
 #: Head azimuths of the design's as-cut estimate are at most this far apart, degrees.
 AS_CUT_STEP_DEG = 5.0
 #: "auto" thins where the plate as cut shows at least this share more stereo
-#: points: on the README example 0.2% at 2,000 stipples (kept whole), 4.6% at
-#: 4,000, 44% at 8,000.
+#: points: on the README example 0.05% at 2,000 stipples (kept whole), 4.2% at
+#: 4,000, 45% at 8,000.
 THIN_MIN_GAIN = 0.02
 #: Most stipples whose as-cut figures a design finds by itself. Finding every
 #: eye's glints costs about a verification (~30 s at 10^5 stipples, against a
