@@ -438,11 +438,12 @@ def thin_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
     az = view_azimuths(setup.viewer.half_range, math.radians(AS_CUT_STEP_DEG))
     cutter, depth = config.cutter(), config.depth_mm
     glints = eye_glints(grooves, points, setup, cutter, depth, az)
+    seen = glints.seen_by(points, vis)
     none = np.zeros(0, dtype=np.int64)
     if config.thin == "off":
         keep = survivors(grooves, glints.point, glints.path, cutter, depth)
-        return as_cut_report(glints, keep, points, vis), grooves, none, None
-    th = thin(grooves, glints, glints.unoccluded(points, vis), cutter, depth)
+        return as_cut_report(glints, keep, points, seen), grooves, none, None
+    th = thin(grooves, glints, seen[0::2] & seen[1::2], cutter, depth)
     need = th.shown_all * (1.0 + (THIN_MIN_GAIN if config.thin == "auto" else 0.0))
     done = bool(th.shown > need and th.keep.any())
     # Weighed but not kept (auto, under its gain), the figures say what it would give.
@@ -451,10 +452,10 @@ def thin_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
             "stereo_points_all_cut": th.shown_all / len(az),
             "stereo_points_thinned": th.shown / len(az)}
     if not done:
-        return as_cut_report(glints, th.alive_all, points, vis), grooves, none, info
+        return as_cut_report(glints, th.alive_all, points, seen), grooves, none, info
     ids = np.asarray(grooves.stipple, dtype=np.int64)
     paths = np.flatnonzero(~np.isin(ids, th.left_uncut))
-    return (as_cut_report(glints, th.alive, points, vis), grooves.take(paths), th.left_uncut,
+    return (as_cut_report(glints, th.alive, points, seen), grooves.take(paths), th.left_uncut,
             info)
 
 

@@ -601,16 +601,16 @@ class EyeGlints:
         """(m,) each glint's eye: 2 j for the left eye of azimuth j, 2 j + 1 the right."""
         return np.repeat(np.arange(len(self.sizes), dtype=np.int64), self.sizes)
 
-    def unoccluded(self, points: np.ndarray, visible: VisibilityFn | None) -> np.ndarray:
-        """(k, n) whether both eyes of each azimuth see each stipple past the model."""
+    def seen_by(self, points: np.ndarray, visible: VisibilityFn | None) -> np.ndarray:
+        """(2 k, n) whether each eye (in :attr:`slot` order) sees each stipple past the model."""
         n = len(points)
-        both = np.ones((len(self.azimuths), n), dtype=bool)
+        seen = np.ones((len(self.sizes), n), dtype=bool)
         if visible is None or n == 0:
-            return both
-        for j, (eye_l, eye_r) in enumerate(self.eyes):
-            both[j] = (visible(points, np.broadcast_to(eye_l, (n, 3)))
-                       & visible(points, np.broadcast_to(eye_r, (n, 3))))
-        return both
+            return seen
+        for j, pair in enumerate(self.eyes):
+            for side, eye in enumerate(pair):
+                seen[2 * j + side] = visible(points, np.broadcast_to(eye, (n, 3)))
+        return seen
 
 
 def eye_glints(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: Any,
@@ -642,30 +642,24 @@ def eye_glints(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: Any,
 
 
 def as_cut_report(glints: EyeGlints, keep: np.ndarray, points: np.ndarray,
-                  visible: VisibilityFn | None) -> AsCut:
+                  seen: np.ndarray) -> AsCut:
     """The figures per azimuth of the glints kept (``keep``, (m,)), as
-    :func:`~specholo.simulation.verify.verify` gives them for all."""
-    n = len(points)
+    :func:`~specholo.simulation.verify.verify` gives them for all; ``seen``
+    is :meth:`EyeGlints.seen_by`."""
     k = len(glints.azimuths)
-    kept = np.split(keep, np.cumsum(glints.sizes)[:-1])
     bounds = np.concatenate([[0], np.cumsum(glints.sizes)])
     reports = []
     counts = np.zeros((k, 2), dtype=np.int64)
     for j, theta in enumerate(glints.azimuths):
-        eye_l, eye_r = glints.eyes[j]
-        if visible is None or n == 0:
-            vis_l = vis_r = np.ones(n, dtype=bool)
-        else:
-            vis_l = visible(points, np.broadcast_to(eye_l, (n, 3)))
-            vis_r = visible(points, np.broadcast_to(eye_r, (n, 3)))
         side = []
         for s in (0, 1):
             sl = slice(bounds[2 * j + s], bounds[2 * j + s + 1])
-            m = kept[2 * j + s]
+            m = keep[sl]
             side.append(Glints(glints.path[sl][m], glints.stipple[sl][m], glints.point[sl][m]))
-        counts[j] = (int(kept[2 * j].sum()), int(kept[2 * j + 1].sum()))
+            counts[j, s] = int(m.sum())
+        eye_l, eye_r = glints.eyes[j]
         reports.append(view_report(float(theta), points, side[0], side[1], eye_l, eye_r,
-                                   vis_l, vis_r))
+                                   seen[2 * j], seen[2 * j + 1]))
     return AsCut(reports, glints.sizes.reshape(k, 2), counts)
 
 
@@ -712,7 +706,7 @@ def verify_as_cut(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: An
         lift = at[:, 2] + depth  # the glint's height above its own groove's tip
         moved = np.column_stack([at[:, :2], lift - cut_to[on]])
         keep = survivors(grooves, moved, on, cutter, cut_to) & (lift <= cut_to[on])
-    return as_cut_report(gl, keep, points, visible)
+    return as_cut_report(gl, keep, points, gl.seen_by(points, visible))
 
 
 def _join(parts: list[Glints]) -> Glints:

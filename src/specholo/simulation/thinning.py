@@ -77,7 +77,8 @@ def thin(grooves: Grooves, glints: EyeGlints, unoccluded: np.ndarray, cutter: An
     g_st, slot = glints.stipple, glints.slot
     view, side = slot // 2, slot % 2
     g_pt, g_path = conflicts(grooves, glints.point, glints.path, cutter, depth)
-    cutter_st = np.asarray(grooves.stipple, dtype=np.int64)[g_path]
+    ids = np.asarray(grooves.stipple, dtype=np.int64)
+    cutter_st = ids[g_path]
     # A glint under another stripe of its own stipple goes with that stipple,
     # and one under a path of no stipple stays gone.
     fixed = (cutter_st == g_st[g_pt]) | (cutter_st < 0) | (cutter_st >= n)
@@ -87,13 +88,17 @@ def thin(grooves: Grooves, glints: EyeGlints, unoccluded: np.ndarray, cutter: An
     pairs = np.unique(g_pt[other] * n + cutter_st[other])
     pg, ps = pairs // n, pairs % n
     keep = np.zeros(n, dtype=bool)
-    ids = np.asarray(grooves.stipple, dtype=np.int64)
     keep[ids[(ids >= 0) & (ids < n)]] = True
     has_groove = keep.copy()
 
-    def shown(alive: np.ndarray) -> np.ndarray:
+    def by_eye(alive: np.ndarray) -> np.ndarray:
+        """(2 k, n) whether each eye has a standing glint of each stipple."""
         seen = np.zeros((2 * k, n), dtype=bool)
         seen[slot[alive], g_st[alive]] = True
+        return seen
+
+    def shown(alive: np.ndarray) -> np.ndarray:
+        seen = by_eye(alive)
         return seen[0::2] & seen[1::2] & unoccluded
 
     def state() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -116,17 +121,13 @@ def thin(grooves: Grooves, glints: EyeGlints, unoccluded: np.ndarray, cutter: An
         key = (view[g1] * n + g_st[g1]) * n + s1
         key = np.unique(key * 2 + side[g1])
         jt, s_, eye = key // 2 // n, key // 2 % n, key % 2
-        left = np.zeros(len(jt), dtype=bool)
-        right = np.zeros(len(jt), dtype=bool)
-        left[eye == 0], right[eye == 1] = True, True
         trio, where = np.unique(jt * n + s_, return_inverse=True)
         ok_l = np.zeros(len(trio), dtype=bool)
         ok_r = np.zeros(len(trio), dtype=bool)
-        np.logical_or.at(ok_l, where, left)
-        np.logical_or.at(ok_r, where, right)
+        np.logical_or.at(ok_l, where, eye == 0)
+        np.logical_or.at(ok_r, where, eye == 1)
         j, t, s = trio // n // n, trio // n % n, trio % n
-        seen = np.zeros((2 * k, n), dtype=bool)
-        seen[slot[alive], g_st[alive]] = True
+        seen = by_eye(alive)
         restored = ((ok_l | seen[2 * j, t]) & (ok_r | seen[2 * j + 1, t])
                     & unoccluded[j, t] & ~stereo[j, t])
         gain = np.bincount(s[restored], minlength=n) - own
@@ -139,7 +140,7 @@ def thin(grooves: Grooves, glints: EyeGlints, unoccluded: np.ndarray, cutter: An
         else:
             # None gains alone: those that show in no view go together (what
             # several of them take from one glint comes back only so).
-            idle = keep & has_groove & (own == 0)
+            idle = keep & (own == 0)  # the kept all have grooves
             if not idle.any():
                 break
             keep[idle] = False
