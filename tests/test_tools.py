@@ -96,7 +96,7 @@ def test_suggested_depth_serves_every_view():
 def test_strict_refuses_a_tool_that_loses_views_and_names_a_fix():
     from specholo.pipeline import DesignConfig, design
 
-    with pytest.raises(SpecholoError, match="loses 100.0% of the views.*ball end"):
+    with pytest.raises(SpecholoError, match="100.0% of views lost.*ball end"):
         design(BUNNY, DesignConfig(stipples=40, tool="vbit", strict=True))
     d = design(BUNNY, DesignConfig(stipples=40, tool="vbit"))  # without --strict: reported
     assert d.views is not None and d.views.lost == 1.0
@@ -273,3 +273,30 @@ def test_a_design_states_what_survives_exactly_or_roughly():
     assert rough.as_cut is None and rough.overlaps is not None
     assert 0.0 < rough.overlaps.surviving <= 1.0
     assert np.array_equal(exact.grooves.vertices, rough.grooves.vertices)
+
+
+def test_the_automatic_depth_serves_every_view_the_cone_can():
+    """At a 30 degree light the views need walls up to about 45.1 degrees, past the
+    90 degree cone's 45 degree flank: the depth reaches the flank (not the tool's
+    fallback), only the views past it are lost, and the warning names them and
+    a cone that would serve them."""
+    import math
+
+    from specholo.fabrication.tools import RoundCone
+    from specholo.pipeline import DesignConfig, design
+
+    d = design(BUNNY, DesignConfig(stipples=500, size=60, center_z=-40, light_elevation=30,
+                                   view_distance=600, view_range=45),
+               expect_as_cut=False)
+    cutter = d.config.cutter()
+    assert isinstance(cutter, RoundCone)
+    flank = 0.5 * math.pi - 0.5 * cutter.angle
+    assert d.views is not None and d.views.needed[1] > flank  # the cone cannot serve all
+    # The groove's walls reach the flank itself, with the machine's allowance.
+    assert d.views.offered.max_tilt >= flank - 1e-9
+    assert d.config.depth_mm >= cutter.tip_radius * (1 - math.cos(flank)) + 0.005 - 1e-9
+    assert d.views.lost < 0.01
+    words = d.views.lost_views()
+    assert "eye azimuths" in words
+    angle = int(words.split("at most ")[1].split(" degrees")[0])
+    assert angle < 90 and 90 - 2 * math.degrees(d.views.needed[1] - flank) >= angle - 1

@@ -25,6 +25,7 @@ from specholo.fabrication.tools import (
     check_views,
     depth_for,
     needed_tilts,
+    steepest_wall,
 )
 from specholo.setup import (
     Setup,
@@ -191,13 +192,19 @@ def auto_depth(cutter: Cutter, config: DesignConfig, points: np.ndarray, runs: R
     """Shallowest depth whose walls serve every view with :data:`TILT_MARGIN` to
     spare, plus :data:`DEPTH_ALLOWANCE` for a machine's depth error, to the
     micrometre above; the tool's fallback depth when no depth can (a V-bit).
+    Where the views need walls steeper than the tool's shape offers (a cone's
+    flank), the depth that reaches its steepest wall: every view the tool can
+    serve is served, and the tool check names the rest.
     ``tilts`` are the runs' :func:`needed_tilts`, if already known."""
     if tilts is None:
         setup = config.setup()
         tilts, _ = needed_tilts(points, runs.stipple, runs.start, runs.end, setup.light,
                                 setup.viewer)
     need = float(tilts.max()) + TILT_MARGIN if tilts.size else TILT_MARGIN
-    depth = depth_for(cutter, min(need, 0.5 * math.pi - 1e-6))
+    steepest = steepest_wall(cutter)
+    if steepest is None:
+        return config.depth_mm
+    depth = depth_for(cutter, min(need, steepest))
     if depth is None:
         return config.depth_mm
     depth = math.ceil((depth + DEPTH_ALLOWANCE) * 1000.0 - 1e-9) / 1000.0
@@ -333,8 +340,7 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     del needed  # ~10^8 samples at a million stipples: not kept through the walk
     if config.strict and views.lost > 0:
         raise SpecholoError(
-            f"the {cutter.describe()} at {config.depth_mm:g} mm loses {100 * views.lost:.1f}% "
-            f"of the views ({views.stipples_losing} stipples); {views.suggestion}")
+            f"the {cutter.describe()} at {config.depth_mm:g} mm: {views.lost_views()}")
     timings["tool check"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     placed: dict[str, str] = {}

@@ -315,6 +315,7 @@ class ViewCheck:
     lost: float
     stipples_losing: int
     suggestion: str
+    lost_azimuths: tuple[float, float] | None = None
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -323,8 +324,24 @@ class ViewCheck:
                                  for a, b in self.offered.tilts],
             "groove_width_mm": self.offered.width,
             "views_lost": self.lost, "stipples_losing_views": self.stipples_losing,
+            "lost_azimuth_deg": (None if self.lost_azimuths is None
+                                 else [math.degrees(v) for v in self.lost_azimuths]),
             "suggestion": self.suggestion,
         }
+
+    def lost_views(self) -> str:
+        """Which views are lost, in words ('' if none): the eye azimuths and the
+        share of the sampled views."""
+        if self.lost <= 0:
+            return ""
+        where = ""
+        if self.lost_azimuths is not None:
+            lo, hi = (math.degrees(v) for v in self.lost_azimuths)
+            where = (f" at eye azimuths {lo:+.0f} deg" if round(lo) == round(hi)
+                     else f" at eye azimuths {lo:+.0f} to {hi:+.0f} deg")
+        share = f"{100 * self.lost:.1f}%" if self.lost >= 0.001 else "under 0.1%"
+        return (f"{share} of views lost{where} "
+                f"({self.stipples_losing} stipples); {self.suggestion}")
 
 
 def _sampled_tilts(points: np.ndarray, stipple: np.ndarray, start: np.ndarray,
@@ -418,11 +435,32 @@ def check_views(cutter: Cutter, depth: float, points: np.ndarray, stipple: np.nd
         return ViewCheck((0.0, 0.0), section, 0.0, 0, "")
     ok = section.covers(tilts)
     lost = float(1.0 - ok.mean())
-    owner = np.asarray(stipple)[np.searchsorted(first, np.flatnonzero(~ok), side="right") - 1]
+    bad = np.flatnonzero(~ok)
+    run = np.searchsorted(first, bad, side="right") - 1
+    owner = np.asarray(stipple)[run]
     losing = int(np.unique(owner).size)
     needed = (float(tilts.min()), float(tilts.max()))
+    azimuths = None
+    if bad.size:
+        # The eye azimuth of each lost sample, as _tilts_of spaced them.
+        k = bad - first[run]
+        last = np.maximum(first[run + 1] - first[run] - 1, 1)
+        s0, s1 = np.asarray(start, dtype=float)[run], np.asarray(end, dtype=float)[run]
+        theta = s0 + (k / last) * (s1 - s0)
+        azimuths = (float(theta.min()), float(theta.max()))
     return ViewCheck(needed, section, lost, losing,
-                     "" if lost == 0 else suggest(cutter, depth, needed[1]))
+                     "" if lost == 0 else suggest(cutter, depth, needed[1]), azimuths)
+
+
+def steepest_wall(cutter: Cutter) -> float | None:
+    """The steepest wall tilt (radians) the tool's shape offers at any depth, or
+    None for a tool of one tilt (a V-bit): a round drag tip's cone flank, a
+    ball's or a laser's nearly upright wall."""
+    if isinstance(cutter, RoundCone):
+        return 0.5 * math.pi - 0.5 * cutter.angle
+    if isinstance(cutter, (BallEnd, Laser)):
+        return 0.5 * math.pi - 1e-6
+    return None
 
 
 def depth_for(cutter: Cutter, tilt: float) -> float | None:
@@ -458,8 +496,11 @@ def suggest(cutter: Cutter, depth: float, tilt: float) -> str:
         if tilt <= flank:
             d = cutter.tip_radius * (1.0 - math.cos(tilt))
             return f"{need}: cut at least {mm(d)} mm deep with this tip"
-        return (f"{need}: use a cone of at most {180 - 2 * deg:.0f} degrees included angle, "
-                "or a ball end")
+        # Rounded down: a cone of the stated angle must offer the wall.
+        angle = math.floor(180.0 - 2.0 * deg)
+        return (f"{need}, steeper than this {math.degrees(cutter.angle):.0f} degree cone's "
+                f"{math.degrees(flank):.1f} degree flanks: a cone of at most {angle} degrees "
+                "included angle, or a ball end, would serve them")
     if isinstance(cutter, Laser):
         d = math.tan(tilt) * 0.25 * cutter.spot * math.exp(0.5)
         return f"{need}: ablate at least {mm(d)} mm deep with this spot"

@@ -43,8 +43,7 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
                      f"views need walls tilted {lo:.1f}-{hi:.1f} deg, groove offers up to "
                      f"{math.degrees(d.views.offered.max_tilt):.1f} deg")
         if d.views.lost > 0:
-            warnings.append(f"{100 * d.views.lost:.1f}% of views lost "
-                            f"({d.views.stipples_losing} stipples); {d.views.suggestion}")
+            warnings.append(d.views.lost_views())
     if d.overlaps is not None:
         o = d.overlaps
         lines.append(f"grooves: {o.neighbours} overlapping stripe pairs within a stipple; "
