@@ -246,8 +246,10 @@ def test_a_numbered_sequence_shows_each_frame_over_its_share_of_the_walk(
 
 def test_a_host_that_no_sightline_meets_is_refused(tmp_path: Path, capsys) -> None:
     comp = tmp_path / "c.toml"
-    comp.write_text(f'stipples = 10\n[host]\nkind = "plane"\nwidth = 2\nheight = 0.05\n'
-                    f'[[scene]]\nmodel = "{BUNNY}"\nsize = 30\ncenter_z = -25\n')
+    # a 2 x 1 mm plane, the scene 300 mm to its side: every sightline passes it by
+    comp.write_text(f'stipples = 10\n[host]\nkind = "plane"\nwidth = 2\nheight = 1\n'
+                    f'[[scene]]\nmodel = "{BUNNY}"\nsize = 30\ncenter_z = -25\n'
+                    'offset_x = 300\n')
     out = tmp_path / "out"
     assert main(["compose", str(comp), "--out", str(out)]) == 1
     err = capsys.readouterr().err.strip().splitlines()

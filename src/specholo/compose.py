@@ -34,7 +34,25 @@ from specholo.hosts.surfaces import (
 )
 from specholo.scene.motion import MODES, Family, MotionSpec, Position, SceneKey, rot_z
 from specholo.scene.pose import UP_AXES, Pose
-from specholo.setup import Machining, Tool
+from specholo.setup import MAX_FEED, MAX_SPINDLE, MIN_SAFE_Z, Machining, Tool
+
+#: The material under a host's surface when the composition does not say, mm:
+#: a plate, a cup's wall or a shell a few millimetres thick.
+STOCK_THICKNESS = 3.0
+#: Ranges of a composition's machining numbers (lowest, highest, unit): those
+#: of real machines. Feeds from a crawl to beyond the fastest routers (60 m/min);
+#: a safe height from a clearance above a flat blank's unevenness (see
+#: :data:`specholo.setup.MIN_SAFE_Z`) to a retract no machine's Z travel
+#: exceeds by much; a spindle off (a drag tip) or turning from 100 rpm (a
+#: slow mill) to an air-bearing spindle's 1,000,000; the stock from a
+#: 0.1 mm foil to a 1 m block.
+MACHINING_RANGES: dict[str, tuple[float, float, str]] = {
+    "feed": (1.0, MAX_FEED, "mm/min"),
+    "plunge": (1.0, MAX_FEED, "mm/min"),
+    "safe_z": (MIN_SAFE_Z, 100.0, "mm"),
+    "spindle": (100.0, MAX_SPINDLE, "rpm"),
+    "thickness": (0.1, 1000.0, "mm"),
+}
 
 #: Keys each table of a composition may hold (anything else is refused).
 _KEYS: dict[str, set[str]] = {
@@ -44,7 +62,7 @@ _KEYS: dict[str, set[str]] = {
     "light": {"elevation", "distance", "stop"},
     "viewer": {"distance", "range", "height", "ipd"},
     "tool": {"radius", "depth"},
-    "machining": {"feed", "plunge", "safe_z", "spindle", "axes"},
+    "machining": {"feed", "plunge", "safe_z", "spindle", "axes", "thickness"},
     "scene": {"model", "frames", "size", "center_z", "from", "to", "turn", "shift", "yaw",
               "stipples", "up", "rotate_x", "rotate_y", "rotate_z", "offset_x", "offset_y",
               "fit"},
@@ -178,10 +196,25 @@ class Composition:
     seed: int
     scenes: list[SceneSpec]
     settings: dict[str, Any] = field(default_factory=dict)
+    #: The material under the host's surface, mm: no cut may reach it.
+    thickness: float = STOCK_THICKNESS
 
+
+#: Range of a host's sides and lengths (a plane's width and height, a cylinder's
+#: height, a panel's sides) and of its radii, mm, for ``_opt``: from a
+#: millimetre to the largest plate a design takes (100 m), and radii to 10 m.
+SIDE = (1.0, 100_000.0, False, False, " mm")
+RADIUS = (1.0, 10_000.0, False, False, " mm")
 
 #: Host kinds a composition may name.
 HOST_KINDS = ("plane", "cylinder", "sphere", "heightfield", "mesh", "panels")
+
+
+#: The [host] keys each kind reads besides ``kind``: any other is refused, not
+#: ignored (a cylinder's width would be a mistake, never a setting).
+HOST_KEYS: dict[str, tuple[str, ...]] = {
+    "plane": ("width", "height"), "cylinder": ("radius", "height"), "sphere": ("radius",),
+    "heightfield": ("file",), "mesh": ("file",), "panels": ("panels",)}
 
 
 def _host(t: dict[str, Any], base: Path) -> Host:
@@ -189,16 +222,20 @@ def _host(t: dict[str, Any], base: Path) -> Host:
     if not isinstance(kind, str) or kind not in HOST_KINDS:
         raise SpecholoError(f"composition: unknown host kind {kind!r} "
                             f"({', '.join(HOST_KINDS)})")
+    stray = sorted(set(t) - {"kind", *HOST_KEYS[kind]})
+    if stray:
+        raise SpecholoError(f"composition: host.{stray[0]} does not apply to a {kind} host "
+                            f"(it takes {', '.join(HOST_KEYS[kind])})")
     if kind == "plane":
-        width = _opt(t, "width", "host", positive=True)
-        height = _opt(t, "height", "host", positive=True)
+        width = _opt(t, "width", "host", *SIDE)
+        height = _opt(t, "height", "host", *SIDE)
         return Plane(math.inf if width is None else width,
                      math.inf if height is None else height)
     if kind == "cylinder":
-        return Cylinder(_num(t, "radius", 40.0, "host", positive=True),
-                        _num(t, "height", 80.0, "host", positive=True))
+        return Cylinder(_num(t, "radius", 40.0, "host", *RADIUS),
+                        _num(t, "height", 80.0, "host", *SIDE))
     if kind == "sphere":
-        return Sphere(_num(t, "radius", 50.0, "host", positive=True))
+        return Sphere(_num(t, "radius", 50.0, "host", *RADIUS))
     if kind in ("heightfield", "mesh"):
         if "file" not in t or not isinstance(t["file"], str) or not t["file"]:
             raise SpecholoError(f"composition: a {kind} host needs host.file")
@@ -220,8 +257,8 @@ def _host(t: dict[str, Any], base: Path) -> Host:
             raise SpecholoError("composition: each panel has centre, normal, up, width, "
                                 "height")
         where = f"host.panels[{k}]"
-        width = _opt(r, "width", where, positive=True)
-        height = _opt(r, "height", where, positive=True)
+        width = _opt(r, "width", where, *SIDE)
+        height = _opt(r, "height", where, *SIDE)
         if width is None or height is None:
             raise SpecholoError(f"composition: {where} needs a width and a height")
         panels.append(Panel(_vector(r, "centre", None, where), _vector(r, "normal", None, where),
@@ -324,20 +361,25 @@ def parse_composition(text: str, base: Path) -> Composition:
         # the plate and lights none of it: the ends are refused, not replaced.
         light_elevation=deg(_num(light, "elevation", 45.0, "light", 0, 180, open_ends=True,
                                  why=GRAZING)),
-        light_distance=_opt(light, "distance", "light", positive=True),
+        light_distance=_opt(light, "distance", "light", 1, 1e7, why=" mm"),
         light_stop=deg(_num(light, "stop", 60.0, "light", 0, 180, open_ends=True,
                             why=GRAZING)),
         step=deg(_num(top, "step", 0.25, "top", 0.01, 2.0)),
     )
-    tool = Tool(_num(tool_t, "radius", 0.05, "tool", 0.001, 25),
-                _num(tool_t, "depth", 0.02, "tool", 1e-4, 25))
+    radius = _num(tool_t, "radius", 0.05, "tool", 0.001, 25, why=" mm")
+    tool = Tool(radius, _num(tool_t, "depth", 0.02, "tool", 1e-4, radius,
+                             why=" mm (up to the tool's radius)"))
     axes = _int(mach, "axes", 3, "machining", 3, 4)
-    machining = Machining(_num(mach, "feed", 300.0, "machining", positive=True),
-                          _num(mach, "plunge", 100.0, "machining", positive=True),
-                          _num(mach, "safe_z", 1.0, "machining", positive=True),
-                          _num(mach, "spindle", 0.0, "machining", 0, 1e6))
+    machining = Machining(*(_machining(mach, key, default)
+                            for key, default in (("feed", 300.0), ("plunge", 100.0),
+                                                 ("safe_z", 1.0), ("spindle", 0.0))))
+    thickness = _machining(mach, "thickness", STOCK_THICKNESS)
+    if not tool.depth < thickness:
+        raise SpecholoError(f"composition: tool.depth = {tool.depth:g} mm would cut through "
+                            f"the {thickness:g} mm of material under the surface "
+                            "(machining.thickness): it must be less")
     count = _int(top, "stipples", 400, "top", 1, 1_000_000)
-    band = _num(top, "band", max(0.2, tool.width), "top", positive=True)
+    band = _num(top, "band", max(0.2, tool.width), "top", 0.001, 1000, why=" mm")
     seed = _int(top, "seed", 0, "top", 0, 2**32)
     rows = top.get("scene")
     if not isinstance(rows, list) or not rows:
@@ -366,7 +408,7 @@ def parse_composition(text: str, base: Path) -> Composition:
         if not last > first:
             raise SpecholoError(f"composition: scene {k + 1} shows over an empty interval")
         shift = _vector(s, "shift", (0.0, 0.0, 0.0), where)
-        size = _num(s, "size", 40.0, where, positive=True)
+        size = _num(s, "size", 40.0, where, 0.01, 10_000, why=" mm")
         center_z = _num(s, "center_z", -30.0, where, -1e4, 1e4)
         # Turn in degrees per degree, shift in mm per degree of the driver.
         turn = _num(s, "turn", 0.0, where, -100, 100)
@@ -400,7 +442,31 @@ def parse_composition(text: str, base: Path) -> Composition:
                        shift[2] * 180.0 / math.pi),
                 stipples=stipples, yaw=yaw, pose=pose, fit=fit))
     settings = {"text": text, "base": str(base)}
-    return Composition(motion, host, tool, machining, axes, band, seed, scenes, settings)
+    return Composition(motion, host, tool, machining, axes, band, seed, scenes, settings,
+                       thickness)
+
+
+def _machining(table: dict[str, Any], key: str, default: float) -> float:
+    """A machining number in its range (:data:`MACHINING_RANGES`), ``default`` when
+    absent; a spindle may also be 0, off (a drag tip cuts without one)."""
+    lo, hi, unit = MACHINING_RANGES[key]
+    if key not in table:
+        return default
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise SpecholoError(f"composition: machining.{key} must be a number, got {v!r}")
+    try:
+        x = float(v)
+    except OverflowError:  # an integer beyond any float
+        x = math.inf
+    if key == "spindle" and x == 0:
+        return 0.0
+    if not lo <= x <= hi:  # NaN too
+        off = " (or 0: no spindle, a drag tip)" if key == "spindle" else ""
+        raise SpecholoError(f"composition: machining.{key}: {key.replace('_', ' ')} {x:g} "
+                            f"{unit} is out of range: it must be in [{lo:g}, {hi:g}] "
+                            f"{unit}{off}")
+    return x
 
 
 def _resolved(path: Path, k: int) -> Path:
@@ -639,7 +705,8 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
     comp = d.comp
     inputs = [*inputs, *composition_files(comp)]
     check_out(out, inputs)  # before the G-code is made and checked
-    program = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, comp.axes)
+    program = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, comp.axes,
+                                  comp.thickness)
     with stage_design(out, inputs, kind="composition") as stage:
         tmp = stage.path
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
@@ -655,7 +722,7 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
             fh.write(program.text)
         # read back by the safety check every program passes, before it is kept
         check = stage.check("hologram.gcode", check=lambda path: check_surface_program(
-            path, d.grooves, comp.host, comp.tool, comp.machining, comp.axes))
+            path, d.grooves, comp.host, comp.tool, comp.machining, comp.axes, comp.thickness))
         meta = {"design": "composition", "composition": comp.settings,
                 "host": comp.host.describe(), "mode": comp.motion.mode,
                 "tool": {"radius": comp.tool.radius, "depth": comp.tool.depth,

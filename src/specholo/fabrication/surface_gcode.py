@@ -14,6 +14,13 @@ axis turns it (degrees), and the tool stays over the axis, so it always cuts
 along the local normal. Z is zero at the top of the cylinder's surface: the tip
 goes to Z = -d.
 
+Every program's header says what it was made for: units, origin, the tool and
+its depth, the host and the stock under its surface. On a plane host the
+limits are a flat plate's, and the header names them (``check`` lines,
+:meth:`~specholo.fabrication.check.Limits.header`) so that ``specholo check
+PROGRAM`` reads them back with no options. On a curved host the limits follow
+the host's surface, which no header line can name: the header says so.
+
 All numbers are written with '.' as the decimal point whatever the locale.
 """
 
@@ -26,8 +33,10 @@ from typing import Any
 
 import numpy as np
 
+from specholo.compose import STOCK_THICKNESS
 from specholo.errors import SpecholoError
 from specholo.fabrication.check import Limits, Stock, check_program, tool_kind
+from specholo.fabrication.plate import Plate
 from specholo.hosts.surfaces import Cylinder, HeightField, Host, MeshHost, Panels, Plane, Sphere
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.conforming import ConformingGrooves
@@ -70,15 +79,72 @@ def _f(v: float) -> str:
     return "0.0000" if s == "-0.0000" else s
 
 
-def _header(machining: Machining, axes: int) -> list[str]:
-    lines = [f"(specholo: grooves on a curved host, {axes}-axis)", "G21 G90 G17 G94"]
+def _short(v: float) -> str:
+    """A length for a comment: up to 4 decimals, no trailing zeros."""
+    s = f"{v:.4f}".rstrip("0").rstrip(".")
+    return "0" if s in ("", "-0") else s
+
+
+def plate_comments(plate: Plate) -> list[str]:
+    """The plate a program cuts, as comment texts (mm, a mill's words): its size,
+    thickness and corners, and how to set the origin. No registration marks:
+    they are drawn on a flat design's SVG and DXF, which these programs have
+    none of."""
+    t = f", {_short(plate.thickness)} mm thick" if plate.thickness is not None else ""
+    x0, y0, x1, y1 = (_short(v) for v in (plate.x0, plate.y0, plate.x1, plate.y1))
+    return [f"plate: {_short(plate.width)} x {_short(plate.height)} mm{t}, corners X{x0} "
+            f"Y{y0} to X{x1} Y{y1}",
+            f"plate zero: X0 Y0 at the plate centre, or G10 L20 P1 X{x0} Y{y0} with the tool "
+            "on the lower-left corner; Z0 on the top surface"]
+
+
+def _header(grooves: ConformingGrooves, host: Host, tool: Tool, machining: Machining,
+            axes: int, thickness: float, limits: Limits) -> list[str]:
+    """The program's head: what it cuts, with what, on what, and its limits where
+    a header can name them; then the modal setup."""
+    lines = [f"specholo: grooves on a {host.kind} host, {axes}-axis",
+             "units: mm, absolute coordinates, feed in mm/min"]
+    if axes == 4:
+        lines.append("origin: X along the cylinder's axis from its middle, A turns it "
+                     "in degrees, Z = 0 at the top of its surface")
+    elif isinstance(host, Plane):
+        lines.append("origin: plate centre; X right, Y up, Z = 0 on the plate surface")
+    else:
+        lines.append("origin: the host's frame, as hologram.json's host says; X right, Y up, Z = 0 "
+                     "where the host's front crosses the axis")
+    lines += [f"tool: ball end, round tip radius {_short(tool.radius)} mm, groove width "
+              f"{_short(tool.width)} mm",
+              f"depth: {_short(tool.depth)} mm below the surface"]
+    header = limits.header()
+    if header:
+        lines += plate_comments(Plate(limits.stock.x0, limits.stock.y0, limits.stock.x1,
+                                      limits.stock.y1, thickness))
+        lines += [f"{k}: {v}" for k, v in header.items()]
+    else:
+        lines += [f"host: {_describe(host)}, {_short(thickness)} mm of material under its "
+                  "surface",
+                  "limits: not in this header: they follow the host's curved surface, which "
+                  "no header line can name; the program passed them when it was written "
+                  "as hologram.json's gcode.check records"]
+    # a comment holds no parentheses of its own (G-code does not nest them)
+    lines = [f"({text})" for text in lines]
+    lines.append("G21 G90 G17 G94")
     if machining.spindle > 0:
         lines.append(f"M3 S{machining.spindle:.0f}")
     return lines
 
 
+def _describe(host: Host) -> str:
+    """The host in a few words, for a comment: its kind and size."""
+    seen = host.describe()
+    sizes = [f"{k} {_short(seen[k])} mm" for k in ("radius", "width", "height")
+             if isinstance(seen.get(k), int | float)]
+    return ", ".join([host.kind, *sizes])
+
+
 def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
-                        machining: Machining, axes: int = 3) -> SurfaceProgram:
+                        machining: Machining, axes: int = 3,
+                        thickness: float = STOCK_THICKNESS) -> SurfaceProgram:
     """Write the grooves as G-code.
 
     Args:
@@ -87,6 +153,7 @@ def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
         tool: the ball model (radius, depth).
         machining: feeds, safe height, spindle.
         axes: 3, or 4 for a cylinder on a rotary axis.
+        thickness: the material under the host's surface, mm (the header names it).
 
     Returns:
         The program.
@@ -98,7 +165,8 @@ def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
         raise SpecholoError(f"axes must be 3 or 4, got {axes}")
     if axes == 4 and not isinstance(host, Cylinder):
         raise SpecholoError("4-axis output is for a cylinder host (a rotary A axis)")
-    lines = _header(machining, axes)
+    lines = _header(grooves, host, tool, machining, axes, thickness,
+                    surface_limits(grooves, host, tool, machining, axes, thickness))
     paths = 0
     dropped = 0
     length = 0.0
@@ -260,9 +328,13 @@ def _vertical_hits(host: Host, x: np.ndarray, y: np.ndarray, top: float) -> np.n
 
 
 def surface_limits(grooves: ConformingGrooves, host: Host, tool: Tool, machining: Machining,
-                   axes: int = 3) -> Limits:
+                   axes: int = 3, thickness: float = STOCK_THICKNESS) -> Limits:
     """What a host's program may do, from the composition's settings (mm).
 
+    On a plane: a flat plate's limits (the surface Z = 0), which a header names:
+    the tool tip inside the plane (or the grooves' extent and a border), every
+    cut in X/Y at the groove's depth, no feed move in X/Y above the surface,
+    rapids at the safe height.
     3 axes: the tool tip inside the host seen from above, no deeper than the
     groove below the surface under it (``Limits.surface``: the host's first
     surface straight down, extended a little past its edges), rapids at the
@@ -270,12 +342,12 @@ def surface_limits(grooves: ConformingGrooves, host: Host, tool: Tool, machining
     4 axes: the tip over the cylinder's axis (Y within half a groove) and along
     its length, no deeper than the groove below the top of the turning cylinder
     (Z = 0 there, however it turns), rapids at the safe height. Feeds and
-    spindle as set; the tool is a mill if it spins, else a drag tip.
+    spindle as set; the tool is a mill if it spins, else a drag tip. The stock
+    is ``thickness`` deep under the surface: no cut reaches it.
     """
     feeds = (min(machining.feed, machining.plunge), max(machining.feed, machining.plunge))
     spindle = (machining.spindle, machining.spindle)
     kind = tool_kind("ball", machining.spindle)
-    # a host has no thickness setting: the ball's radius bounds how deep it reaches
     if axes == 4:
         if not isinstance(host, Cylinder):
             raise SpecholoError("4-axis output is for a cylinder host (a rotary A axis)")
@@ -288,21 +360,28 @@ def surface_limits(grooves: ConformingGrooves, host: Host, tool: Tool, machining
                 z = np.sqrt(r * r - yy * yy) - r
             return np.where((np.abs(x) <= half) & (np.abs(yy) <= r), z, np.nan)
 
-        return Limits(Stock(-half, -y, half, y, tool.radius), tool.depth, machining.safe_z,
+        return Limits(Stock(-half, -y, half, y, thickness), tool.depth, machining.safe_z,
                       feeds, spindle, kind, surface=on_cylinder, rotary=True,
                       tolerance=SURFACE_TOLERANCE)
+    if isinstance(host, Plane):
+        # the tip stays at the groove's depth along every groove and only plunges
+        # and rises between them (hop_max 0: no feed move in X/Y above the plate)
+        return Limits(Stock(*host_extent(host, grooves), thickness), tool.depth,
+                      machining.safe_z, feeds, spindle, kind, hop_max=0.0,
+                      groove_depth=tool.depth)
     top = host_top(host)
 
     def under(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         return _surface_under(host, x, y, top, tool.radius - tool.depth)
 
-    return Limits(Stock(*host_extent(host, grooves), tool.radius), tool.depth,
+    return Limits(Stock(*host_extent(host, grooves), thickness), tool.depth,
                   top + machining.safe_z, feeds, spindle, kind, surface=under,
                   tolerance=SURFACE_TOLERANCE)
 
 
 def check_surface_program(path: str | os.PathLike[str], grooves: ConformingGrooves, host: Host,
-                          tool: Tool, machining: Machining, axes: int = 3) -> dict[str, Any]:
+                          tool: Tool, machining: Machining, axes: int = 3,
+                          thickness: float = STOCK_THICKNESS) -> dict[str, Any]:
     """Read a host's written program back through the safety check
     (:func:`surface_limits`).
 
@@ -313,7 +392,7 @@ def check_surface_program(path: str | os.PathLike[str], grooves: ConformingGroov
     Raises:
         SpecholoError: on any violation, in one line.
     """
-    limits = surface_limits(grooves, host, tool, machining, axes)
+    limits = surface_limits(grooves, host, tool, machining, axes, thickness)
     report = check_program(path, limits)
     return {"moves": report.moves, "violations": 0, "cutting_moves": report.moves["cutting"],
             "deepest_cut_mm": report.deepest, "safe_z": limits.safe_z}

@@ -138,16 +138,49 @@ class CompositionJob:
         table = Table(f"verification ({d.comp.host.kind} host, {d.comp.motion.mode})",
                       [label, "shown", "median mm", "p95 mm", "p95 depth mm", "visibility",
                        "stray"],
-                      [[f"{r.position:+.1f}", str(r.shown), f"{r.median_error:.3f}",
-                        f"{r.p95_error:.3f}", f"{r.p95_depth_error:.3f}",
-                        f"{r.visibility:.3f}", f"{r.stray:.3f}"] for r in reports])
+                      [[f"{r.position:+.1f}", str(r.shown), _figure(r.median_error),
+                        _figure(r.p95_error), _figure(r.p95_depth_error),
+                        _figure(r.visibility), _figure(r.stray)] for r in reports])
         summary = summarise(reports)
+        rows = [_honest_row(row) for row in reports_to_dicts(reports)]
 
         def verify_json(into: Path) -> None:
-            write_verify_json(into, self.kind, options.step_deg, summary, "positions",
-                              reports_to_dicts(reports), {"motion": d.comp.motion.mode,
-                                                          "host": d.comp.host.kind})
+            write_verify_json(into, self.kind, options.step_deg, _no_nan(summary), "positions",
+                              rows, {"motion": d.comp.motion.mode, "host": d.comp.host.kind})
 
-        line = (f"worst p95 error {summary['worst_p95_error']:.3f} mm, lowest visibility "
-                f"{summary['min_visibility']:.3f}, most stray glints {summary['max_stray']:.3f}")
-        return Verification([line], table, {"verify.json": verify_json})
+        lines = [f"worst p95 error {_figure(summary['worst_p95_error'])} mm, lowest visibility "
+                 f"{_figure(summary['min_visibility'])}, most stray glints "
+                 f"{_figure(summary['max_stray'])}"]
+        for note in (NO_STIPPLE_SHOWN, NO_GLINTS):
+            at = [f"{r['position']:+.1f}" for r in rows if r.get("note") == note]
+            if at:
+                lines.append(f"'-': nothing to measure at {', '.join(at[:6])}"
+                             f"{' ...' if len(at) > 6 else ''} ({note})")
+        return Verification(lines, table, {"verify.json": verify_json})
+
+
+#: Why a position's errors are not numbers: nothing to triangulate there.
+NO_STIPPLE_SHOWN = "no stipple is shown to both eyes"
+NO_GLINTS = "no stipple shown to both eyes glints for both"
+
+
+def _figure(v: float) -> str:
+    """A figure of the table: '-' where there was nothing to measure (NaN)."""
+    return "-" if math.isnan(v) else f"{v:.3f}"
+
+
+def _no_nan(values: dict[str, Any]) -> dict[str, Any]:
+    """``values`` with None for each NaN: JSON has no NaN (``json.dump`` would
+    write a bare ``NaN`` that strict readers refuse)."""
+    return {k: None if isinstance(v, float) and math.isnan(v) else v
+            for k, v in values.items()}
+
+
+def _honest_row(row: dict[str, Any]) -> dict[str, Any]:
+    """A position's row for ``verify.json``: a figure with nothing to measure is
+    null, and a note says why (a hand-over between scenes shows no stipple to
+    both eyes; a view may show some that glint for one eye only)."""
+    out = _no_nan(row)
+    if out != row:
+        out["note"] = NO_STIPPLE_SHOWN if row["shown"] == 0 else NO_GLINTS
+    return out
