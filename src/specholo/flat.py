@@ -66,6 +66,7 @@ class Design:
     placement: dict[str, str] | None = None  # striped: "placement" used, "fallback" why
     thinned: np.ndarray | None = None  # stipple ids left uncut by thinning
     thinning: dict[str, Any] | None = None  # its stereo points as cut, before and after
+    up_hint: str = ""  # the --up the model's own flat base suggests, in words ('' if none)
 
 
 @dataclass(frozen=True)
@@ -276,6 +277,31 @@ def stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
     return model, st, config
 
 
+def up_hint(model: Any, config: DesignConfig) -> str:
+    """Where a placed mesh stands on a flat base that is not its bottom on the
+    plate (a z-up CAD or slicer file read y-up lies on its back), the ``--up``
+    that stands it upright, in words; '' otherwise."""
+    from specholo.scene.pose import axis_name, standing_up
+
+    mesh = model.mesh
+    if mesh is None:
+        return ""
+    up = standing_up(mesh.vertices, mesh.faces)  # in the plate's axes, as placed
+    if up is None or up == "y":
+        return ""
+    extent = np.ptp(np.asarray(mesh.vertices, dtype=float), axis=0)
+    if up in ("z", "-z") and extent[2] < 0.5 * min(extent[0], extent[1]):
+        return ""  # a relief or a plaque, facing the viewer as it is meant to
+    vector = np.zeros(3)
+    vector["xyz".index(up[-1])] = -1.0 if up.startswith("-") else 1.0
+    name = axis_name(vector @ config.pose().rotation().T)  # back to the file's axes
+    if name is None or name == config.up:
+        return ""
+    return (f"the model stands on a flat base with its {name} axis up (as CAD and slicer "
+            f"files place a part), and is placed with {config.up} up, lying on its side or "
+            f"back: add --up {name}")
+
+
 def fitted_size(model: Any, config: DesignConfig) -> float:
     """The largest size (mm) at which the model's grooves, as posed, lie on the
     plate ``config`` gives, within its blank border (:mod:`specholo.scene.fit`)."""
@@ -383,7 +409,8 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     timings["overlaps"] = time.perf_counter() - t0
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
                   views, overlaps, plate, cover, as_cut, placement=placed or None,
-                  thinned=thinned if len(thinned) else None, thinning=thinning)
+                  thinned=thinned if len(thinned) else None, thinning=thinning,
+                  up_hint=up_hint(model, config))
 
 
 #: Head azimuths of the design's as-cut estimate are at most this far apart, degrees.

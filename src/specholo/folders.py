@@ -122,7 +122,19 @@ def check_out(out: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[st
     if target.is_dir():
         _check_entries(out, target)
     _check_parent(out, target)
+    _check_not_cwd(out, target)
     return target
+
+
+def _check_not_cwd(out: str | os.PathLike[str], target: Path) -> None:
+    """Refuse to replace the folder the process (and so the shell that started it)
+    stands in: the new folder takes its place whole and the old one is removed,
+    which would leave that shell in a removed folder, seeing nothing."""
+    if _cwd_within(target) is not None:
+        raise SpecholoError(
+            f"{os.fspath(out)} is the folder you are in (or holds it), and it is replaced "
+            f"whole, which would leave your shell in a removed folder: run this from "
+            f"{target.parent} instead")
 
 
 def _check_parent(out: str | os.PathLike[str], target: Path) -> None:
@@ -168,6 +180,7 @@ def publish(out: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str]
     inputs = list(inputs)
     with scratch():
         target = output_folder(out)
+        _check_not_cwd(out, target)
         _clean_leftovers(target)
         _check_inputs(out, target, inputs, owned)
         if target.is_dir():

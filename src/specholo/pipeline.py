@@ -199,10 +199,12 @@ class Written:
     Attributes:
         timings: seconds spent per output.
         machining: the machining estimate written to ``hologram.json``.
+        plate: the plate the files name (its size is what the maker cuts).
     """
 
     timings: dict[str, float]
     machining: dict[str, Any]
+    plate: Plate | None = None
 
 
 def dump_design_json(info: dict[str, Any], fh: Any) -> None:
@@ -311,7 +313,8 @@ def write_design(d: Design, out: str | os.PathLike[str],
                                 "cutter": d.config.cutter().describe(),
                                 # the limits `specholo check FILE` checks it against, mm
                                 **design_limits(d).header()},
-                        options=options, depth=d.config.depth_mm, plate=plate)
+                        options=options, depth=d.config.depth_mm, plate=plate,
+                        width=width)
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = stage.check(path.name, design_limits(d))
@@ -319,13 +322,15 @@ def write_design(d: Design, out: str | os.PathLike[str],
             timings["gcode check"] = time.perf_counter() - t0
         if "svg" in formats:
             t0 = time.perf_counter()
-            write_svg(tmp / "hologram.svg", grooves, setup.tool, plate=plate)
+            write_svg(tmp / "hologram.svg", grooves, setup.tool, plate=plate,
+                      cut=(d.config.depth_mm, width))
             timings["svg"] = time.perf_counter() - t0
         if "dxf" in formats:
             from specholo.fabrication.dxf import write_dxf  # ezdxf: only when asked for
 
             t0 = time.perf_counter()
-            write_dxf(tmp / "hologram.dxf", grooves, setup.tool, plate=plate)
+            write_dxf(tmp / "hologram.dxf", grooves, setup.tool, plate=plate,
+                      cut=(d.config.depth_mm, width))
             timings["dxf"] = time.perf_counter() - t0
         if "pdf" in formats:
             # matplotlib's PDF: an arc design's compass pattern, else its strokes
@@ -347,12 +352,13 @@ def write_design(d: Design, out: str | os.PathLike[str],
             dump_design_json(info, fh)
         timings["data"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        render_preview(d.grooves, setup, tmp / "preview.png")
+        render_preview(d.grooves, setup, tmp / "preview.png",
+                       plate=np.array([[plate.x0, plate.y0], [plate.x1, plate.y1]]))
         timings["preview"] = time.perf_counter() - t0
         with atomic_open(tmp / "run.json") as fh:
             json.dump(run_record(d.config, command, {"design": d.timings, "writing": timings}),
                       fh, indent=1)
-    return Written(timings, info["machining"])
+    return Written(timings, info["machining"], plate)
 
 
 @dataclass
@@ -365,6 +371,7 @@ class Loaded:
     grooves: Grooves
     mesh: Any
     thinned: int = 0  # stipples the design left uncut (thinning)
+    plate: np.ndarray | None = None  # (2, 2) the plate's corners the files name, mm
 
 
 def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loaded:
@@ -400,7 +407,21 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
     stats = info.get("stats")
     thinned = stats.get("thinned_stipples") if isinstance(stats, dict) else None
     return Loaded(config, points, normals, grooves, mesh,
-                  len(thinned) if isinstance(thinned, list) else 0)
+                  len(thinned) if isinstance(thinned, list) else 0, plate_of(info))
+
+
+def plate_of(info: dict[str, Any]) -> np.ndarray | None:
+    """The plate's corners (2, 2) a hologram.json names, mm; None where it names
+    none or a malformed one (an older folder: pictures then frame the grooves)."""
+    plate = info.get("plate")
+    corners = plate.get("plate_mm") if isinstance(plate, dict) else None
+    try:
+        got = np.asarray(corners, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    if got.shape != (2, 2) or not np.isfinite(got).all() or not (got[0] < got[1]).all():
+        return None
+    return got
 
 
 def design_json(folder: Path) -> dict[str, Any]:

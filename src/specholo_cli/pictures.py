@@ -58,11 +58,11 @@ def render(folder: Path, azimuth: float, elevation: float, width: int, height: i
         setup, loaded.grooves, math.radians(_finite_option("azimuth", azimuth)),
         math.radians(_finite_option("elevation", elevation)),
         None if distance is None else _distance(distance), _fov(fov),
-        width, height)
+        width, height, plate=loaded.plate)
     model = (loaded.mesh if loaded.mesh is not None else loaded.points) if ghost else None
     image = render_still(loaded.grooves, setup, camera,
                          math.radians(_finite_option("roughness", roughness)),
-                         grooves_overlay=grooves, ghost=model)
+                         grooves_overlay=grooves, ghost=model, plate=loaded.plate)
     save_png(image, out)
     click.echo(f"{width}x{height} render at azimuth {azimuth:+g} -> {out}")
 
@@ -174,9 +174,10 @@ def stereo(folder: Path, azimuth: float, mode: str, width: int, height: int,
     loaded = _design_folder(folder, "stereo")
     setup = loaded.config.setup()
     head = head_camera(setup, loaded.grooves, math.radians(_finite_option("azimuth", azimuth)),
-                       width, height, _fov(fov))
+                       width, height, _fov(fov), plate=loaded.plate)
     left, right = stereo_pair(loaded.grooves, setup, head,
-                              roughness=math.radians(_finite_option("roughness", roughness)))
+                              roughness=math.radians(_finite_option("roughness", roughness)),
+                              plate=loaded.plate)
     image = anaglyph(left, right) if mode == "anaglyph" else side_by_side(
         left, right, mode, gap=max(2, width // 32))
     save_png(image, out)

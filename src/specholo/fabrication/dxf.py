@@ -184,7 +184,8 @@ def _add_plate(msp: Any, plate: Plate) -> None:
 
 
 def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
-              depths: np.ndarray | None = None, plate: Plate | None = None) -> list[Layer]:
+              depths: np.ndarray | None = None, plate: Plate | None = None,
+              cut: tuple[float, float] | None = None) -> list[Layer]:
     """Write the grooves as a DXF drawing in mm, atomically, a chunk of paths at a time.
 
     Args:
@@ -197,6 +198,8 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
         plate: the plate, drawn on layer ``PLATE`` with its registration marks;
             default the plate fitted to the grooves
             (:func:`~specholo.fabrication.plate.fit_plate`).
+        cut: (depth, width) mm of the grooves as cut, where the tool is not the
+            ball ``tool`` models (see :func:`~specholo.fabrication.svg.plan_layers`).
 
     Returns:
         The groove and dot layers written (non-empty ones only), by number.
@@ -206,7 +209,7 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
             or ``depths`` is malformed.
     """
     check_grooves(grooves)
-    layers = plan_layers(grooves, tool, depths)
+    layers = plan_layers(grooves, tool, depths, cut)
 
     with _reproducible():
         doc = ezdxf.new(DXF_VERSION, units=units.MM)

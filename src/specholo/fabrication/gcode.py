@@ -673,6 +673,7 @@ def write_gcode(
     options: GcodeOptions | None = None,
     depth: float | None = None,
     plate: Plate | None = None,
+    width: float | None = None,
 ) -> GcodeStats:
     """Write the program that cuts the grooves, atomically.
 
@@ -690,6 +691,8 @@ def write_gcode(
         plate: the plate the header names (:func:`plate_lines`); default the
             plate fitted to the grooves (:func:`~specholo.fabrication.plate.fit_plate`
             of their :func:`drawn_extent`).
+        width: the groove's width at the surface, mm, when it is not the round
+            model's (a drag tip's cone widens the groove past its round tip).
 
     Returns:
         Line count, path count and move lengths (mm) of the program.
@@ -703,6 +706,7 @@ def write_gcode(
     n_dots = int(np.sum(grooves.path_sizes == 1))
     mill = opt.mill
     depth = tool.depth if depth is None else float(depth)
+    width = tool.width if width is None else float(width)
     safe = machining.safe_z
     dec = opt.decimals
     scale = 10**dec * opt.per_mm  # written integers per mm
@@ -724,7 +728,7 @@ def write_gcode(
         head += [
             comment("origin: plate centre; X right, Y up, Z = 0 on the plate surface"),
             comment(f"tool: {(header or {}).get('cutter', 'ball end')}, round tip radius "
-                    f"{num(tool.radius)} {unit}, groove width {num(tool.width)} {unit}"),
+                    f"{num(tool.radius)} {unit}, groove width {num(width)} {unit}"),
             comment(f"depth: {num(depth)} {unit}"),
         ]
     else:
@@ -733,12 +737,12 @@ def write_gcode(
             comment(f"tool: laser, {opt.laser_on} S{_short_number(opt.laser_power)} while "
                     f"cutting, dots fire {_short_number(opt.dot_time)} s"),
             comment(f"depth: set by power and feed (design: {num(depth)} {unit}, "
-                    f"groove width {num(tool.width)} {unit})"),
+                    f"groove width {num(width)} {unit})"),
         ]
     head.append(comment(f"grooves: {n_paths}, dots: {n_dots}"))
     head += [comment(f"{k}: {v}") for k, v in (header or {}).items() if k != "cutter"]
     if plate is None:
-        plate = Plate.fitted(drawn_extent(grooves), tool.width)
+        plate = Plate.fitted(drawn_extent(grooves), width)
     head += [comment(text) for text in plate_lines(plate, opt)]
     setup_codes = ["G21" if opt.units == "mm" else "G20", "G90"]
     if mill:

@@ -123,7 +123,8 @@ def surface_width(radius: float, depth: float | np.ndarray) -> np.ndarray:
     return 2.0 * np.sqrt(np.maximum(radius * radius - (radius - d) ** 2, 0.0))
 
 
-def plan_layers(grooves: Grooves, tool: Tool, depths: np.ndarray | None = None) -> list[Layer]:
+def plan_layers(grooves: Grooves, tool: Tool, depths: np.ndarray | None = None,
+                cut: tuple[float, float] | None = None) -> list[Layer]:
     """Sort the paths into layers by kind (groove or dot) and depth class.
 
     Args:
@@ -132,6 +133,10 @@ def plan_layers(grooves: Grooves, tool: Tool, depths: np.ndarray | None = None) 
             ``depths`` is given.
         depths: optional (n,) depth of each path, mm, each in (0, tool radius].
             Depths equal to 1 um (the precision of the layer names) share a layer.
+        cut: (depth, width) mm of every groove as its tool cuts it, where the
+            tool is not the ball ``tool`` models (a drag tip's cone reaches past
+            its round tip): the layer's name and stroke width say the cut, not
+            the model.
 
     Returns:
         The non-empty layers, by number: grooves of each depth class from the
@@ -145,8 +150,10 @@ def plan_layers(grooves: Grooves, tool: Tool, depths: np.ndarray | None = None) 
     scale = 10**LAYER_DECIMALS
     if depths is None:
         # One depth class: no per-path depths to sort (38 million paths at 10^6 stipples).
-        return _layers(grooves, tool, np.rint([tool.depth * scale]).astype(np.int64),
-                       np.array([tool.depth]), np.zeros(n, dtype=np.int8))
+        depth, width = (tool.depth, None) if cut is None else cut
+        return _layers(grooves, tool, np.rint([depth * scale]).astype(np.int64),
+                       np.array([depth]), np.zeros(n, dtype=np.int8),
+                       None if width is None else np.array([width]))
     d = np.asarray(depths, dtype=float)
     if d.shape != (n,):
         raise SpecholoError(f"depths must hold one depth per path ({n}), got shape {d.shape}")
@@ -162,12 +169,14 @@ def plan_layers(grooves: Grooves, tool: Tool, depths: np.ndarray | None = None) 
 
 
 def _layers(grooves: Grooves, tool: Tool, keys: np.ndarray, mean: np.ndarray,
-            cls: np.ndarray) -> list[Layer]:
+            cls: np.ndarray, widths: np.ndarray | None = None) -> list[Layer]:
     """Layers of paths by kind and depth class: class c (of ``cls`` (n,)) has the
-    rounded depth keys[c] (um) and the mean depth mean[c] (mm)."""
+    rounded depth keys[c] (um), the mean depth mean[c] (mm) and the width
+    widths[c] (mm; default the ball's at that depth)."""
     scale = 10**LAYER_DECIMALS
     r = tool.radius
-    widths = surface_width(r, mean)
+    if widths is None:
+        widths = surface_width(r, mean)
     dot = grooves.is_dot
     radius = format_number(r, LAYER_DECIMALS)
     layers = []
@@ -361,7 +370,7 @@ def _plate_text(plate: Plate, number: int) -> bytes:
 
 def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
               margin: float = 5.0, depths: np.ndarray | None = None,
-              plate: Plate | None = None) -> None:
+              plate: Plate | None = None, cut: tuple[float, float] | None = None) -> None:
     """Write the grooves as an SVG drawing in mm, atomically, a chunk of paths at a time.
 
     Args:
@@ -374,6 +383,7 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
         plate: the plate, drawn in its own layer with its registration marks;
             default the plate fitted to the grooves
             (:func:`~specholo.fabrication.plate.fit_plate`).
+        cut: (depth, width) mm of the grooves as cut, as :func:`plan_layers`.
 
     Raises:
         SpecholoError: if the grooves hold an empty path or non-finite numbers,
@@ -383,7 +393,7 @@ def write_svg(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
     margin = float(margin)
     if not (math.isfinite(margin) and margin >= 0.0):
         raise SpecholoError(f"SVG margin must be a finite number >= 0 mm, got {margin}")
-    layers = plan_layers(grooves, tool, depths)
+    layers = plan_layers(grooves, tool, depths, cut)
     box = drawing_bounds(grooves)
     if box is None:
         box = np.zeros((2, 2))

@@ -33,15 +33,19 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
 
     lines: list[str] = []
     warnings: list[str] = []
-    lines.append(f"{d.config.method}: {len(d.points)} stipples, {d.grooves.n_paths} paths, "
-                 f"{d.grooves.total_length() / 1000:.2f} m of groove -> {out}")
+    lines.append(f"{d.config.method}: {len(d.points)} stipples cut as {d.grooves.n_paths:,} "
+                 f"strokes, {d.grooves.total_length() / 1000:.2f} m of groove -> {out}")
+    plate = getattr(written, "plate", None)
+    if plate is not None:
+        lines.append(plate_line(plate, d.config))
     if d.placement and "fallback" in d.placement:
         lines.append(f"placement: {d.placement['fallback']}; stripes placed by phase instead")
     if d.views is not None:
         lo, hi = (math.degrees(v) for v in d.views.needed)
-        lines.append(f"tool: {d.config.cutter().describe()}, {d.config.depth_mm:g} mm deep; "
-                     f"views need walls tilted {lo:.1f}-{hi:.1f} deg, groove offers up to "
-                     f"{math.degrees(d.views.offered.max_tilt):.1f} deg")
+        lines.append(f"tool: {d.config.cutter().describe()}, {d.config.depth_mm:g} mm deep, "
+                     f"grooves {d.views.offered.width:.3f} mm wide; to catch the light, the "
+                     f"groove walls must slope {lo:.1f}-{hi:.1f} deg from flat, and these "
+                     f"slope up to {math.degrees(d.views.offered.max_tilt):.1f} deg")
         if d.views.lost > 0:
             warnings.append(d.views.lost_views())
     if d.overlaps is not None:
@@ -75,10 +79,14 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
                         "fewer stipples (`--visibility 0.6` finds how many), a finer tip or a "
                         "larger model (check with `specholo verify --cut`)")
     mach = written.machining
-    travel = (f", air travel {mach['travel_mm'] / 1000:.1f} m (unordered "
-              f"{mach['travel_unordered_mm'] / 1000:.1f} m)" if "travel_mm" in mach else "")
-    lines.append(describe_machining(mach, d.config.feed)
-                 + f"; {mach['stipples_per_second']:.2f} stipples/s{travel}")
+    travel = (f"; between grooves the tool travels {mach['travel_mm'] / 1000:.1f} m in the "
+              f"air (ordered; {mach['travel_unordered_mm'] / 1000:.1f} m in design order)"
+              if "travel_mm" in mach else "")
+    if (out / "hologram.gcode").is_file() or not (out / "pattern.pdf").is_file():
+        lines.append(describe_machining(mach, d.config.feed) + "; "
+                     + stipple_rate(mach['stipples_per_second']) + travel)
+    if (out / "pattern.pdf").is_file():
+        lines.append(hand_line(d))
     if len(d.dropped):
         why = Counter(r.split(":")[0] for r in
                       drop_reasons(d.points, d.dropped, d.config.setup()).values())
@@ -89,8 +97,58 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
     elif d.coverage is not None:
         lines.append(f"hidden: {d.coverage.hidden} of {d.coverage.stipples} stipples are "
                      "hidden from every view (no groove)")
+    if getattr(d, "up_hint", ""):
+        warnings.append(d.up_hint)
     lines.append(next_steps(out))
     return Summary(lines, warnings)
+
+
+def plate_line(plate: Any, config: Any) -> str:
+    """The plate a maker prepares, in one line: its size, thickness and where it
+    came from, and the model's size where ``--fit`` chose it."""
+    thick = f", {plate.thickness:g} mm thick" if plate.thickness else ""
+    given = config.plate_width is not None or config.plate_height is not None
+    how = ("as given" if config.plate_width is not None and config.plate_height is not None
+           else "fitted to the grooves with a border" if not given
+           else "the given side, the other fitted to the grooves")
+    line = f"plate: {plate.width:.0f} x {plate.height:.0f} mm{thick} ({how})"
+    if config.fit:
+        line += f"; --fit sized the model {config.size:g} mm"
+        if config.size < 0.25 * min(plate.width, plate.height):
+            # What limits the size is the grooves' sideways spread, not the model.
+            line += (f" (a point {abs(config.center_z):g} mm behind the plate draws grooves "
+                     "spreading with the view range: a model nearer the plate, --center-z, "
+                     "fits larger)")
+    return line
+
+
+def hand_line(d: Any) -> str:
+    """The time to scribe a design by hand from its pattern, in one line."""
+    from specholo.fabrication.stroke_pattern import SECONDS_PER_STROKE
+    from specholo.fabrication.timing import plain_duration
+
+    strokes = int(d.grooves.n_paths - d.grooves.is_dot.sum())
+    line = (f"by hand: {strokes:,} strokes to scribe from pattern.pdf, about "
+            f"{plain_duration(strokes * SECONDS_PER_STROKE)} at {SECONDS_PER_STROKE:g} s a "
+            "stroke")
+    if d.config.method != "arc":
+        line += ("; a wider --band makes fewer, longer strokes, and --method arc one compass "
+                 "arc a stipple (right only near the straight-on view)")
+    return line
+
+
+def stipple_rate(per_second: float) -> str:
+    """The machining speed in stipples, as a maker reads it, beside the rate
+    Brand's paper reports for 90 degree holograms (about 4 stipples a second)."""
+    if not (math.isfinite(per_second) and per_second > 0):
+        return "no stipple is cut"
+    if per_second >= 1.0:
+        rate = f"{per_second:.1f} stipples a second"
+    elif per_second * 60 >= 1.0:
+        rate = f"{per_second * 60:.1f} stipples a minute"
+    else:
+        rate = f"{per_second * 3600:.0f} stipples an hour"
+    return f"{rate} (Brand's paper reports about 4 a second)"
 
 
 def next_steps(out: Path) -> str:
@@ -173,7 +231,7 @@ class FlatJob:
         loaded = self.load(folder)
         status("finding the glints of the preview's eyes...")
         return {"preview.png": lambda into: render_preview(
-            loaded.grooves, loaded.config.setup(), into / "preview.png")}
+            loaded.grooves, loaded.config.setup(), into / "preview.png", plate=loaded.plate)}
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.preview.chart import ChartDrawer
@@ -228,9 +286,16 @@ class FlatJob:
                                f"{r['max_error']:.3f}", f"{r['visibility']:.3f}",
                                f"{r['false_glints']:.3f}", *extra])
         name = loaded.config.method
-        lines = [f"worst p95 error {summary['worst_p95_error']:.3f} mm, "
+        # The design stated what shows as cut; these are the ideal grooves'
+        # figures, which no cut disturbs: each is named, so neither reads as the other.
+        lines = [f"ideal grooves (no cut removes a glint): worst p95 error "
+                 f"{summary['worst_p95_error']:.3f} mm, "
                  f"min visibility {summary['min_visibility']:.3f}, "
                  f"max false glints {summary['max_false_glints']:.3f}"]
+        if not cut:
+            estimate = _as_cut_estimate(folder)
+            if estimate:
+                lines.append(estimate)
         if cut:
             how = ("the glints no other groove's cut removes" if method == "survival"
                    else f"height field at {resolution:g} mm")
@@ -260,5 +325,22 @@ class FlatJob:
                                                       "verify.png": verify_png}
         if cut:
             files["verify_cut.json"] = verify_cut_json
-        return Verification(lines, Table(f"{name} design, {len(loaded.points)} stipples",
-                                         columns, table_rows), files)
+        title = f"ideal grooves: {name} design, {len(loaded.points)} stipples"
+        return Verification(lines, Table(title, columns, table_rows), files)
+
+
+def _as_cut_estimate(folder: Path) -> str:
+    """The design's as-cut stereo visibility from its hologram.json, in words
+    ('' where the design made none: a large design, or an older folder)."""
+    from specholo.pipeline import design_json
+
+    got = design_json(folder).get("expected", {})
+    vis = got.get("as_cut_stereo_visibility") if isinstance(got, dict) else None
+    if not isinstance(vis, dict):
+        return ""
+    try:
+        mean, low, at = (float(vis[k]) for k in ("mean", "lowest", "lowest_azimuth_deg"))
+    except (KeyError, TypeError, ValueError):
+        return ""
+    return (f"as cut (the design's estimate; --cut simulates hologram.gcode): about "
+            f"{mean:.0%} of the stipples show in both eyes, lowest {low:.0%} at {at:+.0f} deg")

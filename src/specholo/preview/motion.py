@@ -67,7 +67,7 @@ def _render_all(loaded: Any, cameras: Sequence[Camera], lights: Sequence[Light],
 
     def one(k: int) -> np.ndarray:
         return render_still(loaded.grooves, setup, cameras[k], light=lights[k], engraved=eng,
-                            **still)
+                            plate=getattr(loaded, "plate", None), **still)
 
     frames: list[np.ndarray] = []
     # numpy releases the GIL in its loops, so a few threads render frames side by side.
@@ -119,7 +119,7 @@ def turntable(loaded: Any, frames: int, size: tuple[int, int] = (512, 512),
     az = sweep(-r, r, frames, loop)
     width, height = size
     base = design_camera(setup, loaded.grooves, 0.0, 0.0, distance, None, width, height,
-                         frame_azimuths=(-r, r))
+                         frame_azimuths=(-r, r), plate=getattr(loaded, "plate", None))
     cameras = [Camera(float(a), 0.0, base.distance, base.fov, width, height, base.eye_height)
                for a in az]
     return _render_all(loaded, cameras, [setup.light] * frames, progress,
@@ -160,7 +160,8 @@ def light_sweep(loaded: Any, frames: int, size: tuple[int, int] = (512, 512),
     elev = sweep(a0 - span, a0 + span, frames, loop)
     lights = [Light(float(a), setup.light.distance) for a in elev]
     width, height = size
-    cam = design_camera(setup, loaded.grooves, azimuth, 0.0, None, None, width, height)
+    cam = design_camera(setup, loaded.grooves, azimuth, 0.0, None, None, width, height,
+                        plate=getattr(loaded, "plate", None))
     return _render_all(loaded, [cam] * frames, lights, progress,
                        workers or os.cpu_count() or 1, roughness=roughness,
                        grooves_overlay=grooves_overlay, ghost=_ghost(loaded, ghost))

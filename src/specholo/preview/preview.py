@@ -37,7 +37,8 @@ def project(points: np.ndarray, eye: np.ndarray) -> np.ndarray:
 
 
 def render_preview(grooves: Grooves, setup: Setup, path: str | os.PathLike[str],
-                   azimuths_deg: tuple[float, ...] = (-30.0, 0.0, 30.0)) -> None:
+                   azimuths_deg: tuple[float, ...] = (-30.0, 0.0, 30.0),
+                   plate: np.ndarray | None = None) -> None:
     """Write a PNG of the glints one eye sees from a few azimuths on the arc.
 
     Args:
@@ -45,13 +46,15 @@ def render_preview(grooves: Grooves, setup: Setup, path: str | os.PathLike[str],
         setup: light, viewer and tool.
         path: PNG file to write (atomically).
         azimuths_deg: eye azimuths, clipped to the view range.
+        plate: (2, 2) the plate's corners, mm, outlined and framed (so an offset
+            or a plate larger than the grooves shows); default the grooves' extent.
     """
     limit = math.degrees(setup.viewer.half_range)
     az = sorted({max(-limit, min(limit, a)) for a in azimuths_deg})
     eyes = setup.viewer.eye(np.radians(az))
     # A large design is searched a run of paths at a time, each run for every eye.
     seen = glints_seen(grooves, setup.tool, eyes, setup.light)
-    lo, hi = grooves.bounds()
+    lo, hi = grooves.bounds() if plate is None else np.asarray(plate, dtype=float)
     _draw_views(az, eyes, list(seen), lo, hi, path)
 
 

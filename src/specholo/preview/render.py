@@ -227,7 +227,8 @@ def fit_fov(points: np.ndarray, cameras: Sequence[Camera], fill: float = 0.92) -
 
 def design_camera(setup: Setup, grooves: Grooves, azimuth: float = 0.0, elevation: float = 0.0,
                   distance: float | None = None, fov: float | None = None, width: int = 1024,
-                  height: int = 1024, frame_azimuths: Sequence[float] = ()) -> Camera:
+                  height: int = 1024, frame_azimuths: Sequence[float] = (),
+                  plate: np.ndarray | None = None) -> Camera:
     """A camera for a design, by default where the design's eyes are.
 
     Args:
@@ -242,8 +243,11 @@ def design_camera(setup: Setup, grooves: Grooves, azimuth: float = 0.0, elevatio
         height: pixels.
         frame_azimuths: further azimuths (radians) the default fov must also frame,
             so every frame of an animation shares one fov.
+        plate: (2, 2) the plate's corners, mm, that the default fov frames;
+            default the grooves' extent with a margin (:func:`plate_bounds`).
     """
-    return plate_camera(setup, plate_bounds(grooves), azimuth, elevation, distance, fov,
+    bounds = plate_bounds(grooves) if plate is None else np.asarray(plate, dtype=float)
+    return plate_camera(setup, bounds, azimuth, elevation, distance, fov,
                         width, height, frame_azimuths)
 
 
@@ -453,7 +457,8 @@ def glints_seen(grooves: Grooves, tool: Tool, eyes: np.ndarray, light: Light) ->
 def render_still(grooves: Grooves, setup: Setup, camera: Camera,
                  roughness: float = REFERENCE_ROUGHNESS, grooves_overlay: bool = False,
                  ghost: Any = None, light: Light | None = None,
-                 engraved: Engraved | None = None, bloom: float = 0.006) -> np.ndarray:
+                 engraved: Engraved | None = None, bloom: float = 0.006,
+                 plate: np.ndarray | None = None) -> np.ndarray:
     """Render what the camera sees of the lit plate.
 
     Args:
@@ -468,6 +473,8 @@ def render_still(grooves: Grooves, setup: Setup, camera: Camera,
         engraved: prepared grooves (``Engraved.from_grooves``), reused across frames.
         bloom: peak of a faint halo, five spot widths wide, around each glint, as a
             fraction of the spot's peak (0 for none).
+        plate: (2, 2) the plate's corners to draw, mm; default the grooves'
+            extent with a margin (:func:`plate_bounds`).
 
     Returns:
         (H, W, 3) uint8 RGB image.
@@ -490,7 +497,8 @@ def render_still(grooves: Grooves, setup: Setup, camera: Camera,
         assert eng is not None  # an overlay is never chunked
         return _groove_layer(camera, eng)
 
-    return draw_glints(camera, plate_bounds(grooves), light, glints, roughness, ghost, bloom,
+    bounds = plate_bounds(grooves) if plate is None else np.asarray(plate, dtype=float)
+    return draw_glints(camera, bounds, light, glints, roughness, ghost, bloom,
                        overlay if grooves_overlay else None)
 
 

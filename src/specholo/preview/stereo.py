@@ -23,7 +23,8 @@ MODES = ("parallel", "cross", "anaglyph")
 
 
 def head_camera(setup: Setup, grooves: Grooves, azimuth: float = 0.0, width: int = 768,
-                height: int = 768, fov: float | None = None) -> Camera:
+                height: int = 768, fov: float | None = None,
+                plate: np.ndarray | None = None) -> Camera:
     """The head of a viewer on the design's arc (radius ``viewer.distance``).
 
     The default fov frames the plate for both eyes of that head.
@@ -35,11 +36,12 @@ def head_camera(setup: Setup, grooves: Grooves, azimuth: float = 0.0, width: int
         width: pixels per eye.
         height: pixels.
         fov: vertical field of view, radians; default frames the plate.
+        plate: (2, 2) the plate's corners, mm; default the grooves' extent.
     """
     v = setup.viewer
     half = v.eye_half_angle
     return design_camera(setup, grooves, azimuth, 0.0, v.distance, fov, width, height,
-                         frame_azimuths=(azimuth - half, azimuth + half))
+                         frame_azimuths=(azimuth - half, azimuth + half), plate=plate)
 
 
 def stereo_cameras(head: Camera, ipd: float) -> tuple[Camera, Camera]:

@@ -119,3 +119,58 @@ def split_pose(values: Mapping[str, Any]) -> tuple[Pose, dict[str, Any]]:
     and the other settings; settings given as None are left out (their defaults)."""
     given = {k: v for k, v in values.items() if v is not None}
     return Pose.from_options(**{k: given.pop(k) for k in POSE_OPTIONS if k in given}), given
+
+
+#: A flat base: faces within this angle of an axis, at the model's extreme along
+#: it (within :data:`BASE_BAND` of its size), holding at least :data:`BASE_SHARE`
+#: of the area and :data:`BASE_LEAD` times more than any other axis's base.
+BASE_ANGLE = math.radians(10.0)
+BASE_BAND = 0.02
+BASE_SHARE = 0.02
+BASE_LEAD = 1.5
+
+
+def standing_up(vertices: np.ndarray, faces: np.ndarray) -> str | None:
+    """Which way is up for a mesh that stands on a flat base (a key of
+    :data:`UP_AXES`: ``"z"`` for a base at the lowest z facing -z, as CAD and
+    slicer files place a part on the bed), or None where no base stands out.
+
+    Args:
+        vertices: (n, 3) vertex positions.
+        faces: (m, 3) vertex indices of the triangles.
+    """
+    v = np.asarray(vertices, dtype=float)
+    f = np.asarray(faces, dtype=np.int64)
+    if len(v) < 3 or len(f) == 0:
+        return None
+    tri = v[f]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = np.linalg.norm(cross, axis=1)  # twice each triangle's area
+    total = float(area.sum())
+    if not total > 0:
+        return None
+    unit = cross / np.maximum(area, 1e-300)[:, None]
+    centre = tri.mean(axis=1)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    band = BASE_BAND * float((hi - lo).max())
+    share: dict[str, float] = {}
+    for axis, name in enumerate("xyz"):
+        for sign, end in ((1.0, lo[axis]), (-1.0, hi[axis])):
+            # A base at the low end faces -axis, and the model's up is +axis.
+            base = (sign * -unit[:, axis] > math.cos(BASE_ANGLE)) & (
+                np.abs(centre[:, axis] - end) < band)
+            share[("" if sign > 0 else "-") + name] = float(area[base].sum()) / total
+    best = max(share, key=lambda k: share[k])
+    rival = max(s for k, s in share.items() if k.strip("-") != best.strip("-"))
+    if share[best] < BASE_SHARE or share[best] < BASE_LEAD * rival:
+        return None
+    return best
+
+
+def axis_name(vector: np.ndarray) -> str | None:
+    """The key of :data:`UP_AXES` of a unit vector along an axis, else None."""
+    v = np.asarray(vector, dtype=float)
+    k = int(np.argmax(np.abs(v)))
+    if abs(abs(v[k]) - 1.0) > 1e-9:
+        return None
+    return ("" if v[k] > 0 else "-") + "xyz"[k]
