@@ -364,7 +364,9 @@ def _random_program(rng: np.random.Generator, lines: int) -> str:
            "G21", "G0 Z1", "G1 Z-0.05 F100", "(nested (comment))", "(unclosed", "G1 X1 (c)",
            "g1 x2 y3", "G1 X 2", "/G1 X3 Y3", "%", "G4 P0.5", "G2 X1 Y1 R5", "G1 I1 J1",
            "G10", "G1.5 X1", "G1 Y1 X2", "G1 X1 X2", "G1 X1 ; note", "M2", "G1 F-5 X1",
-           "G3 X\u00e91 Y0", "G1 X1e3", "G1\tX1\tY2", "G00 X1", "G001 Y2", "G03 X1 Y1 I1 J0"]
+           "G3 X\u00e91 Y0", "G1 X1e3", "G1\tX1\tY2", "G00 X1", "G001 Y2", "G03 X1 Y1 I1 J0",
+           "G2 X1 Y1 I1 J0 P2", "G3 X2 Y0 I1 J0 P1.5 F200", "G2 X0 Y0 I3 J0 P3", "X1 Y2 I1 P2",
+           "(" + "long " * 60 + ")", "G1 X1 Y1 F200 (" + "a" * 300 + ")"]
     out = []
     for _ in range(lines):
         u = rng.random()

@@ -325,7 +325,8 @@ def _low_hop(p: Program, i: int, share: float, dip: bool) -> tuple[list[str], st
 
 def _bad_feed(p: Program, i: int, how: str, factor: float) -> tuple[list[str], str]:
     lo, hi = p.limits.feed_range
-    value = {"zero": "0", "absurd": "1" + "0" * 300,
+    # absurd, yet short enough a line for a controller to read (see MAX_LINE)
+    value = {"zero": "0", "absurd": "1" + "0" * 150,
              "fast": _number(hi * factor * p.per_mm),
              "slow": _number(lo / factor * p.per_mm)}[how]
     lines = list(p.lines)

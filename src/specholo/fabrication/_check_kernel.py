@@ -10,7 +10,8 @@ of its regular expression (words X Y Z I J F in that order, numbers of at
 most 15 digits with at most 22 after the point, which divide exactly as
 ``float`` rounds them), in absolute coordinates before the program end, with
 no I/J on a G0/G1 move; or a line of whitespace and closed comments only.
-Anything else, however harmless, is left to the reader.
+Anything else, however harmless, is left to the reader: a ``P`` word (an arc's
+number of turns) in particular, so every arc taken here runs once round at most.
 """
 
 from __future__ import annotations
@@ -24,9 +25,10 @@ from specholo._compiling import kernel
 #: The modal state's slots: position (mm, NaN while unknown), feed (mm/min,
 #: NaN until given), mm per programmed unit, motion mode (-1 for none).
 X, Y, Z, FEED, FACTOR, MOTION = range(6)
-#: Columns of a move row, as the reader writes them (the last, set to 0 here,
-#: marks a move that turns a rotary axis: plain lines have no A word).
-ROW = 13
+#: Columns of a move row, as the reader writes them (the last two, set to 0
+#: here, mark a move that turns a rotary axis and count an arc's extra whole
+#: turns: plain lines have no A or P word).
+ROW = 14
 _TENS = np.array([10.0**k for k in range(23)])
 #: Each byte's place among the words X Y Z I J F, -1 for any other byte.
 _WORD_OF = np.full(256, -1, dtype=np.int64)
@@ -185,7 +187,8 @@ def plain_lines(buf: np.ndarray, starts: np.ndarray, stops: np.ndarray, first: i
             cy = sy + (0.0 if math.isnan(words[4]) else words[4]) * factor
         r = out[row]
         r[0], r[1], r[2], r[3], r[4], r[5], r[6] = number + (i - first), motion, sx, sy, sz, ex, ey
-        r[7], r[8], r[9], r[10], r[11], r[12] = ez, cx, cy, state[FEED], tool_on, 0.0
+        r[7], r[8], r[9], r[10], r[11] = ez, cx, cy, state[FEED], tool_on
+        r[12] = r[13] = 0.0
         row += 1
         state[X], state[Y], state[Z] = ex, ey, ez
         i += 1

@@ -2,11 +2,18 @@
 
 This is a small modal interpreter of its own, sharing no code with the writer
 or reader in :mod:`specholo.fabrication.gcode`, so a mistake there is not
-repeated here. It reads ``G0 G1 G2 G3`` (arcs by ``I J`` or ``R``), ``G4 G17
-G20 G21 G90 G91 G94``, the harmless ``G40 G49 G54 G61 G64 G80 G91.1``,
-``M2 M3 M4 M5 M30`` (and coolant ``M7 M8 M9``, pauses ``M0 M1``), ``F S P N``
-words and comments in parentheses or after ``;``, and, for a rotary axis, ``A``
-(degrees). Anything else is reported, since its effect is not modelled.
+repeated here. It reads ``G0 G1 G2 G3`` (arcs by ``I J`` or ``R``, and their
+``P`` as LinuxCNC runs it: ``Pn`` turns n - 1 whole circles before the arc's
+end), ``G4 G17 G20 G21 G90 G91 G94``, the harmless ``G40 G49 G54 G61 G64 G80
+G91.1``, ``M2 M3 M4 M5 M30`` (and coolant ``M7 M8 M9``, pauses ``M0 M1``),
+``F S P N`` words and comments in parentheses or after ``;``, and, for a rotary
+axis, ``A`` (degrees). Anything else is reported, since its effect is not
+modelled: on an arc a ``P`` that is no whole number of turns of 1 or more
+(LinuxCNC reads one within 0.001 of a whole number as that number), a ``P``
+that no dwell, G64 or arc reads, and a line longer than :data:`MAX_LINE`
+characters, which LinuxCNC's ``rs274`` refuses. Such a line is never held
+whole (a file of one endless line is read in bounded memory), and a file
+holding a NUL byte is refused outright, as no text.
 
 The limits (:class:`Limits`) come from the job's settings, never from the
 program. Three kinds of tool are told apart: a mill (ball, V-bit) cuts only
@@ -15,17 +22,22 @@ wherever it is on and never goes below the surface. It reports, line by line:
 
 - a cut (a feed move that reaches below the surface, or any move with the
   laser on) leaving the stock rectangle, arcs over their whole extent, not
-  only their end points (tool centre positions: shrink the stock by the tool
-  radius to keep the groove walls inside);
+  only their end points, and over their whole circle where they turn more than
+  once (tool centre positions: shrink the stock by the tool radius to keep the
+  groove walls inside);
 - a cut deeper than ``max_depth`` (or the stock thickness) below the surface,
   whatever the tool; on a laser, any move below the surface;
 - a rapid (``G0``) moving in X or Y (or turning the rotary axis) below the
   safe height, or plunging below it (on a laser: a rapid with the laser on);
 - where the job hops between grooves (``Limits.hop_max``): a feed move in X or
   Y above the surface and below the safe height (a hop) longer than
-  ``hop_max``, lower than ``hop`` above the surface, or leaving the stock
-  rectangle. Such a move is not a cut, so nothing else bounds it: unchecked, a
-  "hop" could be a long traverse a hair above the plate and over its clamps;
+  ``hop_max`` (along an arc and its turns), lower than ``hop`` above the
+  surface, or leaving the stock rectangle; and the hops in a row between one
+  cut and the next (or a rise to the safe height), an air path, longer than
+  ``hop_max`` together, flagged at the hop where their sum passes it. Such a
+  move is not a cut, so nothing else bounds it: unchecked, a "hop" could be a
+  long traverse a hair above the plate and over its clamps, in one move or in
+  many short ones;
 - where the job cuts at one depth (``Limits.groove_depth``, a flat plate's
   grooves): a cut in X or Y at any other depth, as a hop dipping below the
   surface between two grooves would be;
@@ -43,21 +55,26 @@ reported.
 
 Positions, units (G20 converts to mm, feeds too) and modes are followed line by
 line; the moves are recorded in a table and checked together with numpy, a
-block of lines at a time. Plain motion lines and comments, nearly all of a
-large program, are read by a compiled reader of their own (:mod:`._check_kernel`),
-the rest in Python. Numbers are compared with a small allowance for the written rounding
-(``tolerance`` on positions, 10 ppm on rates).
+block of lines at a time, each move on its own; only the air paths' lengths
+run on from move to move, summed in program order as the blocks are done.
+Plain motion lines and comments, nearly all of a large program, are read by a
+compiled reader of their own (:mod:`._check_kernel`), the rest in Python. A
+report quotes at most 60 characters of a line. Numbers are compared with a
+small allowance for the written rounding (``tolerance`` on positions, 10 ppm
+on rates).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import re
 from array import array
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import TextIO
 
 import numpy as np
 
@@ -154,8 +171,9 @@ class Limits:
         rotary: the program may turn a rotary axis (``A`` words).
         tolerance: rounding allowance on positions, mm.
         hop_max: longest feed move in X/Y above the surface and below the safe
-            height, mm, measured along it (0: none may run there); None leaves
-            such moves unchecked.
+            height, mm, measured along it (0: none may run there), and longest
+            run of such moves between two cuts, summed; None leaves such moves
+            unchecked.
         hop: lowest height above the surface of those moves, mm.
         groove_depth: the one depth below the surface (mm) of every cut moving
             in X/Y, or None for cuts at any depth down to ``max_depth``.
@@ -235,7 +253,7 @@ class Violation:
 
     Attributes:
         line: 1-based line number.
-        text: the line as written (stripped).
+        text: the line as written (stripped), its first 60 characters at most.
         what: what is wrong, one line.
     """
 
@@ -312,8 +330,9 @@ def _strip_comments(raw: str) -> tuple[str, str | None]:
 
 
 # Columns of the move table filled by the reader and checked at the end; _TURN
-# marks a move that turns the rotary axis.
-_LINE, _KIND, _X0, _Y0, _Z0, _X1, _Y1, _Z1, _CX, _CY, _FEED, _ON, _TURN = range(13)
+# marks a move that turns the rotary axis, _TURNS counts the whole circles an
+# arc runs before its end (its P word less one, LinuxCNC's meaning).
+_LINE, _KIND, _X0, _Y0, _Z0, _X1, _Y1, _Z1, _CX, _CY, _FEED, _ON, _TURN, _TURNS = range(14)
 _COLS = _check_kernel.ROW
 
 
@@ -416,6 +435,10 @@ class _Reader:
             if m not in (2, 3, 4, 5, 30) and m not in _HARMLESS_M:
                 self.flag(f"unsupported M{m}")
                 return
+        if dwell and motion in (2, 3):
+            # LinuxCNC refuses the line: P would be both the dwell and the turns
+            self.flag(f"G4 and G{motion} on one line: both read P")
+            return
         # F is read in the units the line sets (as GRBL does), and kept in mm/min
         self.factor = units
         if "F" in values:
@@ -436,7 +459,9 @@ class _Reader:
                 self.spindle_on = False
         if dwell:
             self.dwell(values)
-        self.move(motion, values)
+        # P is a dwell's time, G64's tolerance, or else an arc's number of turns
+        turns = None if dwell or 640 in g_codes else values.get("P")
+        self.move(motion, values, turns)
         if any(m in (2, 30) for m in m_codes):
             self.ended = True
             self.spindle_on = False
@@ -461,12 +486,17 @@ class _Reader:
             if not (s.x0 - t <= x <= s.x1 + t and s.y0 - t <= y <= s.y1 + t):
                 self.flag(_outside(s, x, y, x, y))
 
-    def move(self, motion: int | None, values: dict[str, float]) -> None:
+    def move(self, motion: int | None, values: dict[str, float],
+             turns: float | None = None) -> None:
+        """Record the line's move, if any; ``turns`` is its P word where no
+        dwell or G64 reads it (None without one)."""
         has_axes = "X" in values or "Y" in values or "Z" in values or "A" in values
         has_arc = "I" in values or "J" in values or "R" in values
         if motion is not None:
             self.motion = motion
         if not has_axes and not has_arc:
+            if turns is not None:
+                self.flag("P word with no dwell or arc to read it")
             return
         kind = self.motion
         if kind is None:
@@ -477,6 +507,20 @@ class _Reader:
         if has_arc and kind < 2:
             self.flag(f"I/J/R words in a G{kind} move")
             return
+        extra = 0.0
+        if turns is not None:
+            if kind < 2:
+                self.flag(f"P word in a G{kind} move")
+                return
+            whole = round(turns)
+            # LinuxCNC reads P within 0.001 of a whole number as that number
+            if abs(turns - whole) > 1e-3:
+                self.flag(f"arc with P{turns:g}: not a whole number of turns")
+                return
+            if whole < 1:
+                self.flag(f"arc with P{turns:g}: fewer than one turn")
+                return
+            extra = float(whole - 1)
         start = self.pos
         end = list(start)
         for k, axis in enumerate("XYZ"):
@@ -501,7 +545,7 @@ class _Reader:
                 return
             cx, cy = centre
         self.moves.extend((self.number, kind, *start, *end, cx, cy, self.feed,
-                           1.0 if self.tool_on else 0.0, turned))
+                           1.0 if self.tool_on else 0.0, turned, extra))
         self.pos = end
         self.angle = angle
 
@@ -538,11 +582,12 @@ def _outside(s: Stock, x0: float, y0: float, x1: float, y1: float) -> str:
 
 
 def _arc_bounds(m: np.ndarray) -> tuple[np.ndarray, ...]:
-    """XY bounds x0, y0, x1, y1 (k,) of the arcs in move rows m (k, 12), their start
-    radius (k,) and how far their end is off it (k,).
+    """XY bounds x0, y0, x1, y1 (k,) of the arcs in move rows m (k, _COLS), their
+    start radius (k,) and how far their end is off it (k,).
 
     The bounds take the ends and every axis extreme (0, 90, 180, 270 degrees
-    about the centre) the arc sweeps over; the radius is the larger of start and end.
+    about the centre) the arc sweeps over, all four for an arc that turns a
+    whole circle or more; the radius is the larger of start and end.
     """
     m = np.ascontiguousarray(m, dtype=float)
     out = np.empty((6, len(m)))
@@ -564,7 +609,7 @@ def _arc_bounds_rows(first: int, stop: int, m: np.ndarray, out: np.ndarray) -> N
         a0 = math.atan2(sy - cy, sx - cx)
         turn = math.atan2(ey - cy, ex - cx) - a0
         ccw = m[i, _KIND] == 3
-        if sx == ex and sy == ey:
+        if (sx == ex and sy == ey) or m[i, _TURNS] > 0:
             sweep = two_pi if ccw else -two_pi
         else:
             sweep = np.mod(turn, two_pi) if ccw else -np.mod(-turn, two_pi)
@@ -583,13 +628,15 @@ def _arc_bounds_rows(first: int, stop: int, m: np.ndarray, out: np.ndarray) -> N
 
 
 def _arc_middles(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The XY point (k,), (k,) halfway along each arc of move rows m (k, _COLS)."""
+    """The XY point (k,), (k,) halfway along each arc of move rows m (k, _COLS),
+    its whole turns (P) included."""
     sx, sy, ex, ey, cx, cy = (m[:, c] for c in (_X0, _Y0, _X1, _Y1, _CX, _CY))
     a0 = np.arctan2(sy - cy, sx - cx)
     turn = np.arctan2(ey - cy, ex - cx) - a0
     ccw = m[:, _KIND] == 3
     sweep = np.where(ccw, np.mod(turn, 2.0 * math.pi), -np.mod(-turn, 2.0 * math.pi))
     sweep = np.where((sx == ex) & (sy == ey), np.where(ccw, 2.0, -2.0) * math.pi, sweep)
+    sweep += np.where(ccw, 2.0, -2.0) * math.pi * m[:, _TURNS]
     r = np.hypot(sx - cx, sy - cy)
     half = a0 + 0.5 * sweep
     return cx + r * np.cos(half), cy + r * np.sin(half)
@@ -619,12 +666,31 @@ def _above_surface(m: np.ndarray, surface: Callable[[np.ndarray, np.ndarray], np
     return above, off
 
 
+@dataclass
+class _Air:
+    """The moves of some rows of the move table that make or end air paths
+    (see :class:`_AirPaths`), in order.
+
+    Attributes:
+        line: (k,) each move's line number.
+        length: (k,) the XY length of each hop, mm (0 for a move that is none).
+        ends: (k,) the move ends the air path it is in: a cut, or a move up to
+            the safe height.
+    """
+
+    line: np.ndarray
+    length: np.ndarray
+    ends: np.ndarray
+
+
 def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
-                 floor: float) -> tuple[int, float]:
-    """Flag the moves (rows of the move table) that break a limit.
+                 floor: float) -> tuple[int, float, _Air | None]:
+    """Flag the moves (rows of the move table) that break a limit, each on its own.
 
     Returns:
-        The number of cuts, and the deepest cut below the surface (mm, 0 if none).
+        The number of cuts, the deepest cut below the surface (mm, 0 if none),
+        and where hops are bounded, the rows' hops and path ends, for
+        :class:`_AirPaths` to sum in program order (None where they are not).
     """
     kind = m[:, _KIND]
     line = m[:, _LINE].astype(np.int64)
@@ -722,22 +788,31 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
         out = cut & ((bx0 < s.x0 - tol) | (by0 < s.y0 - tol) | (bx1 > s.x1 + tol)
                      | (by1 > s.y1 + tol))
         each(out, lambda i: _outside(s, bx0[i], by0[i], bx1[i], by1[i]))
+        air = None
         if not laser and lim.hop_max is not None:
-            _check_hops(m, each, lim, fed & moves_xy & known & (above >= 0.0)
-                        & (low < safe_z - tol) & ~off_circle, above, (bx0, by0, bx1, by1))
+            hop = fed & moves_xy & known & (above >= 0.0) & (low < safe_z - tol) & ~off_circle
+            length = _check_hops(m, each, lim, hop, above, (bx0, by0, bx1, by1))
+            # a cut, or a rise to the safe height, ends the way through the air
+            ends = cut | (z1 >= safe_z - tol)
+            rows = np.flatnonzero(hop | ends)
+            air = _Air(line[rows], np.where(hop, length, 0.0)[rows], ends[rows])
         deepest = 0.0
         if not laser and cut.any():
             deepest = max(deepest, -float(np.nanmin(np.where(cut, above, np.inf))))
-    return int(cut.sum()), deepest
+    return int(cut.sum()), deepest, air
 
 
 def _check_hops(m: np.ndarray, each: Callable[[np.ndarray, Callable[[int], str]], None],
                 lim: Limits, hop: np.ndarray, above: np.ndarray,
-                bounds: tuple[np.ndarray, ...]) -> None:
+                bounds: tuple[np.ndarray, ...]) -> np.ndarray:
     """Flag the hops (rows ``hop`` (n,) of the move table m: feed moves in X/Y
-    between the surface and the safe height) that are too long, too low or off
-    the stock; ``above`` (n,) is each move's least height over the surface, mm,
-    ``bounds`` its XY extent (x0, y0, x1, y1), each (n,)."""
+    between the surface and the safe height) that are, each on its own, too
+    long, too low or off the stock; ``above`` (n,) is each move's least height
+    over the surface, mm, ``bounds`` its XY extent (x0, y0, x1, y1), each (n,).
+
+    Returns:
+        (n,) each move's XY length along its path, mm.
+    """
     tol, most, least = lim.tolerance, float(lim.hop_max or 0.0), lim.hop
     length = np.hypot(m[:, _X1] - m[:, _X0], m[:, _Y1] - m[:, _Y0])
     arcs = np.flatnonzero(hop & (m[:, _KIND] >= 2))
@@ -755,27 +830,133 @@ def _check_hops(m: np.ndarray, each: Callable[[np.ndarray, Callable[[int], str]]
     each(out, lambda i: f"hop leaves the stock: X {x0[i]:.5f}..{x1[i]:.5f}, "
                         f"Y {y0[i]:.5f}..{y1[i]:.5f} outside X {s.x0:g}..{s.x1:g}, "
                         f"Y {s.y0:g}..{s.y1:g}")
+    return length
+
+
+class _AirPaths:
+    """The way the tool travels through the air between two cuts, summed over
+    blocks of moves in program order.
+
+    ``Limits.hop_max`` bounds a hop, and many short hops in a row travel as
+    far as one long one (a drag over the plate written in 3 mm steps): the
+    hops between one cut and the next, or a rise to the safe height, are an
+    air path, and its XY length is bounded the same. The path is flagged once,
+    at the move where its length first passes the bound, unless that move is
+    itself longer and flagged on its own. Blocks of moves may split a path
+    anywhere: its length so far is carried from one to the next.
+    """
+
+    def __init__(self, limits: Limits, flag: Callable[[int, str], None]) -> None:
+        self.most = float(limits.hop_max or 0.0)
+        self.tol = limits.tolerance
+        self.safe_z = limits.safe_z
+        self.flag = flag
+        self.length = 0.0  # of the path the last block left open, mm
+        self.hops = 0  # its hops
+        self.flagged = False  # it was already found too long
+
+    def add(self, air: _Air) -> None:
+        """Sum the next rows of the program's air paths and flag those too long."""
+        k = len(air.line)
+        if not k:
+            return
+        length = air.length
+        hop = length > 0.0
+        # path of each row: 0 the one carried in, each end opens the next
+        starts = np.zeros(k, dtype=bool)
+        starts[1:] = air.ends[:-1]
+        path = np.cumsum(starts)
+        total, count = np.cumsum(length), np.cumsum(hop)
+        first = np.flatnonzero(starts)
+        # the sums before each path's first row, so a row's sum is a difference
+        before = np.concatenate([[-self.length], total[first - 1]])
+        hops_before = np.concatenate([[-self.hops], count[first - 1]])
+        run, runs = total - before[path], count - hops_before[path]
+        over = np.flatnonzero(hop & (run > self.most + self.tol))
+        paths, at = np.unique(path[over], return_index=True)
+        for p, i in zip(paths, over[at], strict=True):
+            if (p == 0 and self.flagged) or length[i] > self.most + self.tol:
+                continue
+            self.flag(int(air.line[i]),
+                      f"{int(runs[i])} hops in a row, {run[i]:.5f} mm in X/Y in all between "
+                      f"the surface and the safe height {self.safe_z:g} (no cut or rise to it "
+                      f"between): longer than the longest hop {self.most:g} mm")
+        if air.ends[-1]:
+            self.length, self.hops, self.flagged = 0.0, 0, False
+        else:
+            last = int(path[-1])
+            self.length, self.hops = float(run[-1]), int(runs[-1])
+            self.flagged = (self.flagged and last == 0) or (len(paths) > 0 and paths[-1] == last)
 
 
 def _arc_lengths(m: np.ndarray) -> np.ndarray:
-    """XY length (k,) of each arc of move rows m (k, _COLS), along its sweep."""
+    """XY length (k,) of each arc of move rows m (k, _COLS), along its sweep and
+    its whole turns (P)."""
     sx, sy, ex, ey, cx, cy = (m[:, c] for c in (_X0, _Y0, _X1, _Y1, _CX, _CY))
     a0 = np.arctan2(sy - cy, sx - cx)
     turn = np.arctan2(ey - cy, ex - cx) - a0
     ccw = m[:, _KIND] == 3
     sweep = np.where(ccw, np.mod(turn, 2.0 * math.pi), np.mod(-turn, 2.0 * math.pi))
     sweep = np.where((sx == ex) & (sy == ey), 2.0 * math.pi, sweep)  # a full circle
-    return np.hypot(sx - cx, sy - cy) * sweep
+    return np.hypot(sx - cx, sy - cy) * (sweep + 2.0 * math.pi * m[:, _TURNS])
 
 
 #: Program bytes read at a time, and most lines whose moves are checked together:
 #: the check's memory stays bounded however long the program.
 _READ_BYTES = 1 << 25
 _BLOCK_LINES = 1 << 20
+#: Longest line read, characters without its line end: LinuxCNC's rs274 refuses
+#: a longer one ("Command too long"; its buffer of 255 bytes holds the line end
+#: and a NUL too). A longer line is flagged and not read, and never held whole.
+MAX_LINE = 252
+_TOO_LONG = f"line longer than {MAX_LINE} characters (LinuxCNC reads no more): not read"
+#: Most characters of a line a report quotes.
+_QUOTED = 60
 
 
 class _LoneReturn(Exception):
     """The program ends a line with a carriage return alone."""
+
+
+class _Binary(Exception):
+    """The program holds a NUL byte (on line ``args[0]``): not text at all."""
+
+
+def _quote(text: str) -> str:
+    """A line as a report quotes it: stripped, printable, at most _QUOTED characters."""
+    text = "".join(c if c.isprintable() else "?" for c in text.strip()[:_QUOTED + 1])
+    return text if len(text) <= _QUOTED else text[:_QUOTED - 3] + "..."
+
+
+def _text_lines(fh: TextIO) -> Iterator[tuple[str, bool]]:
+    """Each line of a text file, its line end kept, and whether it is longer
+    than :data:`MAX_LINE`; of a longer line only its first MAX_LINE + 2
+    characters are kept, the rest read a little at a time and dropped.
+
+    Raises:
+        _Binary: at a line that holds a NUL.
+    """
+    number = 0
+    while True:
+        line = fh.readline(MAX_LINE + 2)
+        if not line:
+            return
+        number += 1
+        if "\0" in line:
+            raise _Binary(number)
+        if line.endswith("\n"):
+            yield line, len(line) > MAX_LINE + 1
+            continue
+        if len(line) <= MAX_LINE + 1:  # the last line, with no line end
+            yield line, len(line) > MAX_LINE
+            continue
+        while True:
+            rest = fh.readline(1 << 16)
+            if "\0" in rest:
+                raise _Binary(number)
+            if not rest or rest.endswith("\n"):
+                break
+        yield line, True
 
 
 def _read_text(path: str | os.PathLike[str], reader: _Reader,
@@ -784,10 +965,16 @@ def _read_text(path: str | os.PathLike[str], reader: _Reader,
 
     Returns:
         The number of lines, and the reader (its counts of dwells and burns).
+
+    Raises:
+        _Binary: the program holds a NUL.
     """
     number = 0
     with open(path, encoding="ascii", errors="replace") as fh:
-        for number, raw in enumerate(fh, 1):
+        for number, (raw, too_long) in enumerate(_text_lines(fh), 1):
+            if too_long:
+                reader.flag_at(number, _TOO_LONG)
+                continue
             reader.line(number, raw)
             if len(reader.moves) >= _BLOCK_LINES * _COLS:
                 checked(np.array(reader.moves, dtype=float).reshape(-1, _COLS))
@@ -804,27 +991,60 @@ def _read_bytes(path: str | os.PathLike[str], reader: _Reader,
     lines and comments go through :func:`_check_kernel.plain_lines` and every
     other line through the reader, with the modal state handed between them.
 
+    A line longer than :data:`MAX_LINE` is flagged and skipped, never held
+    whole: what is kept of a line not yet ended is at most MAX_LINE + 1 bytes,
+    so the memory stays a few blocks' whatever the lines.
+
     Raises:
         _LoneReturn: where a carriage return ends a line on its own (Python's
             text mode splits lines there, and so must this).
+        _Binary: the program holds a NUL.
     """
     number = 1  # of the block's first line
     carry = b""
+    skipping = False  # through the rest of a line flagged too long
     with open(path, "rb") as fh:
         while True:
+            chunk = data = b""  # the last block's bytes go before the next are read
             chunk = fh.read(_READ_BYTES)
+            end = not chunk
+            if skipping:
+                stop = chunk.find(b"\n")
+                skipped = len(chunk) if stop < 0 else stop + 1
+                # text mode ends a line at a "\r" unless a "\n" follows it
+                if chunk.find(b"\r", 0, skipped) not in (-1, stop - 1):
+                    raise _LoneReturn
+                if chunk.find(b"\0", 0, skipped) >= 0:
+                    raise _Binary(number)
+                if stop < 0:
+                    if end:
+                        return number, reader
+                    continue
+                chunk, skipping, number = chunk[stop + 1:], False, number + 1
             data = carry + chunk
-            if not chunk:
+            nul = data.find(b"\0")
+            if nul >= 0:
+                if data.find(b"\r", 0, nul) >= 0:
+                    raise _LoneReturn  # lines counted as text mode splits them
+                raise _Binary(number + data.count(b"\n", 0, nul))
+            if end:
                 if data:
                     number = _read_block(data, number, False, reader, checked)
                 return number - 1, reader
             cut = data.rfind(b"\n") + 1
-            carry = data[cut:]
+            # a line not ended yet, already too long (one more for a "\r"
+            # before its "\n"), is dropped, not carried
+            skipping = len(data) - cut > MAX_LINE + 1
+            if skipping and data.find(b"\r", cut) >= 0:
+                raise _LoneReturn
+            carry = b"" if skipping else data[cut:]
             if cut:
-                number = _read_block(data[:cut], number, True, reader, checked)
+                number = _read_block(memoryview(data)[:cut], number, True, reader, checked)
+            if skipping:
+                reader.flag_at(number, _TOO_LONG)
 
 
-def _read_block(block: bytes, number: int, ended: bool, reader: _Reader,
+def _read_block(block: bytes | memoryview, number: int, ended: bool, reader: _Reader,
                 checked: Callable[[np.ndarray], None]) -> int:
     """Read and check a block of lines (``ended``: its last line has its newline).
 
@@ -840,17 +1060,29 @@ def _read_block(block: bytes, number: int, ended: bool, reader: _Reader,
     if not ended:
         stops = np.append(stops, len(buf))
     starts = np.concatenate([[0], stops[:-1] + 1])
+    # lines too long, their "\r" before "\n" not counted (none ends the block:
+    # that one would be alone)
+    longer = np.flatnonzero(stops - starts > MAX_LINE)
+    if len(longer):
+        crlf = buf[stops[longer] - 1] == 13
+        longer = longer[stops[longer] - starts[longer] - crlf > MAX_LINE]
+    longer = np.append(longer, len(stops))  # so that one always lies ahead
+    ahead = 0  # the next of them
     state = np.empty(6)
     for lo in range(0, len(stops), _BLOCK_LINES):
         hi = min(lo + _BLOCK_LINES, len(stops))
         moves = np.empty((hi - lo, _COLS))  # a line moves once at most
         row, i = 0, lo
         while i < hi:
+            while longer[ahead] < i:
+                ahead += 1
             if reader.absolute and not reader.ended:
+                # the compiled reader stops short of a line too long
+                bound = min(hi, int(longer[ahead]))
                 state[:] = (*reader.pos, reader.feed, reader.factor,
                             -1.0 if reader.motion is None else reader.motion)
                 i, row = _check_kernel.plain_lines(
-                    buf, starts[:hi], stops[:hi], i, number + i,
+                    buf, starts[:bound], stops[:bound], i, number + i,
                     1.0 if reader.tool_on else 0.0, state, moves, row)
                 reader.pos = [float(v) for v in state[:3]]
                 reader.feed = float(state[_check_kernel.FEED])
@@ -858,7 +1090,11 @@ def _read_block(block: bytes, number: int, ended: bool, reader: _Reader,
                     state[_check_kernel.MOTION])
                 if i == hi:
                     break
-            raw = block[starts[i]:stops[i]]
+            if i == longer[ahead]:
+                reader.flag_at(number + i, _TOO_LONG)
+                i += 1
+                continue
+            raw = bytes(block[starts[i]:stops[i]])
             if i < len(stops) - 1 or ended:  # text mode reads "\r\n" as "\n"
                 raw = (raw[:-1] if raw.endswith(b"\r") else raw) + b"\n"
             reader.line(number + i, raw.decode("ascii", errors="replace"))
@@ -875,21 +1111,30 @@ def _read_block(block: bytes, number: int, ended: bool, reader: _Reader,
 _SPLIT_ROWS = 1 << 16
 
 
+#: What checking some rows of the move table found: cuts, moves by kind (4,),
+#: the deepest cut (mm), the rows' hops for the air paths.
+_Part = tuple[int, np.ndarray, float, _Air | None]
+
+
 class _Checks:
     """Blocks of the move table checked beside the reading: each block's rows
     are split between two threads (numpy's loops and the compiled arc bounds
     release the interpreter's lock) while the next block is read. The blocks
     are checked one at a time and a line's moves are checked after the line
     was read, so every violation is flagged after those the reader flagged on
-    the same line, as when checked in the reading thread.
+    the same line, as when checked in the reading thread. The parts' air paths
+    (``air``), which run on from row to row, are summed in program order as
+    each part is collected, after the part's other flags.
     """
 
-    def __init__(self, check: Callable[[np.ndarray], tuple[int, np.ndarray, float]]) -> None:
+    def __init__(self, check: Callable[[np.ndarray], _Part],
+                 air: Callable[[_Air], None]) -> None:
         self.check = check
+        self.air = air
         self.cuts = 0
         self.kinds = np.zeros(4, dtype=np.int64)
         self.deepest = 0.0
-        self.pending: list[Future[tuple[int, np.ndarray, float]]] = []
+        self.pending: list[Future[_Part]] = []
         self.pool = ThreadPoolExecutor(2) if concurrent_kernels_safe() else None
 
     def __enter__(self) -> _Checks:
@@ -905,10 +1150,12 @@ class _Checks:
         self.pending = [self.pool.submit(self.check, part) for part in (moves[:half],
                                                                        moves[half:])]
 
-    def _count(self, result: tuple[int, np.ndarray, float]) -> None:
+    def _count(self, result: _Part) -> None:
         self.cuts += result[0]
         self.kinds += result[1]
         self.deepest = max(self.deepest, result[2])
+        if result[3] is not None:
+            self.air(result[3])
 
     def _collect(self) -> None:
         pending, self.pending = self.pending, []
@@ -983,11 +1230,12 @@ def check_limits(path: str | os.PathLike[str], limits: Limits,
     floor = -min(limits.max_depth, limits.stock.thickness)
     report = CheckReport(os.fspath(path))
 
-    def check_part(moves: np.ndarray) -> tuple[int, np.ndarray, float]:
-        """Cuts, move kinds (4,) and the deepest cut of some rows of the move
-        table (rows are independent of each other)."""
-        cuts, deepest = _check_moves(moves, flag, limits, floor)
-        return cuts, np.bincount(moves[:, _KIND].astype(np.int64), minlength=4), deepest
+    def check_part(moves: np.ndarray) -> _Part:
+        """Cuts, move kinds (4,), the deepest cut and the hops of some rows of
+        the move table (each row checked on its own; the hops are summed later)."""
+        cuts, deepest, air = _check_moves(moves, flag, limits, floor)
+        kinds = np.bincount(moves[:, _KIND].astype(np.int64), minlength=4)
+        return cuts, kinds, deepest, air
 
     from specholo.readback import open_regular
 
@@ -995,14 +1243,16 @@ def check_limits(path: str | os.PathLike[str], limits: Limits,
     os.close(open_regular(path, "G-code file")[0])
     try:
         try:
-            with _Checks(check_part) as checks:
+            with _Checks(check_part, _AirPaths(limits, flag).add) as checks:
                 report.lines, used = _read_bytes(path, _Reader(flag, limits), checks.add)
         except _LoneReturn:  # old Mac line ends: read as text, as Python splits them
             found.clear()
-            with _Checks(check_part) as checks:
+            with _Checks(check_part, _AirPaths(limits, flag).add) as checks:
                 report.lines, used = _read_text(path, _Reader(flag, limits), checks.add)
     except OSError as exc:
         raise SpecholoError(f"cannot read G-code file {os.fspath(path)!r}: {exc.strerror}") from exc
+    except _Binary as exc:
+        raise SpecholoError(_binary(path, exc.args[0])) from None
     cuts, kinds = checks.cuts, checks.kinds
     report.moves = {"G0": int(kinds[0]), "G1": int(kinds[1]), "G2": int(kinds[2]),
                     "G3": int(kinds[3]), "dwell": used.dwells, "cutting": cuts + used.burns}
@@ -1014,9 +1264,9 @@ def check_limits(path: str | os.PathLike[str], limits: Limits,
     texts: dict[int, str] = {}
     if wanted:  # a second pass for the text of the lines listed
         with open(path, encoding="ascii", errors="replace") as fh:
-            for number, raw in enumerate(fh, 1):
+            for number, (raw, _) in enumerate(_text_lines(fh), 1):
                 if number in wanted:
-                    texts[number] = raw.strip()
+                    texts[number] = _quote(raw)
     report.violations = [Violation(number, texts.get(number, ""), what)
                          for number, _, what in listed]
     return report
@@ -1040,6 +1290,11 @@ def check_program(path: str | os.PathLike[str], limits: Limits) -> CheckReport:
     return report
 
 
+def _binary(path: str | os.PathLike[str], line: int) -> str:
+    return (f"{os.fspath(path)} is not a G-code program: line {line} holds a NUL byte "
+            f"(a binary file?)")
+
+
 #: The header comment that holds a program's own limits (see :meth:`Limits.header`).
 HEADER_KEY = "check"
 #: Lines of a program's head searched for it.
@@ -1057,7 +1312,11 @@ def limits_from_header(path: str | os.PathLike[str]) -> Limits | None:
 
     fd, _ = open_regular(path, "G-code file")
     with os.fdopen(fd, "r", encoding="ascii", errors="replace") as fh:
-        head = [fh.readline() for _ in range(_HEADER_LINES)]
+        try:
+            head = [raw for raw, too_long in itertools.islice(_text_lines(fh), _HEADER_LINES)
+                    if not too_long]
+        except _Binary as exc:
+            raise SpecholoError(_binary(path, exc.args[0])) from None
     v: dict[str, str] = {}
     for raw in head:
         line = raw.strip()
