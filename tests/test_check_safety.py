@@ -123,7 +123,7 @@ def programs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Program]:
     out: dict[str, Program] = {}
     with pytest.MonkeyPatch.context() as patch:
         # the preview, most of a small design's writing time, has no part in its G-code
-        patch.setattr("specholo.preview.preview.render_preview", lambda *args: None)
+        patch.setattr("specholo.preview.preview.render_preview", lambda *args, **kwargs: None)
         for method in ("striped", "hyperbola", "arc"):
             for tool in TOOLS:
                 d = design(BUNNY, DesignConfig(stipples=6, size=30, method=method, tool=tool))
