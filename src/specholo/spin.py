@@ -23,6 +23,7 @@ from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.spinning import SpinReport, find_spin_glints, verify_spinning
 from specholo.toolpaths.spinning import (
+    RELIEF_ANGLE,
     SpinDesign,
     SpinSetup,
     design_spinning,
@@ -34,6 +35,60 @@ from specholo.toolpaths.spinning import (
 
 #: The setup's angles, radians inside, saved in degrees.
 SPIN_ANGLES = ("elevation",)
+#: The blank's thickness when none is given, mm (a flat design's default).
+STOCK_THICKNESS = 3.0
+#: Seeds a design takes: the whole numbers numpy's generator is seeded with
+#: (a negative one it refuses), as a composition's.
+SEED_RANGE = (0, 2**32)
+
+
+#: Why a verification row's figures are null.
+NOTHING_SEEN = "no stipple glints for both eyes here: nothing to measure"
+
+
+def json_ready(values: dict[str, Any]) -> dict[str, Any]:
+    """``values`` with None for each NaN: JSON has no NaN (``json.dump`` writes a
+    bare ``NaN`` that strict readers refuse)."""
+    return {k: None if isinstance(v, float) and math.isnan(v) else v
+            for k, v in values.items()}
+
+
+def row_json(row: dict[str, Any]) -> dict[str, Any]:
+    """A verification row for ``verify.json``: a figure with nothing to measure
+    (no stipple glints for both eyes there) is null, and a note says why."""
+    out = json_ready(row)
+    if out != row:
+        out["note"] = NOTHING_SEEN
+    return out
+
+
+def check_job_bounds(config: Any) -> None:
+    """Refuse a turning plate's or a steady image's setting (``SpinConfig``,
+    ``SteadyConfig``) beyond its physical range, in one line naming its option:
+    the model's size and depth, the eyes' spacing, the tool's radius, the plate
+    and its thickness, as a flat design's (``settings.SETTING_BOUNDS``), and the seed. Beyond them
+    the placement overflows or the optics divide by nothing; a groove depth of
+    the tool's radius or less is the tool's own check, and the blank must be
+    thicker than the cut."""
+    from specholo.settings import SETTING_BOUNDS
+    from specholo.toolpaths.spinning import within
+
+    values = {"size": config.size, "center_z": config.center_z, "ipd": config.setup.ipd,
+              "tool_radius": config.tool.radius, "plate_width": config.plate_width,
+              "plate_height": config.plate_height, "stock_thickness": config.stock_thickness}
+    for name, value in values.items():
+        if value is not None:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise SpecholoError(f"{name.replace('_', '-')} must be a number, got {value!r}")
+            within(name, value, *SETTING_BOUNDS[name])
+    lo, hi = SEED_RANGE
+    if isinstance(config.seed, bool) or not isinstance(config.seed, int) \
+            or not lo <= config.seed <= hi:
+        raise SpecholoError(f"seed {config.seed} is out of range: it must be a whole number in "
+                            f"[{lo}, {hi}]")
+    if not config.tool.depth < config.stock_thickness:
+        raise SpecholoError(f"a {config.tool.depth:g} mm deep cut would go through the "
+                            f"{config.stock_thickness:g} mm plate: give a larger --stock-thickness")
 
 
 @dataclass(frozen=True)
@@ -60,6 +115,8 @@ class SpinConfig:
             (both or neither); without them the plate fitted to the grooves.
         fit: ``size`` is the largest whose grooves lie on the plate, 5 mm in
             from its edges, for eyes all round the axis (:func:`design_spin`).
+        stock_thickness: the blank's thickness, mm: no cut (the relief's
+            included) may reach its back.
     """
 
     size: float = 40.0
@@ -76,15 +133,13 @@ class SpinConfig:
     plate_width: float | None = None
     plate_height: float | None = None
     fit: bool = False
+    stock_thickness: float = STOCK_THICKNESS
 
     def __post_init__(self) -> None:
         from specholo.fabrication.plate import check_plate_options
 
         check_plate_options(self.plate_width, self.plate_height, self.fit)
-        if not (math.isfinite(self.size) and self.size > 0):
-            raise SpecholoError(f"size must be positive, got {self.size}")
-        if not math.isfinite(self.center_z):
-            raise SpecholoError(f"center z must be finite, got {self.center_z}")
+        check_job_bounds(self)
         if not 1 <= self.stipples <= 200_000:
             raise SpecholoError(f"stipples must be in [1, 200000], got {self.stipples}")
         if not 1 <= self.turns <= 8:
@@ -97,7 +152,8 @@ class SpinConfig:
                      ipd: float = 64.0, light_height: float | None = None, walls: str = "one",
                      occlusion: bool = True, tool_radius: float = 0.25, depth: float = 0.08,
                      pose: Pose | None = None, plate_width: float | None = None,
-                     plate_height: float | None = None, fit: bool = False) -> SpinConfig:
+                     plate_height: float | None = None, fit: bool = False,
+                     stock_thickness: float = STOCK_THICKNESS) -> SpinConfig:
         """The settings from the command's names and units (degrees, converted here
         once); ``turns`` defaults to the number of models."""
         setup = SpinSetup(distance=view_distance, elevation=math.radians(view_elevation),
@@ -106,7 +162,7 @@ class SpinConfig:
                    pose=pose or Pose(), occlusion=occlusion,
                    turns=models if turns is None else turns, setup=setup,
                    tool=Tool(tool_radius, depth), plate_width=plate_width,
-                   plate_height=plate_height, fit=fit)
+                   plate_height=plate_height, fit=fit, stock_thickness=stock_thickness)
 
     @property
     def plate(self) -> tuple[float, float] | None:
@@ -353,23 +409,28 @@ def preview_frames(job: SpinJob, frames: int, size: tuple[int, int] = (360, 360)
     return out
 
 
-def spin_limits(grooves: Any, depth: float, machining: Machining) -> Any:
+def spin_limits(grooves: Any, depth: float, machining: Machining,
+                thickness: float = STOCK_THICKNESS) -> Any:
     """What a turning plate's program of ``grooves`` cut ``depth`` mm deep may do
     (``fabrication.check.Limits``), from the design's settings: the tool centre
     inside the grooves' extent plus a blank border (within the plate, given or
-    fitted to the grooves, :func:`spin_plate`), no deeper than the cut, rapids at
-    the safe height, hops as set, every cut in X/Y at the cut's depth, feeds and
-    spindle as set."""
+    fitted to the grooves, :func:`spin_plate`) of ``thickness`` mm, no deeper
+    than the cut, rapids at the safe height, hops as set, every cut in X/Y at
+    the cut's depth, feeds and spindle as set."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
     from specholo.fabrication.plate import PLATE_MARGIN
     from specholo.flat import groove_extent
 
     m = machining
     (x0, y0), (x1, y1) = groove_extent(grooves) + np.array([[-PLATE_MARGIN], [PLATE_MARGIN]])
-    # no thickness setting: the cut's own depth is the floor
-    return Limits(Stock(float(x0), float(y0), float(x1), float(y1), depth), depth, m.safe_z,
+    return Limits(Stock(float(x0), float(y0), float(x1), float(y1), thickness), depth, m.safe_z,
                   (min(m.feed, m.plunge), max(m.feed, m.plunge)), (m.spindle, m.spindle),
                   tool_kind("ball", m.spindle), hop_max=m.hop_max, hop=m.hop, groove_depth=depth)
+
+
+def stock_line(config: Any) -> str:
+    """The header's words for the blank's thickness (``SpinConfig``, ``SteadyConfig``)."""
+    return f"{config.stock_thickness:g} mm thick plate: no cut may reach its back"
 
 
 def spin_plate(job: SpinJob) -> Any:
@@ -398,6 +459,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
     from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.gcode import write_gcode
     from specholo.fabrication.svg import write_svg
+    from specholo.fabrication.tools import VBit
     from specholo.folders import check_out
     from specholo.preview.motion import write_animation
     from specholo.staging import stage_design
@@ -410,6 +472,12 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
     # one plate for the program, the relief cut and the drawing: the one given,
     # centred on the axis, or the grooves' (a plate too small refused here)
     plate = spin_plate(job)
+    relief, relief_depth = relief_grooves(d, cfg.tool) if cfg.setup.walls == "one" else \
+        (None, 0.0)
+    if relief is not None and relief.n_paths and not relief_depth < cfg.stock_thickness:
+        raise SpecholoError(f"the relief cut goes {relief_depth:.3g} mm deep, through the "
+                            f"{cfg.stock_thickness:g} mm plate: give a larger --stock-thickness "
+                            "or use --walls both")
     reports = verify_spin(job, step_deg)
     summary = summarise(reports)
     with stage_design(out, inputs, kind="spin") as stage:
@@ -434,8 +502,8 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                 fh.write(job.mesh.export(file_type="ply"))
         header = {"design": "turning plate, closed grooves" if d.tracks is None else
                   f"turning plate, open grooves: the view circles the scene {cfg.turns} "
-                  "times per turn", "walls": cfg.setup.walls}
-        limits = spin_limits(d.grooves, cfg.tool.depth, cfg.machining)
+                  "times per turn", "walls": cfg.setup.walls, "stock": stock_line(cfg)}
+        limits = spin_limits(d.grooves, cfg.tool.depth, cfg.machining, cfg.stock_thickness)
         gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
                              header={**header, **limits.header()}, plate=plate)
         safety = stage.check("hologram.gcode", limits)
@@ -446,7 +514,7 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
             "paths": d.grooves.n_paths, "groove_length_mm": d.grooves.total_length(),
             "gcode": {"lines": gstats.lines, "paths": gstats.paths,
                       "safety_check": {"moves": safety.moves, "violations": 0}},
-            "verify": summary, "plate_mm": plate.box.tolist(),
+            "verify": json_ready(summary), "plate_mm": plate.box.tolist(),
         }
         if d.tracks is not None:
             per = d.tracks.shown.sum(axis=0) if d.tracks.shown is not None else \
@@ -456,13 +524,18 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                                "shown_per_angle": {"min": int(per.min()),
                                                    "mean": float(per.mean()),
                                                    "max": int(per.max())}}
-        if cfg.setup.walls == "one":
-            relief, depth = relief_grooves(d, cfg.tool)
+        if relief is not None:
+            depth = relief_depth
             if relief.n_paths:
+                # one tool named, the V-bit that cuts it: as a flat design's V-bit
+                # program, the header gives the bit and its round-tip model
+                vbit = VBit(RELIEF_ANGLE, max_depth=max(depth, VBit.max_depth))
                 rhead = {"design": "relief cut: takes away each groove's other wall",
-                         "tool": "V-bit, 30 deg included angle, tip on the groove's edge"}
-                rlimits = spin_limits(relief, depth, cfg.machining)
-                write_gcode(tmp / "relief.gcode", relief, cfg.tool, cfg.machining,
+                         "stock": stock_line(cfg),
+                         "cutter": f"{vbit.describe()} included angle, its tip on the "
+                                   "groove's edge"}
+                rlimits = spin_limits(relief, depth, cfg.machining, cfg.stock_thickness)
+                write_gcode(tmp / "relief.gcode", relief, vbit.model(depth), cfg.machining,
                             header={**rhead, **rlimits.header()}, depth=depth, plate=plate)
                 stage.check("relief.gcode", rlimits)
             meta["relief"] = {"depth_mm": depth, "v_bit_included_deg": 30.0,
@@ -483,8 +556,8 @@ def write_spin_verification(reports: list[SpinReport], folder: str | os.PathLike
     from specholo.folder import write_verify_json
 
     summary = summarise(reports)
-    write_verify_json(folder, "spin", step_deg, summary, "angles",
-                      [r.as_dict() for r in reports])
+    write_verify_json(folder, "spin", step_deg, json_ready(summary), "angles",
+                      [row_json(r.as_dict()) for r in reports])
     return summary
 
 

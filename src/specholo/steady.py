@@ -25,6 +25,8 @@ from specholo.toolpaths.steady import SteadyDesign, SteadySetup, design_steady, 
 
 #: The setup's angles, radians inside, saved in degrees.
 STEADY_ANGLES = ("elevation", "half_range")
+#: The blank's thickness when none is given, mm (a flat design's default).
+STOCK_THICKNESS = 3.0
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,7 @@ class SteadyConfig:
             neither); without them the plate fitted to the cuts.
         fit: ``size`` is the largest whose cuts lie on the plate, 5 mm in from
             its edges (:func:`design_steady_sized`).
+        stock_thickness: the blank's thickness, mm: no cut may reach its back.
     """
 
     size: float = 40.0
@@ -60,17 +63,16 @@ class SteadyConfig:
     plate_width: float | None = None
     plate_height: float | None = None
     fit: bool = False
+    stock_thickness: float = STOCK_THICKNESS
 
     def __post_init__(self) -> None:
         from specholo.fabrication.plate import check_plate_options
+        from specholo.spin import check_job_bounds
 
-        if not (math.isfinite(self.size) and self.size > 0):
-            raise SpecholoError(f"size must be positive, got {self.size}")
-        if not math.isfinite(self.center_z):
-            raise SpecholoError(f"center z must be finite, got {self.center_z}")
+        check_plate_options(self.plate_width, self.plate_height, self.fit)
+        check_job_bounds(self)
         if not 1 <= self.stipples <= 200_000:
             raise SpecholoError(f"stipples must be in [1, 200000], got {self.stipples}")
-        check_plate_options(self.plate_width, self.plate_height, self.fit)
 
     @classmethod
     def from_options(cls, size: float = 40.0, center_z: float = -20.0, stipples: int = 300,
@@ -78,14 +80,16 @@ class SteadyConfig:
                      light_elevation: float = 45.0, light_range: float = 5.0,
                      shape: str = "scoop", tool_radius: float = 0.05, depth: float = 0.02,
                      pose: Pose | None = None, plate_width: float | None = None,
-                     plate_height: float | None = None, fit: bool = False) -> SteadyConfig:
+                     plate_height: float | None = None, fit: bool = False,
+                     stock_thickness: float = STOCK_THICKNESS) -> SteadyConfig:
         """The settings from the command's names and units (degrees, converted here once)."""
         setup = SteadySetup(distance=view_distance, ipd=ipd,
                             elevation=math.radians(light_elevation),
                             half_range=math.radians(light_range))
         return cls(size=size, center_z=center_z, stipples=stipples, seed=seed,
                    pose=pose or Pose(), shape=shape, setup=setup, tool=Tool(tool_radius, depth),
-                   plate_width=plate_width, plate_height=plate_height, fit=fit)
+                   plate_width=plate_width, plate_height=plate_height, fit=fit,
+                   stock_thickness=stock_thickness)
 
     @property
     def plate(self) -> tuple[float, float] | None:
@@ -227,20 +231,23 @@ def write_path_gcode(path: Path, design: SteadyDesign, tool: Tool, machining: Ma
                      header: dict[str, str], plate: Any = None) -> int:
     """G-code for the cuts, atomically: a vertical ball-end tool whose tip follows
     each cut's centre path R lower, in X, Y and Z; ``plate``
-    (``fabrication.plate.Plate``), if given, named in the header as a flat
-    design's program names it. Returns the number of lines."""
+    (``fabrication.plate.Plate``), if given, named in the header: its size,
+    thickness and corners and how to set the origin (no registration marks: a
+    steady design draws no SVG or DXF to carry them). Returns the number of lines."""
     from specholo.fabrication.atomic import atomic_open
-    from specholo.fabrication.gcode import GcodeOptions, plate_lines
+    from specholo.fabrication.surface_gcode import plate_comments
 
     def f(v: float) -> str:
         s = f"{v:.5f}"
         return "0.00000" if s == "-0.00000" else s
 
     tips = tool_tips(design, tool)
-    lines = ["(specholo: scoops for a steady image under a moving light)"]
+    lines = ["(specholo: scoops for a steady image under a moving light)",
+             "(units: mm, absolute coordinates, feed in mm/min)",
+             "(origin: plate centre; X right, Y up, Z = 0 on the plate surface)"]
     lines += [f"({k}: {v})" for k, v in header.items()]
-    if plate is not None:  # mm, a mill's words for setting the origin
-        lines += [f"({text})" for text in plate_lines(plate, GcodeOptions())]
+    if plate is not None:
+        lines += [f"({text})" for text in plate_comments(plate)]
     lines.append("G21 G90 G17 G94")
     if machining.spindle > 0:
         lines.append(f"M3 S{machining.spindle:.0f}")
@@ -273,8 +280,8 @@ def steady_limits(design: SteadyDesign, config: SteadyConfig) -> Any:
     m, tool = config.machining, config.tool
     tips = tool_tips(design, tool)[:, :2] if len(design.centres) else np.zeros((1, 2))
     (x0, y0), (x1, y1) = tips.min(axis=0) - PLATE_MARGIN, tips.max(axis=0) + PLATE_MARGIN
-    # no thickness setting: the ball's radius bounds how deep it may reach
-    return Limits(Stock(float(x0), float(y0), float(x1), float(y1), tool.radius), tool.depth,
+    return Limits(Stock(float(x0), float(y0), float(x1), float(y1), config.stock_thickness),
+                  tool.depth,
                   m.safe_z, (min(m.feed, m.plunge), max(m.feed, m.plunge)),
                   (m.spindle, m.spindle), tool_kind("ball", m.spindle))
 
@@ -289,6 +296,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
     from specholo.fabrication.atomic import atomic_open
     from specholo.folders import check_out
     from specholo.preview.steady import steady_preview
+    from specholo.spin import json_ready, stock_line
     from specholo.staging import stage_design
 
     inputs = list(inputs)
@@ -303,7 +311,11 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
         limits = steady_limits(design, config)
         lines = write_path_gcode(tmp / "hologram.gcode", design, config.tool, config.machining,
                                  {"design": f"{design.shape}s, one per stipple and eye",
-                                  "tool": f"ball end, radius {config.tool.radius:g} mm",
+                                  "tool": f"ball end, round tip radius "
+                                          f"{config.tool.radius:g} mm",
+                                  "depth": f"{config.tool.depth:g} mm at most: each cut "
+                                           "rises out of the plate at its ends",
+                                  "stock": stock_line(config),
                                   **limits.header()}, plate=plate)
         safety = stage.check("hologram.gcode", limits)
         with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
@@ -315,7 +327,8 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
         steady_preview(design, config.tool, tmp / "preview.png")
         meta = {"design": "steady", "config": config.as_dict(), "cuts": design.n_cuts,
                 "stipples": len(design.points), "stipples_dropped": design.dropped,
-                "gcode_lines": lines, "verify": summary, "plate_mm": plate.box.tolist(),
+                "gcode_lines": lines, "verify": json_ready(summary),
+                "plate_mm": plate.box.tolist(),
                 "safety_check": {"moves": safety.moves, "violations": 0,
                                  "deepest_cut_mm": safety.deepest},
                 "scoop_radius_mm": {"median": float(np.median(design.radius))}
@@ -329,10 +342,11 @@ def write_verification(reports: list[SteadyReport], folder: Path, step_deg: floa
                        ) -> dict[str, Any]:
     """Write ``verify.json`` atomically into ``folder``; returns the summary."""
     from specholo.folder import write_verify_json
+    from specholo.spin import json_ready, row_json
 
     summary = summarise(reports)
-    write_verify_json(folder, "steady", step_deg, summary, "elevations",
-                      [r.as_dict() for r in reports])
+    write_verify_json(folder, "steady", step_deg, json_ready(summary), "elevations",
+                      [row_json(r.as_dict()) for r in reports])
     return summary
 
 

@@ -69,14 +69,16 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
               help="Step between verified plate angles, degrees.")
 @click.option("--frames", type=int, default=48, show_default=True,
               help="Frames of preview.gif over one turn (0 for none).")
+@click.option("--stock-thickness", type=float, default=3.0, show_default=True,
+              help="Thickness of the plate blank, mm: no cut may reach its back.")
 @_plate_options
 @_pose_options
 def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns: int | None,
          stipples: int, seed: int,
          view_distance: float, view_elevation: float, ipd: float, light_height: float | None,
          walls: str, no_occlusion: bool, tool_radius: float, depth: float, step: float,
-         frames: int, plate_width: float | None, plate_height: float | None, fit: bool,
-         **pose: Any) -> None:
+         frames: int, stock_thickness: float, plate_width: float | None,
+         plate_height: float | None, fit: bool, **pose: Any) -> None:
     """Design a hologram of MODEL for a plate turning about its normal (a turntable or
     wall spinner) under a light on the axis, then verify it over the turn.
 
@@ -91,8 +93,8 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
         "view_distance": view_distance, "view_elevation": view_elevation, "ipd": ipd,
         "light_height": light_height, "walls": walls, "occlusion": not no_occlusion,
         "tool_radius": tool_radius, "depth": depth, "plate_width": plate_width,
-        "plate_height": plate_height, "fit": fit, **pose}, out,
-        WriteOptions(step_deg=step, frames=frames))
+        "plate_height": plate_height, "fit": fit, "stock_thickness": stock_thickness,
+        **pose}, out, WriteOptions(step_deg=step, frames=frames))
 
 
 @cli.command()
@@ -121,11 +123,13 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
 @click.option("--depth", type=float, default=0.02, show_default=True, help="Cut depth, mm.")
 @click.option("--step", type=float, default=1.0, show_default=True,
               help="Step between verified light elevations, degrees.")
+@click.option("--stock-thickness", type=float, default=3.0, show_default=True,
+              help="Thickness of the plate blank, mm: no cut may reach its back.")
 @_plate_options
 @_pose_options
 def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, seed: int,
            view_distance: float, ipd: float, light_elevation: float, light_range: float,
-           shape: str, tool_radius: float, depth: float, step: float,
+           shape: str, tool_radius: float, depth: float, step: float, stock_thickness: float,
            plate_width: float | None, plate_height: float | None, fit: bool,
            **pose: Any) -> None:
     """Design a hologram of MODEL for a viewer standing still whose image stays put
@@ -138,7 +142,7 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
         "view_distance": view_distance, "ipd": ipd, "light_elevation": light_elevation,
         "light_range": light_range, "shape": shape, "tool_radius": tool_radius,
         "depth": depth, "plate_width": plate_width, "plate_height": plate_height, "fit": fit,
-        **pose}, out, WriteOptions(step_deg=step))
+        "stock_thickness": stock_thickness, **pose}, out, WriteOptions(step_deg=step))
 
 
 def _run(job: Any, inputs: list[Path], values: dict[str, Any], out: Path,

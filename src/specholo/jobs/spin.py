@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,12 @@ from specholo.jobs.base import (
 )
 
 
+def _fig(v: float) -> str:
+    """A figure as printed: '-' where there was nothing to measure (NaN: no
+    stipple glinted for both eyes)."""
+    return "-" if math.isnan(v) else f"{v:.3f}"
+
+
 def design_summary(job: Any, summary: dict[str, Any], out: Path, step_deg: float) -> Summary:
     """What a turning-plate design (``spin.SpinJob``) and its verification over the
     turn say."""
@@ -28,9 +35,9 @@ def design_summary(job: Any, summary: dict[str, Any], out: Path, step_deg: float
     return Summary([
         f"{len(job.design.points)} stipples{shown}, {g.n_paths} paths, "
         f"{g.total_length() / 1000:.2f} m of groove -> {out}",
-        f"over the turn (every {step_deg:g} deg): worst p95 {summary['worst_p95_mm']:.3f} mm, "
-        f"depth p95 {summary['worst_depth_p95_mm']:.3f} mm, lowest visibility "
-        f"{summary['lowest_visibility']:.3f}, stray glints {summary['stray']}"], [])
+        f"over the turn (every {step_deg:g} deg): worst p95 {_fig(summary['worst_p95_mm'])} mm, "
+        f"depth p95 {_fig(summary['worst_depth_p95_mm'])} mm, lowest visibility "
+        f"{_fig(summary['lowest_visibility'])}, stray glints {summary['stray']}"], [])
 
 
 class SpinJob:
@@ -107,12 +114,12 @@ class SpinJob:
         status("turning the plate...")
         reports = verify_spin(job, options.step_deg)
         s = summarise(reports)
-        lines = [f"plate {r.angle_deg:6.1f} deg: p95 {r.p95_mm:.3f} mm (depth "
-                 f"{r.depth_p95_mm:.3f}), visibility {r.visibility:.3f}, stray {r.stray}"
+        lines = [f"plate {r.angle_deg:6.1f} deg: p95 {_fig(r.p95_mm)} mm (depth "
+                 f"{_fig(r.depth_p95_mm)}), visibility {_fig(r.visibility)}, stray {r.stray}"
                  for r in reports[::max(1, len(reports) // 8)]]
-        lines.append(f"worst p95 {s['worst_p95_mm']:.3f} mm, depth "
-                     f"{s['worst_depth_p95_mm']:.3f} mm, lowest visibility "
-                     f"{s['lowest_visibility']:.3f}, stray glints {s['stray']} "
+        lines.append(f"worst p95 {_fig(s['worst_p95_mm'])} mm, depth "
+                     f"{_fig(s['worst_depth_p95_mm'])} mm, lowest visibility "
+                     f"{_fig(s['lowest_visibility'])}, stray glints {s['stray']} "
                      f"-> {folder / 'verify.json'}")
         return Verification(lines, None, {"verify.json": lambda into: write_spin_verification(
             reports, into, options.step_deg)})

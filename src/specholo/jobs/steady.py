@@ -21,6 +21,12 @@ from specholo.jobs.base import (
 )
 
 
+def _fig(v: float) -> str:
+    """A figure as printed: '-' where there was nothing to measure (NaN: no
+    stipple glinted for both eyes)."""
+    return "-" if math.isnan(v) else f"{v:.3f}"
+
+
 def design_summary(design: Any, config: Any, s: dict[str, Any], out: Path) -> Summary:
     """What a steady image (``toolpaths.steady.SteadyDesign`` with its
     ``steady.SteadyConfig``) and its verification over the light's range say."""
@@ -28,9 +34,9 @@ def design_summary(design: Any, config: Any, s: dict[str, Any], out: Path) -> Su
     half = math.degrees(config.setup.half_range)
     return Summary([
         f"{len(design.points)} stipples, {design.n_cuts} {config.shape}s -> {out}",
-        f"light {mid - half:g} to {mid + half:g} deg: worst p95 {s['worst_p95_mm']:.3f} mm, "
-        f"image drift p95 {s['worst_drift_p95_mm']:.3f} mm, lowest visibility "
-        f"{s['lowest_visibility']:.3f}, stray glints {s['stray']}"], [])
+        f"light {mid - half:g} to {mid + half:g} deg: worst p95 {_fig(s['worst_p95_mm'])} mm, "
+        f"image drift p95 {_fig(s['worst_drift_p95_mm'])} mm, lowest visibility "
+        f"{_fig(s['lowest_visibility'])}, stray glints {s['stray']}"], [])
 
 
 class SteadyJob:
@@ -108,12 +114,12 @@ class SteadyJob:
         status("moving the light...")
         reports = verify_steady(design, config.tool, light_steps(config.setup, options.step_deg))
         s = summarise(reports)
-        lines = [f"light {r.elevation_deg:5.1f} deg: p95 {r.p95_mm:.3f} mm, drift "
-                 f"{r.drift_p95_mm:.3f} mm, visibility {r.visibility:.3f}, stray {r.stray}"
+        lines = [f"light {r.elevation_deg:5.1f} deg: p95 {_fig(r.p95_mm)} mm, drift "
+                 f"{_fig(r.drift_p95_mm)} mm, visibility {_fig(r.visibility)}, stray {r.stray}"
                  for r in reports[::max(1, len(reports) // 8)]]
-        lines.append(f"worst p95 {s['worst_p95_mm']:.3f} mm, drift "
-                     f"{s['worst_drift_p95_mm']:.3f} mm, lowest visibility "
-                     f"{s['lowest_visibility']:.3f}, stray glints {s['stray']} "
+        lines.append(f"worst p95 {_fig(s['worst_p95_mm'])} mm, drift "
+                     f"{_fig(s['worst_drift_p95_mm'])} mm, lowest visibility "
+                     f"{_fig(s['lowest_visibility'])}, stray glints {s['stray']} "
                      f"-> {folder / 'verify.json'}")
         return Verification(lines, None, {"verify.json": lambda into: write_verification(
             reports, into, options.step_deg)})

@@ -49,6 +49,34 @@ from specholo.toolpaths.grooves import Grooves
 
 #: Walls a spinning groove may keep.
 WALLS = ("one", "both")
+#: Ranges (lowest, highest, unit) of the viewer and light of a turning plate and
+#: of a steady image, as a flat design's (``settings.SETTING_BOUNDS``): eyes
+#: from 10 mm to 10 km away, a light on the axis from 1 mm to 10 km in front.
+#: Beyond them the optics divide by nothing or overflow, and no plate is seen
+#: that way. (The eyes' spacing is a setting's, bounded where the settings are:
+#: a model of the optics may spread them as far as it moves them away.)
+VIEW_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "view_distance": (10.0, 1e7, "mm"), "light_height": (1.0, 1e7, "mm"),
+    "eye_height": (-1e5, 1e5, "mm")}
+
+
+def within(name: str, value: float, lo: float, hi: float, unit: str) -> float:
+    """``value`` as a float if it lies in [lo, hi], else one line naming the
+    setting (as its option, ``view-distance``) and its range."""
+    try:
+        v = float(value)
+    except OverflowError:  # an integer beyond any float
+        v = math.inf
+    if not lo <= v <= hi:  # NaN too
+        option = name.replace("_", "-")
+        raise SpecholoError(f"{option} {v:g} {unit} is out of range: it must be in "
+                            f"[{lo:g}, {hi:g}] {unit}")
+    return v
+
+
+def view_within(name: str, value: float) -> float:
+    """:func:`within` the setting's :data:`VIEW_BOUNDS`."""
+    return within(name, value, *VIEW_BOUNDS[name])
 
 
 @dataclass(frozen=True)
@@ -80,7 +108,7 @@ class SpinSetup:
     walls: str = "one"
 
     def __post_init__(self) -> None:
-        positive("viewer distance", self.distance)
+        view_within("view_distance", self.distance)
         positive("ipd", self.ipd)
         el = float(self.elevation)
         if not (math.isfinite(el) and math.radians(5.0) <= el <= math.radians(85.0)):
@@ -90,7 +118,7 @@ class SpinSetup:
             raise SpecholoError(f"ipd {self.ipd:g} mm must be below the viewer distance "
                                 f"{self.distance:g} mm")
         if self.light_height is not None:
-            positive("light height", self.light_height)
+            view_within("light_height", self.light_height)
         if not 1 <= int(self.harmonics) <= 32:
             raise SpecholoError(f"harmonics must be in [1, 32], got {self.harmonics}")
         if not 16 <= int(self.angles) <= 3600:

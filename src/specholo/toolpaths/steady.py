@@ -31,6 +31,7 @@ import numpy as np
 
 from specholo.errors import SpecholoError, positive
 from specholo.setup import Tool
+from specholo.toolpaths.spinning import view_within
 
 SHAPES = ("scoop", "flat")
 #: The other eye's glint point must clear the plate by this factor in u.
@@ -65,10 +66,12 @@ class SteadySetup:
     samples: int = 41
 
     def __post_init__(self) -> None:
-        positive("viewer distance", self.distance)
+        view_within("view_distance", self.distance)
         positive("ipd", self.ipd)
-        if not math.isfinite(self.height):
-            raise SpecholoError(f"eye height must be finite, got {self.height}")
+        view_within("eye_height", self.height)
+        if self.ipd >= self.distance:
+            raise SpecholoError(f"ipd {self.ipd:g} mm must be below the viewer distance "
+                                f"{self.distance:g} mm")
         el, hr = float(self.elevation), float(self.half_range)
         if not (math.isfinite(el) and math.radians(5.0) <= el <= math.radians(175.0)):
             raise SpecholoError(f"light elevation must be in [5, 175] degrees, got "
