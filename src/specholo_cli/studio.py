@@ -24,7 +24,8 @@ def studio(model: Path | None, port: int, out: Path, no_browser: bool) -> None:
     """Design live in a local page: pose MODEL on the plate, see the glints, design it.
 
     MODEL defaults to the bundled examples/bunny.obj; without it the page asks
-    for a model. The page is served on 127.0.0.1 only, until Ctrl-C.
+    for a model. The page is served on 127.0.0.1 only, at an address holding
+    this run's secret, until Ctrl-C (which prints "studio stopped", status 0).
     """
     from specholo.errors import SpecholoError
     from specholo.studio.server import default_model, make_server
@@ -36,7 +37,7 @@ def studio(model: Path | None, port: int, out: Path, no_browser: bool) -> None:
     previous = None
     with contextlib.suppress(ValueError):  # ValueError: not the main thread (tests)
         # Ctrl-C unwinds through here rather than ending the process at once, so
-        # the uploaded files go; the command line then prints its one line.
+        # the uploaded files go.
         previous = signal.signal(signal.SIGINT, _interrupt)
     try:
         click.echo(f"specholo studio: {server.url}  (designs go to {out.resolve()}; "
@@ -46,7 +47,13 @@ def studio(model: Path | None, port: int, out: Path, no_browser: bool) -> None:
                 webbrowser.open(server.url)
             except webbrowser.Error:
                 click.echo("no browser found: open the address above", err=True)
-        server.serve_forever()
+        try:
+            server.serve_forever()
+        except KeyboardInterrupt:
+            # Ctrl-C is how the studio is meant to stop, not an error: a plain
+            # line and status 0. A design still running is left as it was
+            # (its folder is published whole or not at all).
+            click.echo("studio stopped")
     finally:
         server.server_close()
         if previous is not None:
