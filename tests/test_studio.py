@@ -10,6 +10,7 @@ import json
 import math
 import threading
 import urllib.error
+import urllib.parse
 import urllib.request
 import zipfile
 from collections.abc import Iterator
@@ -46,15 +47,15 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[StudioServer]:
 
 def request(server: StudioServer, path: str, body: Any = None, headers: dict | None = None,
             method: str | None = None) -> tuple[int, Any]:
-    """(status, JSON or bytes) of one request to the studio."""
+    """(status, JSON or bytes) of one request to the studio, with its secret."""
     data = None
-    hdrs = {"X-Specholo": "1", **(headers or {})}
+    hdrs = {"X-Specholo-Token": server.token, **(headers or {})}
     if isinstance(body, bytes):
         data = body
     elif body is not None:
         data = json.dumps(body).encode()
         hdrs["Content-Type"] = "application/json"
-    req = urllib.request.Request(server.url.rstrip("/") + path, data=data, headers=hdrs,
+    req = urllib.request.Request(server.origin + path, data=data, headers=hdrs,
                                  method=method or ("POST" if data is not None else "GET"))
     try:
         with urllib.request.urlopen(req, timeout=60) as reply:
@@ -155,11 +156,87 @@ def test_the_studio_serves_this_machine_only(server: StudioServer, tmp_path: Pat
             make_server(BUNNY, tmp_path, 0, host=host)
     code, got = request(server, "/api/state", headers={"Host": "evil.example:80"})
     assert code == 403
-    # a page from elsewhere cannot post without the studio's header
-    req = urllib.request.Request(server.url + "api/preview", data=b"{}", method="POST")
-    with pytest.raises(urllib.error.HTTPError) as err:
-        urllib.request.urlopen(req, timeout=10)
-    assert err.value.code == 403
+
+
+def test_every_api_request_needs_the_runs_secret(server: StudioServer, tmp_path: Path):
+    """The printed address carries a secret of this run; without it (or with the
+    constant header the studio once took) no API request is answered, GET or POST,
+    and the connection is closed. The page itself holds no secret."""
+    assert server.url == f"{server.origin}/?token={server.token}"
+    assert len(server.token) >= 32
+    other = make_server(None, tmp_path, 0)
+    try:
+        assert other.token != server.token  # one secret a run
+    finally:
+        other.server_close()
+    for method, path, body in (("GET", "/api/state", None), ("GET", "/api/design", None),
+                               ("GET", "/api/design.zip", None),
+                               ("POST", "/api/preview", b'{"settings": {}}'),
+                               ("POST", "/api/design", b'{"settings": {"stipples": 50}}'),
+                               ("POST", "/api/model", b"v 0 0 0\n")):
+        for hdrs in ({}, {"X-Specholo": "1"}, {"X-Specholo-Token": ""},
+                     {"X-Specholo-Token": server.token[:-1]},
+                     {"X-Specholo-Token": server.token + "x"}):
+            req = urllib.request.Request(server.origin + path, data=body, method=method,
+                                         headers={**hdrs, "X-Specholo-Name": "a.obj"})
+            with pytest.raises(urllib.error.HTTPError) as err:
+                urllib.request.urlopen(req, timeout=10)
+            assert err.value.code == 403, (method, path, hdrs)
+            assert err.value.headers["Connection"] == "close"
+            assert "secret" in json.loads(err.value.read())["error"]
+        # in the address instead of the header: still refused
+        req = urllib.request.Request(f"{server.origin}{path}?token={server.token}", data=body,
+                                     method=method)
+        with pytest.raises(urllib.error.HTTPError) as err:
+            urllib.request.urlopen(req, timeout=10)
+        assert err.value.code == 403
+    assert server.studio.runner.status()["state"] in ("idle", "done")  # nothing started
+    for path in ("/", "/studio.js", "/studio.css"):
+        with urllib.request.urlopen(server.origin + path, timeout=10) as reply:
+            assert reply.status == 200 and server.token.encode() not in reply.read()
+    code, got = request(server, "/api/state")
+    assert code == 200 and got["model"] == "bunny"
+
+
+def test_every_control_has_its_own_label():
+    """Each control's label says what it is: no two alike (there were two "up"s,
+    the model's up axis and the move up the plate)."""
+    from html.parser import HTMLParser
+
+    class Labels(HTMLParser):
+        def __init__(self) -> None:
+            super().__init__()
+            self.labels: dict[str, str] = {}
+            self.text: list[str] | None = None
+            self.skip = 0
+            self.control = ""
+
+        def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+            if tag == "label":
+                self.text, self.control = [], ""
+            elif tag in ("option", "output") and self.text is not None:
+                self.skip += 1
+            elif tag in ("input", "select") and self.text is not None:
+                self.control = dict(attrs).get("id") or ""
+
+        def handle_endtag(self, tag: str) -> None:
+            if tag in ("option", "output") and self.skip:
+                self.skip -= 1
+            elif tag == "label" and self.text is not None:
+                self.labels[self.control] = " ".join("".join(self.text).split())
+                self.text = None
+
+        def handle_data(self, data: str) -> None:
+            if self.text is not None and not self.skip:
+                self.text.append(data)
+
+    parser = Labels()
+    parser.feed((ROOT / "src" / "specholo" / "studio" / "page.html").read_text())
+    names = [name.removesuffix(" mm").removesuffix("\u00b0").strip()
+             for name in parser.labels.values()]
+    assert len(names) == len(set(names)), parser.labels
+    assert "axis" in parser.labels["up"] and "up" in parser.labels["offset_y"], parser.labels
+    assert "axis" not in parser.labels["offset_y"]
 
 
 def test_one_design_at_a_time(server: StudioServer):
@@ -214,11 +291,15 @@ def test_without_a_model_the_page_asks_for_one(tmp_path: Path):
     assert not s.studio.uploads.exists()
 
 
-def test_ctrl_c_ends_the_command_with_one_line(tmp_path: Path):
+def test_ctrl_c_stops_the_studio_plainly(tmp_path: Path):
+    """Ctrl-C is the studio's normal stop: "studio stopped", status 0, nothing on
+    stderr, at once even while a browser keeps a connection open."""
     import os
     import signal
+    import socket
     import subprocess
     import sys
+    import time
 
     proc = subprocess.Popen(
         [sys.executable, "-c", "import sys; from specholo_cli.cli import main; "
@@ -228,16 +309,23 @@ def test_ctrl_c_ends_the_command_with_one_line(tmp_path: Path):
         env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
         line = proc.stdout.readline()
-        assert "http://127.0.0.1:" in line, line
+        assert "http://127.0.0.1:" in line and "/?token=" in line, line
         url = line.split()[2]
         with urllib.request.urlopen(url, timeout=20) as reply:
             assert b"studio.js" in reply.read()
+        # a connection kept open, as a browser keeps one between requests
+        port = urllib.parse.urlsplit(url).port
+        kept = socket.create_connection(("127.0.0.1", port), timeout=10)
+        kept.sendall(f"GET /studio.css HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode())
+        assert kept.recv(100).startswith(b"HTTP/1.1 200")
+        time.sleep(0.2)
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=20)
+        out, err = proc.communicate(timeout=10)
+        kept.close()
     finally:
         proc.kill()
-    assert proc.returncode == 130
-    assert err.splitlines() == ["error: interrupted; no file was left half-written"], err
+    assert err == "" and proc.returncode == 0, (proc.returncode, err)
+    assert out.splitlines() == ["studio stopped"], out
 
 
 # ---------------------------------------------------------------- in a browser
@@ -322,7 +410,9 @@ def test_the_page_poses_redraws_and_designs_a_plate_that_verifies(
     assert max(p95) < 0.5, result.lines
     context.close()
     assert errors == []
-    assert urls and all(u.startswith(server.url) for u in urls), urls
+    # this server only (the zip is saved from memory: a blob: of the page's own)
+    assert urls and all(u.startswith((server.origin + "/", f"blob:{server.origin}/"))
+                        for u in urls), urls
 
 
 def test_the_exact_figures_follow_the_settings(server: StudioServer, browser: Any,
@@ -337,6 +427,17 @@ def test_the_exact_figures_follow_the_settings(server: StudioServer, browser: An
     page.on("pageerror", lambda e: errors.append(str(e)))
     page.goto(server.url)
     _settled(page)
+    # the secret leaves the address bar, and a reload of the bare address in
+    # this tab still works; a tab that never had it says what to open
+    assert "token" not in page.url
+    page.goto(server.origin + "/")
+    _settled(page)
+    assert page.inner_text("#model-name") == "bunny" and page.inner_text("#error") == ""
+    stranger = context.new_page()
+    stranger.goto(server.origin + "/")
+    stranger.wait_for_function("document.getElementById('error').textContent !== ''")
+    assert "?token=" in stranger.inner_text("#error")
+    stranger.close()
     assert page.is_checked("#follow")
     _slide(page, "stipples", 100)
     _settled(page)
@@ -360,6 +461,20 @@ def test_the_exact_figures_follow_the_settings(server: StudioServer, browser: An
     page.wait_for_function(current, timeout=120_000)
     assert page.evaluate("window.studio.exact()")["settings"]["light_elevation"] == 50
     assert "updating" not in page.inner_text("#estimates")
+    # another model: the bunny's figures and folder are not its own; its own follow
+    page.set_input_files("#file", str(ROOT / "examples" / "knot.obj"))
+    page.wait_for_function("document.getElementById('model-name').textContent === 'knot'")
+    assert not page.evaluate(current)
+    assert "updating" in page.inner_text("#estimates") or \
+        page.inner_text("#estimates").count("\u2014") >= 2
+    page.wait_for_function(current, timeout=120_000)
+    assert page.inner_text("#folder").endswith("knot")
+    info = json.loads((Path(page.inner_text("#folder")) / "hologram.json").read_text())
+    assert page.evaluate("window.studio.exact()")["summary"]["machining_hours"] == \
+        pytest.approx(info["machining"]["estimated_hours"])
     context.close()
     assert errors == []
+    server.studio.runner.wait(120)
+    code, got = request(server, "/api/model", BUNNY.read_bytes(), {"X-Specholo-Name": "bunny.obj"})
+    assert code == 200 and got["model"] == "bunny"
 

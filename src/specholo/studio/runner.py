@@ -77,14 +77,18 @@ class Runner:
         self._thread: threading.Thread | None = None
 
     def start(self, model: Path, name: str, config: DesignConfig,
-              on_done: Callable[[], None] | None = None) -> bool:
-        """Start a design of ``model`` into ``out_root/name``; False if one is running."""
+              on_done: Callable[[], None] | None = None, model_id: int = 0) -> bool:
+        """Start a design of ``model`` into ``out_root/name``; False if one is running.
+
+        ``model_id`` names the model the design is of: :meth:`status` and
+        :meth:`zip_bytes` asked for another model do not give this design's.
+        """
         with self._lock:
             if self._state["state"] == "running":
                 return False
             out = (self.out_root / name).resolve()
             self._state = {"state": "running", "stage": STAGES[0], "folder": str(out),
-                           "stipples": config.stipples}
+                           "stipples": config.stipples, "model_id": model_id}
             self._started = time.monotonic()
             # A daemon: Ctrl-C ends the studio at once; a design cut short leaves
             # its folder as it was (published whole or not at all).
@@ -125,13 +129,24 @@ class Runner:
             if on_done is not None:
                 on_done()
 
-    def status(self) -> dict[str, Any]:
-        """The state (idle, running, done, failed), stage, seconds, figures or error."""
+    def status(self, model_id: int | None = None) -> dict[str, Any]:
+        """The state (idle, running, done, failed), stage, seconds, figures or error.
+
+        Asked for ``model_id`` (None: whatever model), a design of another model
+        is none of its own: idle once finished; while it runs (one design at a
+        time) it stays running, its stage saying whose it is.
+        """
         with self._lock:
             state = dict(self._state)
             if state["state"] == "running":
                 state["seconds"] = time.monotonic() - self._started
+        if model_id is None or state.get("model_id", model_id) == model_id:
             return state
+        if state["state"] == "running":
+            return {"state": "running", "model_id": state["model_id"],
+                    "stage": "finishing the previous model's design",
+                    "seconds": state["seconds"]}
+        return {"state": "idle"}
 
     def wait(self, timeout: float | None = None) -> None:
         """Wait for the running design, if any (tests, and a clean exit)."""
@@ -139,15 +154,18 @@ class Runner:
         if thread is not None:
             thread.join(timeout)
 
-    def zip_bytes(self) -> tuple[str, bytes]:
+    def zip_bytes(self, model_id: int | None = None) -> tuple[str, bytes]:
         """The finished design's folder as a zip, made in memory: (file name, bytes).
 
+        Args:
+            model_id: the model the design must be of (None: whatever model).
+
         Raises:
-            SpecholoError: no finished design, or its folder is gone.
+            SpecholoError: no finished design (of that model), or its folder is gone.
         """
-        state = self.status()
+        state = self.status(model_id)
         if state["state"] != "done":
-            raise SpecholoError("no finished design to download yet")
+            raise SpecholoError("no finished design of this model to download yet")
         folder = Path(state["folder"])
         if not folder.is_dir():
             raise SpecholoError(f"the design folder {folder} is gone")

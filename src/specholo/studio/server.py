@@ -2,27 +2,43 @@
 
 The server listens on 127.0.0.1 only and answers only requests addressed to
 it by that name (or ``localhost``): the page is for the maker at this machine.
-Requests that change anything carry a header of the page's own, so a page from
-elsewhere cannot post to it (a browser asks first, and is not answered).
+Every run makes a secret of its own, carried by the address it prints
+(``?token=...``, as notebook servers do); the page sends it with every API
+request in :data:`TOKEN_HEADER`, and an API request without it is refused. A
+page from another site cannot read the secret, so it can neither post to the
+studio nor read what it answers, even under a name rebound to 127.0.0.1.
+
+Every refusal closes its connection: a body left unread on a kept-alive
+connection would otherwise be read as the next request (a request smuggled
+inside a refused one). At most :data:`MAX_CONNECTIONS` connections are served
+at once, each silent for at most :data:`CLIENT_TIMEOUT` seconds, and a client
+that hangs up is no traceback on the terminal.
 
 Endpoints (JSON unless said otherwise):
 
-- ``GET /``, ``/studio.js``, ``/studio.css``: the page, from this package.
+- ``GET /``, ``/studio.js``, ``/studio.css``: the page, from this package (no secret in them).
 - ``GET /api/state``: the model, the default settings, the design's status.
 - ``POST /api/preview``: ``{"settings": {...}}`` -> :meth:`Preview.as_json`.
-- ``POST /api/model``: a model file's bytes (its name in ``X-Specholo-Name``).
+- ``POST /api/model``: a model file's bytes (its name in ``X-Specholo-Name``),
+  streamed to disk, at most :data:`MAX_UPLOAD` bytes (:data:`MAX_TEXT_UPLOAD` for text).
 - ``POST /api/design``: start the exact design; ``GET /api/design``: its status.
 - ``GET /api/design.zip``: the finished design's folder, zipped.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hmac
 import json
 import re
+import secrets
 import shutil
+import socket
+import sys
 import tempfile
 import threading
 import urllib.parse
+from collections.abc import Iterable, Iterator
 from dataclasses import asdict
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -36,12 +52,32 @@ from specholo.studio.runner import Runner, one_line
 
 #: The only address the studio listens on.
 HOST = "127.0.0.1"
-#: The header every changing request carries (a page elsewhere cannot add it unasked).
-TOKEN_HEADER = "X-Specholo"
-#: Largest model upload, bytes.
-MAX_UPLOAD = 256 << 20
+#: The header every API request carries: the run's secret (:attr:`StudioServer.token`).
+TOKEN_HEADER = "X-Specholo-Token"
+#: The header an upload names its file in (URL-encoded).
+NAME_HEADER = "X-Specholo-Name"
+#: Largest model upload, bytes: a binary STL of about 1.3 million faces, or a
+#: binary PLY of 5 million points (which loads in about 0.5 GB).
+MAX_UPLOAD = 64 << 20
+#: Largest upload of a text format (OBJ, OFF, glTF, XYZ, CSV, ASCII STL or PLY),
+#: bytes. Loading splits text into Python strings, about 24 bytes of memory a
+#: byte of file: a 62 MB XYZ cloud took 1.5 GB and 20 s to load, 16 MB takes
+#: about 0.4 GB (an OBJ of some 300,000 faces, a cloud of 600,000 points).
+MAX_TEXT_UPLOAD = 16 << 20
+#: The formats that are always text; STL and PLY are text when they start so.
+TEXT_FORMATS = (".obj", ".off", ".gltf", ".xyz", ".csv")
+#: The first bytes of an upload, which tell a text STL or PLY from a binary one.
+HEAD_BYTES = 512
+#: Bytes read from an upload at a time: the body goes to disk, never whole into memory.
+CHUNK = 1 << 20
 #: Largest JSON request, bytes.
 MAX_JSON = 1 << 20
+#: Connections served at once; more are answered 503 and closed at once. A
+#: browser opens at most six to one server.
+MAX_CONNECTIONS = 16
+#: Seconds a connection may stay silent (mid-request, or idle between
+#: requests) before it is closed: a half-sent request cannot hold a thread.
+CLIENT_TIMEOUT = 30.0
 #: The page's files, served from the package.
 ASSETS = {"/": ("page.html", "text/html; charset=utf-8"),
           "/studio.js": ("studio.js", "text/javascript; charset=utf-8"),
@@ -76,6 +112,24 @@ def config_of(settings: Any) -> DesignConfig:
     return DesignConfig.from_dict(settings)
 
 
+def looks_like_text(head: bytes) -> bool:
+    """Whether an STL or PLY file is text, judged by its first bytes as the loader does."""
+    return head.lstrip()[:5].lower() == b"solid" or b"format ascii" in head[:512]
+
+
+def upload_limit(filename: str) -> int:
+    """The largest upload of this file's format, bytes (text formats load bigger)."""
+    return MAX_TEXT_UPLOAD if Path(filename).suffix.lower() in TEXT_FORMATS else MAX_UPLOAD
+
+
+class TooLarge(SpecholoError):
+    """An upload over its format's limit (answered 413)."""
+
+
+def _mb(n: int) -> str:
+    return f"{n >> 20} MB"
+
+
 class Studio:
     """What the page works on: the model, its file, and the design runner.
 
@@ -87,6 +141,9 @@ class Studio:
         self.model: Model | None = None
         self.path: Path | None = None
         self.name = ""
+        # Which model is open: each model opened gets the next number, and a
+        # design (its status, its zip) belongs to the model it was made of.
+        self.model_id = 0
         self.runner = Runner(out_root)
         self.uploads = Path(tempfile.mkdtemp(prefix="specholo-studio-"))
         self._uploaded = 0
@@ -99,62 +156,214 @@ class Studio:
         model = load_model(path)
         with self._lock:
             self.model, self.path, self.name = model, path, safe_name(name or path.name)
+            self.model_id += 1
 
-    def upload(self, data: bytes, filename: str) -> None:
-        """Write an uploaded file to the studio's temporary folder and open it."""
+    @staticmethod
+    def check_upload(filename: str, size: int) -> None:
+        """Refuse an upload by its name and declared size, before any of it is read.
+
+        Raises:
+            TooLarge: over its format's limit.
+            SpecholoError: not a model file, or empty.
+        """
         ext = Path(filename).suffix.lower()
         if ext not in FORMATS:
             raise SpecholoError(f"{filename or 'the file'}: not a model file (use one of "
                                 f"{', '.join(FORMATS)})")
-        if not data:
+        if size == 0:
             raise SpecholoError(f"{filename}: the file is empty")
+        limit = upload_limit(filename)
+        if size > limit:
+            kind = "a text model file" if limit == MAX_TEXT_UPLOAD else "a model file"
+            raise TooLarge(f"{filename}: {size / (1 << 20):.0f} MB is too large for the studio "
+                           f"({kind} may be at most {_mb(limit)}; `specholo design` reads "
+                           "larger ones)")
+
+    def upload(self, chunks: Iterable[bytes], filename: str, size: int) -> None:
+        """Write an uploaded file, chunk by chunk, to the studio's temporary folder and open it.
+
+        Args:
+            chunks: the file's bytes, in pieces (never held whole).
+            filename: the maker's name for the file (its extension picks the format).
+            size: its length, bytes (checked by :meth:`check_upload`).
+        """
+        self.check_upload(filename, size)
+        ext = Path(filename).suffix.lower()
         with self._lock:
             self._uploaded += 1
             folder = self.uploads / str(self._uploaded)
         folder.mkdir()
         path = folder / (safe_name(filename) + ext)
-        path.write_bytes(data)
         try:
+            with path.open("wb") as fh:
+                first = True
+                for chunk in chunks:
+                    if first and size > MAX_TEXT_UPLOAD and looks_like_text(chunk[:HEAD_BYTES]):
+                        # An ASCII STL or PLY loads as text does: judged by its
+                        # first bytes, before the rest is read.
+                        raise TooLarge(f"{filename}: {size / (1 << 20):.0f} MB is too large "
+                                       f"for the studio (a text model file may be at most "
+                                       f"{_mb(MAX_TEXT_UPLOAD)}; `specholo design` reads "
+                                       "larger ones)")
+                    first = False
+                    fh.write(chunk)
             self.open(path, filename)
         except SpecholoError as exc:
+            shutil.rmtree(folder, ignore_errors=True)
             # The maker knows the file by its own name, not the studio's copy.
-            raise SpecholoError(str(exc).replace(str(path), filename)) from exc
+            kind = TooLarge if isinstance(exc, TooLarge) else SpecholoError
+            raise kind(str(exc).replace(str(path), filename)) from exc
+        except BaseException:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
 
-    def current(self) -> tuple[Model, Path, str]:
-        """The model, its file and its name; refused before any model is open."""
+    def current(self) -> tuple[Model, Path, str, int]:
+        """The model, its file, its name and its number; refused before any model is open."""
         with self._lock:
             if self.model is None or self.path is None:
                 raise SpecholoError("no model open: open a model file first")
-            return self.model, self.path, self.name
+            return self.model, self.path, self.name, self.model_id
+
+    def design(self, config: DesignConfig) -> bool:
+        """Start the exact design of the open model; False if one is running."""
+        _, path, name, model_id = self.current()
+        return self.runner.start(path, name, config, model_id=model_id)
+
+    def design_status(self) -> dict[str, Any]:
+        """The design's status, for the open model (another model's result is not its)."""
+        with self._lock:
+            model_id = self.model_id
+        return self.runner.status(model_id)
+
+    def zip_bytes(self) -> tuple[str, bytes]:
+        """The open model's finished design, zipped (see :meth:`Runner.zip_bytes`)."""
+        with self._lock:
+            model_id = self.model_id
+        return self.runner.zip_bytes(model_id)
 
     def state(self) -> dict[str, Any]:
         """The page's starting point."""
         with self._lock:
             model = self.name if self.model is not None else None
-        return {"model": model, "settings": {**asdict(DesignConfig()), **START},
-                "formats": list(FORMATS), "design": self.runner.status()}
+            model_id = self.model_id
+        return {"model": model, "model_id": model_id,
+                "settings": {**asdict(DesignConfig()), **START},
+                "formats": list(FORMATS), "design": self.design_status()}
 
     def close(self) -> None:
         """Remove the uploaded files."""
         shutil.rmtree(self.uploads, ignore_errors=True)
 
 
+def _client_gone(exc: BaseException | None) -> bool:
+    """Whether an error is the client's doing: it hung up, or went silent too long."""
+    return isinstance(exc, (ConnectionError, TimeoutError, _ClientGone))
+
+
+class _ClientGone(Exception):
+    """The client hung up, or stopped sending, in the middle of its request."""
+
+
 class StudioServer(ThreadingHTTPServer):
-    """The studio's HTTP server (127.0.0.1 only)."""
+    """The studio's HTTP server (127.0.0.1 only).
+
+    Attributes:
+        token: this run's secret; every API request carries it.
+        max_connections: connections served at once (more get 503 and are closed).
+        client_timeout: seconds a connection may stay silent.
+    """
 
     daemon_threads = True
+    # Connections waiting to be accepted: beyond these the system drops a new
+    # one's first packet, and its client waits a second to try again (5, the
+    # default, is less than a page's burst of requests).
+    request_queue_size = 64
+    # server_close() ends the open connections itself rather than waiting for
+    # them: a browser keeps its connections open, and Ctrl-C should not wait.
+    block_on_close = False
 
-    def __init__(self, studio: Studio, port: int) -> None:
+    def __init__(self, studio: Studio, port: int, max_connections: int = MAX_CONNECTIONS,
+                 client_timeout: float = CLIENT_TIMEOUT) -> None:
         self.studio = studio
+        self.token = secrets.token_urlsafe(32)
+        self.max_connections = max_connections
+        self.client_timeout = client_timeout
+        self._slots = threading.BoundedSemaphore(max_connections)
+        self._open: set[socket.socket] = set()
+        self._open_lock = threading.Lock()
         super().__init__((HOST, port), _Handler)
 
     @property
+    def origin(self) -> str:
+        """The server's address, without the secret: ``http://127.0.0.1:PORT``."""
+        return f"http://{HOST}:{self.server_address[1]}"
+
+    @property
     def url(self) -> str:
-        """The page's address."""
-        return f"http://{HOST}:{self.server_address[1]}/"
+        """The page's address, with this run's secret."""
+        return f"{self.origin}/?token={self.token}"
+
+    def token_ok(self, given: str | None) -> bool:
+        """Whether a request's secret is this run's (compared in constant time)."""
+        if not given:
+            return False
+        return hmac.compare_digest(given.encode("utf-8", "surrogateescape"),
+                                   self.token.encode("ascii"))
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        """Serve a connection in a thread of its own, if one of the slots is free."""
+        if not self._slots.acquire(blocking=False):
+            self._busy(request)
+            super().shutdown_request(request)
+            return
+        with self._open_lock:
+            self._open.add(request)
+        super().process_request(request, client_address)
+
+    def shutdown_request(self, request: Any) -> None:
+        """Close a connection, and free its slot."""
+        with self._open_lock:
+            held = request in self._open
+            self._open.discard(request)
+        try:
+            super().shutdown_request(request)
+        finally:
+            if held:
+                self._slots.release()
+
+    @staticmethod
+    def _busy(request: socket.socket) -> None:
+        """Answer 503 without a thread: never waiting on the client, which may be gone."""
+        body = json.dumps({"error": "the studio is busy (too many connections); "
+                                    "try again in a moment"}).encode("utf-8")
+        head = ("HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\n"
+                f"Content-Length: {len(body)}\r\nRetry-After: 1\r\nCache-Control: no-store\r\n"
+                "Connection: close\r\n\r\n").encode("ascii")
+        with contextlib.suppress(OSError):
+            request.setblocking(False)
+            request.send(head + body)  # a few hundred bytes: a new socket's buffer holds them
+            # What the client has sent so far is read and dropped: closing a
+            # socket with unread bytes resets it, and the client could lose the 503.
+            request.recv(1 << 16)
+
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        """A client that hung up or went silent: nothing to say. Anything else: one line."""
+        exc = sys.exc_info()[1]
+        if _client_gone(exc):
+            return
+        with contextlib.suppress(OSError, ValueError):
+            sys.stderr.write(f"specholo studio: a request failed: "
+                             f"{one_line(exc) if exc is not None else 'unknown error'}\n")
 
     def server_close(self) -> None:
+        """Stop listening, end the open connections and remove the uploaded files."""
         super().server_close()
+        with self._open_lock:
+            still = list(self._open)
+        for conn in still:
+            # Their threads then read the end of the stream and finish.
+            with contextlib.suppress(OSError):
+                conn.shutdown(socket.SHUT_RDWR)
         self.studio.close()
 
 
@@ -191,24 +400,54 @@ def make_server(model: Path | None, out_root: Path, port: int = 0,
 class _Handler(BaseHTTPRequestHandler):
     server: StudioServer
     protocol_version = "HTTP/1.1"
+    _unread = False
+    # StreamRequestHandler gives the socket this timeout: a client silent for
+    # longer (half a request sent, or idle) loses its connection.
+    timeout = CLIENT_TIMEOUT
+
+    def setup(self) -> None:
+        super().setup()
+        self.connection.settimeout(self.server.client_timeout)  # the server's own, if set
 
     def log_message(self, format: str, *args: Any) -> None:  # noqa: A002
         """Quiet: the terminal shows the address and Ctrl-C, not every request."""
 
+    def parse_request(self) -> bool:
+        ok = super().parse_request()
+        # Whether the request has a body this server has not read: if so its
+        # connection is closed after the answer, or the body would be read as
+        # the next request.
+        self._unread = ok and (self.headers.get("Content-Length", "0").strip() not in ("0", "")
+                               or "Transfer-Encoding" in self.headers)
+        return ok
+
+    def handle_expect_100(self) -> bool:
+        # "100 Continue" only once the request is allowed (see _length): a
+        # refused upload is answered before its body is sent.
+        return True
+
     # ------------------------------------------------------------------ replies
     def _send(self, code: int, body: bytes, kind: str, extra: dict[str, str] | None = None
               ) -> None:
-        self.send_response(code)
-        self.send_header("Content-Type", kind)
-        self.send_header("Content-Length", str(len(body)))
-        self.send_header("Cache-Control", "no-store")
-        self.send_header("Content-Security-Policy", POLICY)
-        self.send_header("X-Content-Type-Options", "nosniff")
-        for k, v in (extra or {}).items():
-            self.send_header(k, v)
-        self.end_headers()
-        if self.command != "HEAD":
-            self.wfile.write(body)
+        try:
+            self.send_response(code)
+            self.send_header("Content-Type", kind)
+            self.send_header("Content-Length", str(len(body)))
+            self.send_header("Cache-Control", "no-store")
+            self.send_header("Content-Security-Policy", POLICY)
+            self.send_header("X-Content-Type-Options", "nosniff")
+            # The page's address holds the secret: it is never sent elsewhere.
+            self.send_header("Referrer-Policy", "no-referrer")
+            for k, v in (extra or {}).items():
+                self.send_header(k, v)
+            if self._unread or self.close_connection:
+                self.send_header("Connection", "close")  # also sets close_connection
+            self.end_headers()
+            if self.command != "HEAD":
+                self.wfile.write(body)
+        except OSError:
+            # The client hung up (or stopped reading) before the answer was sent.
+            self.close_connection = True
 
     def _json(self, code: int, obj: Any) -> None:
         self._send(code, json.dumps(obj, allow_nan=False).encode("utf-8"),
@@ -217,41 +456,84 @@ class _Handler(BaseHTTPRequestHandler):
     def _error(self, code: int, message: str) -> None:
         self._json(code, {"error": message})
 
-    def _allowed(self) -> bool:
-        """Only this machine's names for this server (no other site by DNS rebinding)."""
+    def _refuse(self, code: int, message: str) -> None:
+        """Refuse the request and close its connection, whatever it carried."""
+        self.close_connection = True
+        self._error(code, message)
+
+    def _allowed(self, path: str) -> bool:
+        """This machine's names for this server only (no other site by DNS
+        rebinding); an API request, or any POST, must carry the run's secret."""
         port = self.server.server_address[1]
         if self.headers.get("Host", "") not in (f"{HOST}:{port}", f"localhost:{port}"):
-            self._error(403, "the studio answers only http://127.0.0.1 requests")
+            self._refuse(403, "the studio answers only http://127.0.0.1 requests")
+            return False
+        if ((path.startswith("/api/") or self.command == "POST")
+                and not self.server.token_ok(self.headers.get(TOKEN_HEADER))):
+            self._refuse(403, "this request lacks the studio's secret: open the address "
+                              "`specholo studio` printed (with its ?token=...)")
             return False
         return True
 
-    def _body(self, limit: int) -> bytes | None:
+    def _length(self, limit: int) -> int | None:
+        """The body's declared length; None once refused (411, 413)."""
         try:
             n = int(self.headers.get("Content-Length", ""))
         except ValueError:
-            self._error(411, "the request needs a Content-Length")
+            self._refuse(411, "the request needs a Content-Length")
             return None
         if n < 0 or n > limit:
-            self._error(413, f"the request is too large (at most {limit >> 20} MB)")
-            self.close_connection = True
+            self._refuse(413, f"the request is too large (at most {_mb(limit)})")
             return None
-        return self.rfile.read(n)
+        return n
+
+    def _continue(self) -> None:
+        """Ask a client that waits for it ("Expect: 100-continue") to send the body."""
+        if self.headers.get("Expect", "").lower() == "100-continue":
+            try:
+                self.send_response_only(100)
+                self.end_headers()
+            except OSError as exc:
+                raise _ClientGone from exc
+
+    def _chunks(self, n: int, first: int = CHUNK) -> Iterator[bytes]:
+        """The body's ``n`` bytes, a chunk at a time (the first ``first`` bytes long)."""
+        self._continue()
+        left, size = n, first
+        while left:
+            try:
+                chunk = self.rfile.read(min(size, left))
+            except OSError as exc:
+                raise _ClientGone from exc
+            if not chunk:
+                raise _ClientGone
+            left, size = left - len(chunk), CHUNK
+            yield chunk
+        self._unread = False
+
+    def _body(self, limit: int) -> bytes | None:
+        """The whole (small) body; None once refused."""
+        n = self._length(limit)
+        if n is None:
+            return None
+        return b"".join(self._chunks(n))
 
     # ------------------------------------------------------------------ routes
     def do_GET(self) -> None:  # noqa: N802 - http.server's name
-        if not self._allowed():
-            return
         path = urllib.parse.urlsplit(self.path).path
+        if not self._allowed(path):
+            return
+        studio = self.server.studio
         try:
             if path in ASSETS:
                 name, kind = ASSETS[path]
                 self._send(200, (Path(__file__).parent / name).read_bytes(), kind)
             elif path == "/api/state":
-                self._json(200, self.server.studio.state())
+                self._json(200, studio.state())
             elif path == "/api/design":
-                self._json(200, self.server.studio.runner.status())
+                self._json(200, studio.design_status())
             elif path == "/api/design.zip":
-                name, data = self.server.studio.runner.zip_bytes()
+                name, data = studio.zip_bytes()
                 self._send(200, data, "application/zip",
                            {"Content-Disposition": f'attachment; filename="{name}"'})
             else:
@@ -262,21 +544,13 @@ class _Handler(BaseHTTPRequestHandler):
     do_HEAD = do_GET  # noqa: N815
 
     def do_POST(self) -> None:  # noqa: N802
-        if not self._allowed():
-            return
-        if self.headers.get(TOKEN_HEADER) != "1":
-            self._error(403, f"requests that change the studio carry {TOKEN_HEADER}: 1")
-            return
         path = urllib.parse.urlsplit(self.path).path
+        if not self._allowed(path):
+            return
         studio = self.server.studio
         try:
             if path == "/api/model":
-                data = self._body(MAX_UPLOAD)
-                if data is None:
-                    return
-                name = urllib.parse.unquote(self.headers.get("X-Specholo-Name", ""))
-                studio.upload(data, Path(name).name)
-                self._json(200, studio.state())
+                self._upload()
                 return
             if path not in ("/api/preview", "/api/design"):
                 self._error(404, f"no such action: {path}")
@@ -291,14 +565,30 @@ class _Handler(BaseHTTPRequestHandler):
             if not isinstance(request, dict):
                 raise SpecholoError("the request must be a JSON object")
             config = config_of(request.get("settings", {}))
-            model, file, name = studio.current()
             if path == "/api/preview":
+                model = studio.current()[0]
                 with studio.preview_lock:
                     preview = fast_preview(model, config)
                 self._json(200, preview.as_json())
-            elif studio.runner.start(file, name, config):
-                self._json(202, studio.runner.status())
+            elif studio.design(config):
+                self._json(202, studio.design_status())
             else:
                 self._error(409, "a design is already running; wait for it to finish")
+        except _ClientGone:
+            self.close_connection = True
+        except TooLarge as exc:
+            self._refuse(413, one_line(exc))
         except Exception as exc:  # noqa: BLE001 - one line to the page, the server goes on
             self._error(400, one_line(exc))
+
+    def _upload(self) -> None:
+        """Stream a model file to disk, then open it (refused before reading, if it must be)."""
+        n = self._length(MAX_UPLOAD)
+        if n is None:
+            return
+        name = Path(urllib.parse.unquote(self.headers.get(NAME_HEADER, ""))).name
+        # Refused by name and size before a byte of the body is read.
+        self.server.studio.check_upload(name, n)
+        # The first chunk is what tells an ASCII STL or PLY (see Studio.upload).
+        self.server.studio.upload(self._chunks(n, first=HEAD_BYTES), name, n)
+        self._json(200, self.server.studio.state())

@@ -5,19 +5,32 @@
 const $ = (id) => document.getElementById(id);
 const SLIDERS = ["size", "center_z", "offset_x", "offset_y", "light_elevation", "view_range",
                  "view_distance", "stipples"];
-const S = {settings: {}, azimuth: 0, preview: null, model: null, span: 80,
+const S = {settings: {}, azimuth: 0, preview: null, model: null, modelId: 0, span: 80,
            asked: 0, inFlight: false, dirty: false, glintDraws: 0, lastGlints: [],
            // The exact design: the settings it was asked for (their JSON), whether
            // one runs, whether the current settings wait for it, the last one done.
            designing: null, running: false, pending: false, done: null, followTimer: 0};
 //: How long the settings stay still before the exact design follows them, ms.
 const FOLLOW_MS = 1200;
+//: This run's secret, from the address the studio printed (?token=...): every
+//: API request carries it. Kept for this tab, so reloading the address without
+//: it still works, and taken out of the address bar (nothing shows or keeps it).
+const TOKEN = (() => {
+  const url = new URL(location.href);
+  const given = url.searchParams.get("token");
+  if (given) {
+    sessionStorage.setItem("specholo-token", given);
+    url.searchParams.delete("token");
+    history.replaceState(null, "", url.pathname + url.search + url.hash);
+  }
+  return given || sessionStorage.getItem("specholo-token") || "";
+})();
 
 function showError(text) { $("error").textContent = text ? "error: " + text : ""; }
 
 async function call(method, url, body, headers) {
   // Every answer is JSON with "error" on failure: one line for the page.
-  const opts = {method, headers: Object.assign({"X-Specholo": "1"}, headers || {})};
+  const opts = {method, headers: Object.assign({"X-Specholo-Token": TOKEN}, headers || {})};
   if (body !== undefined) {
     opts.body = body instanceof Blob ? body : JSON.stringify(body);
     if (!(body instanceof Blob)) opts.headers["Content-Type"] = "application/json";
@@ -245,7 +258,9 @@ async function poll() {
   }
   S.running = st.state === "running";
   if (!S.running && S.designing !== null) {
-    if (st.state === "done") S.done = {key: S.designing, summary: st.summary};
+    // (the server reports another model's design as none: this check is the page's own)
+    if (st.state === "done" && st.model_id === S.modelId)
+      S.done = {key: S.designing, summary: st.summary};
     S.designing = null;
   }
   showDesign(st);
@@ -286,6 +301,7 @@ function bindInputs() {
     });
   }
   $("up").addEventListener("change", (ev) => { setSetting("up", ev.target.value); changed(); });
+  $("zip").addEventListener("click", (ev) => { ev.preventDefault(); download(); });
   $("azimuth").addEventListener("input", (ev) => setAzimuth(+ev.target.value));
   $("reset").addEventListener("click", () => {
     for (const k of ["rotate_x", "rotate_y", "offset_x", "offset_y"]) setSetting(k, 0);
@@ -299,7 +315,8 @@ function bindInputs() {
     try {
       const st = await call("POST", "/api/model", file,
                             {"X-Specholo-Name": encodeURIComponent(file.name)});
-      setModel(st.model);
+      setModel(st.model, st.model_id);
+      showDesign(st.design);
       changed();
     } catch (e) {
       showError(e.message);
@@ -340,19 +357,54 @@ function bindInputs() {
   });
 }
 
-function setModel(name) {
-  S.model = name;
+function setModel(name, id) {
+  if (id !== S.modelId) {
+    // Another model: the last exact design, and the one on its way, are not its.
+    S.done = null; S.designing = null; S.pending = false;
+  }
+  S.model = name; S.modelId = id;
   $("model-name").textContent = name || "no model";
   $("prompt").hidden = !!name;
+  showEstimates();
+}
+
+async function download() {
+  // A link cannot carry the secret's header: the zip is fetched with it, then
+  // saved from memory.
+  let reply;
+  try {
+    reply = await fetch("/api/design.zip", {headers: {"X-Specholo-Token": TOKEN}});
+  } catch (e) {
+    showError("the studio server does not answer (was it stopped?)");
+    return;
+  }
+  if (!reply.ok) {
+    const data = await reply.json().catch(() => ({error: "bad answer from the server"}));
+    showError(data.error);
+    return;
+  }
+  const name = (/filename="([^"]+)"/.exec(reply.headers.get("Content-Disposition") || "") ||
+                [null, "design.zip"])[1];
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(await reply.blob());
+  a.download = name;
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(a.href), 10_000);
 }
 
 async function start() {
   bindInputs();
+  if (!TOKEN) {
+    showError("open the address `specholo studio` printed (it ends with ?token=...)");
+    return;
+  }
   try {
     const st = await call("GET", "/api/state");
     for (const [k, v] of Object.entries(st.settings)) setSetting(k, v);
     setAzimuth(0);
-    setModel(st.model);
+    setModel(st.model, st.model_id);
     showDesign(st.design);
     S.running = st.design.state === "running";  // (started before this page: not ours to follow)
     if (S.running) poll();
