@@ -301,7 +301,7 @@ function bindInputs() {
     });
   }
   $("up").addEventListener("change", (ev) => { setSetting("up", ev.target.value); changed(); });
-  $("zip").addEventListener("click", (ev) => { ev.preventDefault(); download(); });
+  $("zip").addEventListener("click", download);
   $("azimuth").addEventListener("input", (ev) => setAzimuth(+ev.target.value));
   $("reset").addEventListener("click", () => {
     for (const k of ["rotate_x", "rotate_y", "offset_x", "offset_y"]) setSetting(k, 0);
@@ -369,8 +369,8 @@ function setModel(name, id) {
 }
 
 async function download() {
-  // A link cannot carry the secret's header: the zip is fetched with it, then
-  // saved from memory.
+  // A plain link cannot carry the secret's header: the zip is fetched with it,
+  // then saved from memory.
   let reply;
   try {
     reply = await fetch("/api/design.zip", {headers: {"X-Specholo-Token": TOKEN}});
