@@ -50,8 +50,8 @@ def main() -> None:
             fast_preview(model, DesignConfig.from_dict(settings))
             alone.append(time.perf_counter() - t0)
             req = urllib.request.Request(
-                server.url + "api/preview", data=json.dumps({"settings": settings}).encode(),
-                headers={"X-Specholo": "1", "Content-Type": "application/json"})
+                server.origin + "/api/preview", data=json.dumps({"settings": settings}).encode(),
+                headers={"X-Specholo-Token": server.token, "Content-Type": "application/json"})
             t0 = time.perf_counter()
             with urllib.request.urlopen(req) as reply:
                 size = len(reply.read())

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.fabrication.plate import STOCK_THICKNESS
 from specholo.hosts.surfaces import (
     Cylinder,
     HeightField,
@@ -36,9 +37,6 @@ from specholo.scene.motion import MODES, Family, MotionSpec, Position, SceneKey,
 from specholo.scene.pose import UP_AXES, Pose
 from specholo.setup import MAX_FEED, MAX_SPINDLE, MIN_SAFE_Z, Machining, Tool
 
-#: The material under a host's surface when the composition does not say, mm:
-#: a plate, a cup's wall or a shell a few millimetres thick.
-STOCK_THICKNESS = 3.0
 #: Ranges of a composition's machining numbers (lowest, highest, unit): those
 #: of real machines. Feeds from a crawl to beyond the fastest routers (60 m/min);
 #: a safe height from a clearance above a flat blank's unevenness (see

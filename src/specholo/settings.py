@@ -12,6 +12,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from specholo.errors import SpecholoError
+from specholo.fabrication.plate import STOCK_THICKNESS
 from specholo.fabrication.tools import (
     Cutter,
     make_cutter,
@@ -213,7 +214,7 @@ class DesignConfig:
     plate_width: float | None = None
     plate_height: float | None = None
     fit: bool = False
-    stock_thickness: float = 3.0
+    stock_thickness: float = STOCK_THICKNESS
     feed: float = 300.0
     plunge: float = 100.0
     safe_z: float = 1.0

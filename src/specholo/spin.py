@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.fabrication.plate import STOCK_THICKNESS
 from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.spinning import SpinReport, find_spin_glints, verify_spinning
@@ -35,8 +36,6 @@ from specholo.toolpaths.spinning import (
 
 #: The setup's angles, radians inside, saved in degrees.
 SPIN_ANGLES = ("elevation",)
-#: The blank's thickness when none is given, mm (a flat design's default).
-STOCK_THICKNESS = 3.0
 #: Seeds a design takes: the whole numbers numpy's generator is seeded with
 #: (a negative one it refuses), as a composition's.
 SEED_RANGE = (0, 2**32)

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.fabrication.plate import STOCK_THICKNESS
 from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.steady import SteadyReport, verify_steady
@@ -25,8 +26,6 @@ from specholo.toolpaths.steady import SteadyDesign, SteadySetup, design_steady, 
 
 #: The setup's angles, radians inside, saved in degrees.
 STEADY_ANGLES = ("elevation", "half_range")
-#: The blank's thickness when none is given, mm (a flat design's default).
-STOCK_THICKNESS = 3.0
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,9 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 
+#: The blank's thickness when none is given, mm: a plate (or a cup's wall) a few
+#: millimetres thick, for every kind of design.
+STOCK_THICKNESS = 3.0
 #: Blank border around the grooves when the plate size is not given, mm.
 PLATE_MARGIN = 5.0
 #: Distance of a corner mark's centre from both edges of its corner, mm.

@@ -33,10 +33,9 @@ from typing import Any
 
 import numpy as np
 
-from specholo.compose import STOCK_THICKNESS
 from specholo.errors import SpecholoError
 from specholo.fabrication.check import Limits, Stock, check_program, tool_kind
-from specholo.fabrication.plate import Plate
+from specholo.fabrication.plate import STOCK_THICKNESS, Plate
 from specholo.hosts.surfaces import Cylinder, HeightField, Host, MeshHost, Panels, Plane, Sphere
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.conforming import ConformingGrooves
