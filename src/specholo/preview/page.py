@@ -40,8 +40,9 @@ import html
 import json
 import math
 import os
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -556,22 +557,26 @@ _CSS = (
 
 
 # ---------------------------------------------------------------------------
-# Plates given as height fields (ridged designs): glints precomputed per view
+# Glints precomputed per view: height fields (ridged designs), and any kind's
+# glints along its motion (a turning plate, a moving light, a curved host)
 
 
 @dataclass(frozen=True)
 class FieldViews:
-    """The glints one eye sees on a height field, for a grid of views.
+    """The glints one eye sees for a grid of views: on a height field, or any
+    kind's along its motion (:meth:`collect`).
 
-    The eye of view (i, j) is where a :class:`~specholo.preview.render.Camera` at
-    azimuth ``azimuths[i]`` and elevation ``elevations[j]`` sits at ``distance``
-    from (0, eye height, 0); views are numbered ``i * len(elevations) + j``. Glint
-    positions are quantized to uint16 steps of ``scale`` from ``origin`` (x, y
-    over the plate, z over the shell).
+    The eye of view (i, j, k) is where a :class:`~specholo.preview.render.Camera`
+    at azimuth ``azimuths[i]`` and elevation ``elevations[j]`` sits at
+    ``distance`` from (0, eye height, 0), the motion at ``states[k]``; views are
+    numbered ``(i * len(elevations) + j) * max(len(states), 1) + k``. Glint
+    positions are quantized to uint16 steps of ``scale`` from ``origin``.
 
     Attributes:
         azimuths, elevations: (na,), (ne,) view angles, degrees.
-        start: (na * ne + 1,) first glint of each view.
+        states: (ns,) the motion's states, degrees; empty where the glints take
+            none (the motion is the eye's own azimuth).
+        start: (na * ne * max(ns, 1) + 1,) first glint of each view.
         points: (g, 3) glint positions, mm (as found).
         table: (g, 3) uint16 quantized positions.
         origin: (3,) position of table value 0, mm.
@@ -585,11 +590,12 @@ class FieldViews:
     table: np.ndarray
     origin: np.ndarray
     scale: np.ndarray
+    states: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @classmethod
     def build(cls, field: Any, setup: Setup, azimuths: np.ndarray, elevations: np.ndarray,
               distance: float | None = None, progress: Any = None) -> FieldViews:
-        """Find the glints of every view.
+        """Find the glints of every view of a height field.
 
         Args:
             field: the labelled plate (``HeightMap``).
@@ -599,32 +605,72 @@ class FieldViews:
                 design's eyes' (``setup.viewer.eye_radius``).
             progress: called with (views done, views) after each view, or None.
         """
-        from specholo.preview.render import Camera, field_plate
+        from specholo.preview.render import field_plate
         from specholo.simulation.heightfield import SlopeIndex, find_field_glints
 
-        az = np.asarray(azimuths, dtype=float)
-        el = np.asarray(elevations, dtype=float)
-        d = setup.viewer.eye_radius if distance is None else float(distance)
         index = SlopeIndex.build(field)
+        plate = field_plate(field)
+        # x, y over the plate, z over the shell
+        lo = np.array([plate[0, 0], plate[0, 1], -2.0 * max(float(-np.min(field.z)), 1e-6)])
+        hi = np.array([plate[1, 0], plate[1, 1], 0.0])
+        return cls.collect(
+            lambda eye, state: find_field_glints(index, eye, setup.light).glints.point,
+            setup, azimuths, elevations, (), distance, progress, np.stack([lo, hi]))
+
+    @classmethod
+    def collect(cls, glints: Callable[[np.ndarray, float | None], np.ndarray], setup: Setup,
+                azimuths: Any, elevations: Any, states: Any = (),
+                distance: float | None = None, progress: Any = None,
+                box: np.ndarray | None = None) -> FieldViews:
+        """Find the glints of every view with a kind's own finder.
+
+        Args:
+            glints: the glint points (m, 3) an eye (3,) sees with the motion at a
+                state (radians; None where ``states`` is empty).
+            setup: the viewer (its eyes' circle and height).
+            azimuths, elevations: view angles, degrees.
+            states: the motion's states, degrees (empty: none).
+            distance: the eye's distance from (0, eye height, 0), mm; default the
+                design's eyes' (``setup.viewer.eye_radius``).
+            progress: called with (views done, views) after each view, or None.
+            box: (2, 3) the corners the quantization spans, mm; default the
+                glints' own extent.
+        """
+        from specholo.preview.render import Camera
+
+        az = np.asarray(azimuths, dtype=float).reshape(-1)
+        el = np.asarray(elevations, dtype=float).reshape(-1)
+        st = np.asarray(states, dtype=float).reshape(-1)
+        d = setup.viewer.eye_radius if distance is None else float(distance)
         found = []
-        total = len(az) * len(el)
-        for i, a in enumerate(az):
-            for j, e in enumerate(el):
+        each: list[float | None] = [math.radians(s) for s in st] if len(st) else [None]
+        total = len(az) * len(el) * len(each)
+        for a in az:
+            for e in el:
                 eye = Camera(math.radians(a), math.radians(e), d, 1.0, 2, 2,
                              setup.viewer.height).position()
-                found.append(find_field_glints(index, eye, setup.light).glints.point)
-                if progress is not None:
-                    progress(i * len(el) + j + 1, total)
+                for s in each:
+                    found.append(np.asarray(glints(eye, s), dtype=float).reshape(-1, 3))
+                    if progress is not None:
+                        progress(len(found), total)
         counts = np.array([len(f) for f in found], dtype=np.int64)
         start = np.concatenate([[0], np.cumsum(counts)]).astype(np.uint32)
         points = np.concatenate(found) if found else np.zeros((0, 3))
-        plate = field_plate(field)
-        lo = np.array([plate[0, 0], plate[0, 1], -2.0 * max(float(-np.min(field.z)), 1e-6)])
-        hi = np.array([plate[1, 0], plate[1, 1], 0.0])
-        scale = (hi - lo) / 65535.0
+        if box is None:
+            lo = points.min(axis=0) if len(points) else np.zeros(3)
+            hi = points.max(axis=0) if len(points) else np.zeros(3)
+        else:
+            lo, hi = np.asarray(box, dtype=float)
+        # a flat extent (glints all at z = 0) still needs a step
+        scale = np.maximum(hi - lo, 1e-6) / 65535.0
         q = np.rint((points - lo) / scale) if len(points) else np.zeros((0, 3))
         table = np.clip(q, 0, 65535).astype(np.uint16)
-        return cls(az, el, start, points, table, lo, scale)
+        return cls(az, el, start, points, table, lo, scale, st)
+
+    def view(self, i: int, j: int, k: int = 0) -> np.ndarray:
+        """The glints (g, 3) as found of view (azimuth i, elevation j, state k), mm."""
+        n = (i * len(self.elevations) + j) * max(len(self.states), 1) + k
+        return self.points[int(self.start[n]):int(self.start[n + 1])]
 
     def decoded(self) -> np.ndarray:
         """(g, 3) positions as the page has them, mm."""
@@ -651,23 +697,30 @@ def field_page_views(setup: Setup, elevation_range: float,
     """
     from specholo.simulation.verify import view_azimuths
 
-    if not (math.isfinite(step) and 0.1 <= step <= 10.0):
-        raise SpecholoError(f"view step must be in [0.1, 10] degrees, got {step:g}")
+    check_view_step(step)
     az = np.degrees(view_azimuths(setup.viewer.half_range, math.radians(step)))
     el = np.degrees(view_azimuths(math.radians(elevation_range), math.radians(step)))
-    if len(az) * len(el) > MAX_FIELD_VIEWS:
-        raise SpecholoError(f"{len(az) * len(el)} views are too many (at most "
-                            f"{MAX_FIELD_VIEWS}): use a larger step")
+    check_view_count(len(az) * len(el))
     return az, el
+
+
+def check_view_step(step: float) -> None:
+    """Refuse a spacing of a page's views outside [0.1, 10] degrees."""
+    if not (math.isfinite(step) and 0.1 <= step <= 10.0):
+        raise SpecholoError(f"view step must be in [0.1, 10] degrees, got {step:g}")
+
+
+def check_view_count(views: int) -> None:
+    """Refuse more views than a page holds (:data:`MAX_FIELD_VIEWS`)."""
+    if views > MAX_FIELD_VIEWS:
+        raise SpecholoError(f"{views} views are too many (at most "
+                            f"{MAX_FIELD_VIEWS}): use a larger step")
 
 
 def build_field_page(views: FieldViews, field: Any, setup: Setup, title: str = "specholo",
                      size: tuple[int, int] | None = None) -> str:
-    """The page of a plate given as a height field, as one HTML string.
-
-    The glints of each view are precomputed (:class:`FieldViews`); the page draws
-    the view nearest the pointer's, the plate in perspective and a spot at each
-    glint, with the camera of :class:`~specholo.preview.render.Camera`.
+    """The page of a plate given as a height field, as one HTML string
+    (:func:`build_views_page` with the field's plate).
 
     Args:
         views: the precomputed views.
@@ -676,24 +729,74 @@ def build_field_page(views: FieldViews, field: Any, setup: Setup, title: str = "
         title: page title.
         size: fixed canvas (width, height) in CSS pixels, or None to fill the window.
     """
-    from specholo.preview.render import field_plate, plate_camera
+    from specholo.preview.render import field_plate
 
-    plate = field_plate(field)
+    return build_views_page(views, setup, field_plate(field), title, size)
+
+
+@dataclass(frozen=True)
+class PageMotion:
+    """What a page's views move along besides the eye (a plate's turn, a light).
+
+    Attributes:
+        name: in words ("plate angle").
+        low, high: its range, degrees.
+        closed: a whole turn (high wraps onto low).
+        start: the state the page opens at, degrees.
+    """
+
+    name: str
+    low: float
+    high: float
+    closed: bool
+    start: float
+
+
+def build_views_page(views: FieldViews, setup: Setup, plate: np.ndarray,
+                     title: str = "specholo", size: tuple[int, int] | None = None,
+                     motion: PageMotion | None = None, shapes: list[Any] | None = None,
+                     frame_azimuths: tuple[float, ...] | None = None,
+                     start: tuple[float, float] = (0.0, 0.0)) -> str:
+    """The page of glints precomputed per view, as one HTML string.
+
+    The page draws the view nearest the pointer's (and, along a motion, the
+    state nearest the slider's): the plate in perspective and a spot at each
+    glint, with the camera of :class:`~specholo.preview.render.Camera`.
+
+    Args:
+        views: the precomputed views.
+        setup: the design's setup (light, viewer).
+        plate: (2, 2) the corners the default field of view frames, mm; drawn
+            as the plate where ``shapes`` is None.
+        title: page title.
+        size: fixed canvas (width, height) in CSS pixels, or None to fill the window.
+        motion: what the views' states are, or None where they have none.
+        shapes: per state along a motion, else per azimuth (or one for all),
+            what to draw under the glints:
+            ``{"plate": [[x, y], ...] or None, "lines": [[[x, y, z], ...], ...]}``
+            (mm); None: ``plate`` as the plate.
+        frame_azimuths: azimuths (radians) the default field of view frames;
+            default the viewer's range.
+        start: the azimuth and elevation the page opens at, degrees.
+    """
+    from specholo.preview.render import plate_camera
+
     half = setup.viewer.half_range
+    frame = (-half, half) if frame_azimuths is None else frame_azimuths
     fov = plate_camera(setup, plate, width=FRAME_SIZE[0], height=FRAME_SIZE[1],
-                       frame_azimuths=(-half, half)).fov
+                       frame_azimuths=frame).fov
     data, index = pack_blocks(views.blocks())
     step = float(np.max(np.diff(views.azimuths))) if len(views.azimuths) > 1 else 0.0
     if len(views.elevations) > 1:
         step = max(step, float(np.max(np.diff(views.elevations))))
-    meta = {
+    meta: dict[str, Any] = {
         "mode": "field",
         "title": title,
         "light": {"elevation": math.degrees(setup.light.elevation),
                   "distance": setup.light.distance},
         "camera": {"distance": setup.viewer.eye_radius, "eyeHeight": setup.viewer.height,
                    "fov": math.degrees(fov)},
-        "plate": plate.tolist(),
+        "plate": np.asarray(plate, dtype=float).tolist(),
         "views": {"azimuths": views.azimuths.tolist(), "elevations": views.elevations.tolist(),
                   "step": step},
         "counts": {"views": len(views.start) - 1, "glints": len(views.table)},
@@ -703,5 +806,16 @@ def build_field_page(views: FieldViews, field: Any, setup: Setup, title: str = "
         "blocks": index,
         "size": list(size) if size is not None else None,
     }
-    return _html(title, meta, data, _FIELD_JS_PATH.read_text(encoding="utf-8"),
-                 f"drag: move the eye (views every {step:g}&deg;)")
+    help_html = f"drag: move the eye (views every {step:g}&deg;)"
+    if start != (0.0, 0.0):
+        meta["start"] = {"azimuth": start[0], "elevation": start[1]}
+    if shapes is not None:
+        meta["shapes"] = shapes
+    if motion is not None and len(views.states):
+        meta["views"]["states"] = views.states.tolist()
+        meta["motion"] = {"name": motion.name, "low": motion.low, "high": motion.high,
+                          "closed": motion.closed, "start": motion.start}
+        every = float(np.max(np.diff(views.states))) if len(views.states) > 1 else 0.0
+        help_html = (f"drag: {html.escape(motion.name)} (every {every:g}&deg;) &middot; "
+                     "shift+drag: move the eye")
+    return _html(title, meta, data, _FIELD_JS_PATH.read_text(encoding="utf-8"), help_html)

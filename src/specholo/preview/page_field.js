@@ -1,8 +1,10 @@
-// The glints of a plate given as a height field (a ridged design), one eye at a time.
-// The glints of a grid of views are precomputed (specholo.preview.page.FieldViews,
-// with the physics of specholo.simulation.heightfield.find_field_glints); the page
-// draws the view nearest the pointer's with the camera of
-// specholo.preview.render.Camera: a dark plate in perspective, a spot at each glint.
+// Glints precomputed per view, one eye at a time: a plate given as a height field
+// (a ridged design), or any kind's glints along its motion (a turning plate, a
+// moving light, a curved host). The glints of a grid of views are found beforehand
+// (specholo.preview.page.FieldViews, with each kind's own glint finder); the page
+// draws the view nearest the pointer's, and the motion's state nearest the
+// slider's, with the camera of specholo.preview.render.Camera: a dark plate (or
+// a host's edges) in perspective, a spot at each glint.
 "use strict";
 (function () {
   const meta = JSON.parse(document.getElementById("meta").textContent);
@@ -12,23 +14,36 @@
   const params = new URLSearchParams(window.location.search);
   const DEG = Math.PI / 180;
   const AZ = meta.views.azimuths, EL = meta.views.elevations;
+  // The motion's states (degrees), if the glints move with more than the eye.
+  const ST = meta.views.states || [];
+  const NS = Math.max(ST.length, 1);
+  const MOTION = ST.length ? meta.motion : null;
+  const LINE = "rgb(46, 50, 58)";
   // Glint spots: Gaussian of this many CSS pixels, in this colour (as the GPU page).
   const SIGMA = 1.1, GLINT = [255, 245, 224];
   const BACKGROUND = "rgb(5, 6, 7)", PLATE = "rgb(15, 17, 19)";
 
-  const state = { azimuth: 0, elevation: 0, view: 0, dirty: true };
+  const state = { azimuth: 0, elevation: 0, motion: MOTION ? MOTION.start : 0, view: 0,
+                  dirty: true };
   let start = null, xyz = null;
   const hook = {
     ready: false, error: null,
-    setView(az, el) { setView(az, el); draw(); return hook.getView(); },
+    setView(az, el, st) {
+      setView(az, el);
+      if (st !== undefined) setMotion(st);
+      draw();
+      return hook.getView();
+    },
     getView() {
-      const [ia, ie] = nearestView();
+      const [ia, ie, is] = nearestView();
+      const view = (ia * EL.length + ie) * NS + is;
       return {
         mode: "field", azimuth: state.azimuth, elevation: state.elevation,
-        viewAzimuth: AZ[ia], viewElevation: EL[ie], view: ia * EL.length + ie,
+        viewAzimuth: AZ[ia], viewElevation: EL[ie], view: view,
+        motion: MOTION ? state.motion : null, viewState: MOTION ? ST[is] : null,
         distance: meta.camera.distance, eyeHeight: meta.camera.eyeHeight,
         fov: meta.camera.fov, width: canvas.width, height: canvas.height,
-        glints: start ? start[ia * EL.length + ie + 1] - start[ia * EL.length + ie] : 0,
+        glints: start ? start[view + 1] - start[view] : 0,
         views: meta.counts.views,
       };
     },
@@ -49,14 +64,28 @@
     state.elevation = clamp(+el, -meta.limits.elevation, meta.limits.elevation);
     state.dirty = true;
   }
-  function nearest(values, v) {
+  // A closed motion (a whole turn) wraps: 359 degrees is next to 0.
+  const period = MOTION && MOTION.closed ? MOTION.high - MOTION.low : 0;
+  function setMotion(v) {
+    v = +v;
+    if (!MOTION || !Number.isFinite(v)) return;
+    state.motion = period ? MOTION.low + (((v - MOTION.low) % period) + period) % period
+      : clamp(v, MOTION.low, MOTION.high);
+    state.dirty = true;
+  }
+  function gap(a, b, wrap) {
+    const d = Math.abs(a - b);
+    return wrap ? Math.min(d, wrap - d) : d;
+  }
+  function nearest(values, v, wrap) {
     let best = 0;
     for (let i = 1; i < values.length; i++) {
-      if (Math.abs(values[i] - v) < Math.abs(values[best] - v)) best = i;
+      if (gap(values[i], v, wrap) < gap(values[best], v, wrap)) best = i;
     }
     return best;
   }
-  const nearestView = () => [nearest(AZ, state.azimuth), nearest(EL, state.elevation)];
+  const nearestView = () => [nearest(AZ, state.azimuth, 0), nearest(EL, state.elevation, 0),
+                             MOTION ? nearest(ST, state.motion, period) : 0];
 
   const fixedW = +params.get("w") || (meta.size ? meta.size[0] : 0);
   const fixedH = +params.get("h") || (meta.size ? meta.size[1] : 0);
@@ -152,22 +181,46 @@
     return sprite;
   }
 
+  // What lies under the glints at a state: the plate (a polygon at z = 0, or none
+  // on a curved host) and faint lines (a host's edges, a turning plate's mark).
+  function shapeOf(ia, is) {
+    if (!meta.shapes) {
+      const [[x0, y0], [x1, y1]] = meta.plate;
+      return { plate: [[x0, y0], [x1, y0], [x1, y1], [x0, y1]], lines: [] };
+    }
+    // one for all views, or one per state along a motion, or per azimuth without one
+    return meta.shapes[meta.shapes.length === 1 ? 0 : (MOTION ? is : ia)];
+  }
+
   function draw() {
     if (!start) return;
-    const [ia, ie] = nearestView();
-    const view = ia * EL.length + ie;
+    const [ia, ie, is] = nearestView();
+    const view = (ia * EL.length + ie) * NS + is;
     const project = camera(AZ[ia], EL[ie]);
     ctx.globalCompositeOperation = "source-over";
     ctx.fillStyle = BACKGROUND;
     ctx.fillRect(0, 0, canvas.width, canvas.height);
-    const [[x0, y0], [x1, y1]] = meta.plate;
-    const corners = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]].map(([x, y]) => project(x, y, 0));
-    if (corners.every((c) => c)) {
+    const shape = shapeOf(ia, is);
+    const corners = shape.plate ? shape.plate.map(([x, y]) => project(x, y, 0)) : [];
+    if (corners.length && corners.every((c) => c)) {
       ctx.fillStyle = PLATE;
       ctx.beginPath();
       corners.forEach(([u, v], k) => (k ? ctx.lineTo(u, v) : ctx.moveTo(u, v)));
       ctx.closePath();
       ctx.fill();
+    }
+    ctx.strokeStyle = LINE;
+    ctx.lineWidth = dpr();
+    for (const line of shape.lines) {
+      ctx.beginPath();
+      let open = false;
+      for (const [x, y, z] of line) {
+        const p = project(x, y, z);
+        if (!p) { open = false; continue; }
+        if (open) ctx.lineTo(p[0], p[1]); else ctx.moveTo(p[0], p[1]);
+        open = true;
+      }
+      ctx.stroke();
     }
     ctx.globalCompositeOperation = "lighter";  // overlapping glints add up, like light
     const s = spot(), half = 0.5 * s.width;
@@ -178,8 +231,9 @@
     state.view = view;
     state.dirty = false;
     const sign = (v) => (v >= 0 ? "+" : "\u2212") + Math.abs(v).toFixed(1) + "\u00b0";
+    const along = MOTION ? `   ${MOTION.name} ${ST[is].toFixed(1)}\u00b0` : "";
     anglesEl.textContent = `azimuth ${sign(state.azimuth)}   elevation ${sign(state.elevation)}`
-      + `   shown: view ${sign(AZ[ia])}, ${sign(EL[ie])}`
+      + `   shown: view ${sign(AZ[ia])}, ${sign(EL[ie])}${along}`
       + `   ${start[view + 1] - start[view]} glints`;
   }
 
@@ -190,14 +244,20 @@
 
   let drag = null;
   canvas.addEventListener("pointerdown", (ev) => {
-    drag = { x: ev.clientX, y: ev.clientY, az: state.azimuth, el: state.elevation };
+    drag = { x: ev.clientX, y: ev.clientY, az: state.azimuth, el: state.elevation,
+             motion: state.motion, eye: !MOTION || ev.shiftKey };
     canvas.setPointerCapture(ev.pointerId);
     canvas.style.cursor = "grabbing";
   });
   canvas.addEventListener("pointermove", (ev) => {
     if (!drag) return;
     const k = meta.limits.degreesPerPixel;
-    setView(drag.az + (ev.clientX - drag.x) * k, drag.el - (ev.clientY - drag.y) * k);
+    if (drag.eye) {
+      setView(drag.az + (ev.clientX - drag.x) * k, drag.el - (ev.clientY - drag.y) * k);
+    } else {
+      // Along the motion: its whole range over 600 CSS pixels of drag.
+      setMotion(drag.motion + (ev.clientX - drag.x) * (MOTION.high - MOTION.low) / 600);
+    }
   });
   const release = (ev) => {
     if (!drag) return;
@@ -210,7 +270,10 @@
   window.addEventListener("resize", resize);
 
   resize();
-  setView(+params.get("az") || 0, +params.get("el") || 0);
+  const opening = meta.start || { azimuth: 0, elevation: 0 };
+  setView(params.has("az") ? +params.get("az") : opening.azimuth,
+          params.has("el") ? +params.get("el") : opening.elevation);
+  if (params.has("at")) setMotion(+params.get("at"));
   loadBlocks().then((blocks) => {
     decode(blocks);
     draw();

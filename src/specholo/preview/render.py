@@ -52,6 +52,7 @@ _RIM = np.array([0.05, 0.055, 0.06])
 _GLINT = np.array([1.0, 0.96, 0.88])
 _GROOVE = np.array([0.018, 0.022, 0.03])
 _GHOST = np.array([0.05, 0.16, 0.50])
+_OUTLINE = np.array([0.07, 0.075, 0.085])
 
 
 class Projected(NamedTuple):
@@ -333,13 +334,22 @@ def _points_layer(shape: tuple[int, int], pixel: np.ndarray, weight: np.ndarray)
     return out.reshape(hgt, wid)
 
 
-def _plate_layer(camera: Camera, bounds: np.ndarray, light: Light) -> np.ndarray:
+def _plate_layer(camera: Camera, bounds: np.ndarray | None, light: Light) -> np.ndarray:
     """The plate as seen by the camera: (H, W, 3) linear radiance, background included.
 
     Each pixel's ray meets the plane z = 0 exactly, so the quad is
     perspective-correct; its edges are antialiased by the distance to them in
     pixels, and a faint sheen follows the light's mirror direction.
+
+    Args:
+        camera: the camera.
+        bounds: the plate at z = 0: its corners (2, 2), a convex polygon (k, 2)
+            counter-clockwise (a turned plate), or None for none (a curved host,
+            drawn by its outline alone).
+        light: the light (the sheen).
     """
+    if bounds is None:
+        return np.broadcast_to(_BACKGROUND, (camera.height, camera.width, 3)).copy()
     eye = camera.position()
     d = camera.rays().astype(np.float32)  # single precision: ample for shading, twice as fast
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -349,9 +359,12 @@ def _plate_layer(camera: Camera, bounds: np.ndarray, light: Light) -> np.ndarray
     hit = np.where(hits[..., None], hit, 1e30)
     # Millimetres of plate per pixel along each ray (foreshortened by the incidence).
     mm_per_px = np.where(hits, t, 1.0) / camera.focal / np.maximum(np.abs(d[..., 2]), 1e-6)
-    (x0, y0), (x1, y1) = bounds
-    inner = np.minimum.reduce([hit[..., 0] - x0, x1 - hit[..., 0],
-                               hit[..., 1] - y0, y1 - hit[..., 1]])
+    if np.shape(bounds) == (2, 2):
+        (x0, y0), (x1, y1) = bounds
+        inner = np.minimum.reduce([hit[..., 0] - x0, x1 - hit[..., 0],
+                                   hit[..., 1] - y0, y1 - hit[..., 1]])
+    else:
+        inner = _polygon_inside(hit, np.asarray(bounds, dtype=float))
     inner_px = inner / mm_per_px
     cover = np.clip(inner_px + 0.5, 0.0, 1.0)
     # Mirror direction of the view ray; brighter the closer it points to the light.
@@ -362,6 +375,47 @@ def _plate_layer(camera: Camera, bounds: np.ndarray, light: Light) -> np.ndarray
     rim = np.exp(-0.5 * (inner_px / 1.2) ** 2)  # a thin bevel catching light
     plate = plate + rim[..., None] * _RIM
     return _BACKGROUND + cover[..., None] * (plate - _BACKGROUND)
+
+
+def _polygon_inside(hit: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Signed distance (H, W) of plate points (H, W, 2) inside a convex polygon
+    (k, 2), counter-clockwise: the least over its edges, negative outside, mm."""
+    inner = np.full(hit.shape[:-1], np.inf)
+    for a, b in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
+        edge = b - a
+        length = float(np.hypot(*edge))
+        if length > 0:
+            # the edge's left normal points inside a counter-clockwise polygon
+            d = (edge[0] * (hit[..., 1] - a[1]) - edge[1] * (hit[..., 0] - a[0])) / length
+            np.minimum(inner, d, out=inner)
+    return inner
+
+
+def line_coverage(camera: Camera, lines: Sequence[np.ndarray]) -> np.ndarray:
+    """Polylines (each (k, 3), mm) as faint lines: (H, W) coverage in [0, 1)."""
+    shape = (camera.height, camera.width)
+    starts, ends = [], []
+    for line in lines:
+        q = np.asarray(line, dtype=float).reshape(-1, 3)
+        if len(q) >= 2:
+            starts.append(q[:-1])
+            ends.append(q[1:])
+    if not starts:
+        return np.zeros(shape)
+    a, b = np.concatenate(starts), np.concatenate(ends)
+    pa, pb = camera.project(a), camera.project(b)
+    ok = pa.valid & pb.valid  # a segment reaching behind the camera is left out
+    a, b = a[ok], b[ok]
+    px_len = np.linalg.norm(pb.pixel[ok] - pa.pixel[ok], axis=1)
+    # Enough samples per segment that consecutive ones are under a pixel apart.
+    n = np.clip(np.ceil(px_len / 0.8), 1, 4096).astype(np.int64)
+    idx = np.repeat(np.arange(len(a)), n)
+    first = np.cumsum(n) - n
+    u = ((np.arange(idx.size) - np.repeat(first, n) + 0.5) / np.repeat(n, n))[:, None]
+    pixel, _, valid = camera.project((1.0 - u) * a[idx] + u * b[idx])
+    weight = (px_len / n)[idx]
+    dens = _points_layer(shape, pixel[valid], weight[valid])
+    return 1.0 - np.exp(-dens)
 
 
 def _groove_layer(camera: Camera, eng: Engraved) -> np.ndarray:
@@ -385,6 +439,12 @@ def _groove_layer(camera: Camera, eng: Engraved) -> np.ndarray:
     weight = (px_len / n)[idx]
     dens = _points_layer(out_shape, pixel[ok], weight[ok])
     return 1.0 - np.exp(-dens)
+
+
+def groove_coverage(camera: Camera, eng: Engraved) -> np.ndarray:
+    """Engraved grooves' centrelines as the camera sees them: (H, W) coverage in
+    [0, 1), the faint overlay of a still's ``--grooves``."""
+    return _groove_layer(camera, eng)
 
 
 def _ghost_points(ghost: Any) -> np.ndarray:
@@ -502,17 +562,20 @@ def render_still(grooves: Grooves, setup: Setup, camera: Camera,
                        overlay if grooves_overlay else None)
 
 
-def draw_glints(camera: Camera, bounds: np.ndarray, light: Light,
+def draw_glints(camera: Camera, bounds: np.ndarray | None, light: Light,
                 glints: Callable[[], tuple[np.ndarray, np.ndarray | float]],
                 roughness: float = REFERENCE_ROUGHNESS, ghost: Any = None,
                 bloom: float = 0.006,
-                overlay: Callable[[], np.ndarray] | None = None) -> np.ndarray:
+                overlay: Callable[[], np.ndarray] | None = None,
+                lines: Sequence[np.ndarray] = ()) -> np.ndarray:
     """Draw the lit plate as the camera sees it, with a spot at each glint: the look
     of every still (see the module notes).
 
     Args:
         camera: the camera.
-        bounds: the plate rectangle (2, 2), mm.
+        bounds: the plate at z = 0, mm: its rectangle (2, 2), a convex polygon
+            (k, 2) counter-clockwise, or None where there is no flat plate to
+            draw (a curved host: its ``lines`` show it).
         light: the light.
         glints: returns the glint points (g, 3), mm, and the standard deviation of
             each one's spot on the plate (mm; one for all, or (g,)); called while
@@ -525,6 +588,8 @@ def draw_glints(camera: Camera, bounds: np.ndarray, light: Light,
             fraction of the spot's peak (0 for none).
         overlay: returns an (H, W) coverage in [0, 1) drawn faintly in the groove
             colour, or None.
+        lines: polylines (each (k, 3), mm) drawn faintly: a plate's or a host's
+            edges.
 
     Returns:
         (H, W, 3) uint8 RGB image.
@@ -537,6 +602,8 @@ def draw_glints(camera: Camera, bounds: np.ndarray, light: Light,
 
     def backdrop() -> np.ndarray:
         image = _plate_layer(camera, bounds, light)
+        if len(lines):
+            image += line_coverage(camera, lines)[..., None] * _OUTLINE
         if overlay is not None:
             image += overlay()[..., None] * _GROOVE
         if ghost_pts is not None:
