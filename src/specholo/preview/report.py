@@ -1,4 +1,10 @@
-"""A one-page, self-contained HTML report of a design: settings, fabrication, accuracy."""
+"""A one-page, self-contained HTML report of a design: settings, fabrication, accuracy.
+
+A flat plate's report reads its own ``hologram.json``; every other kind's
+(:func:`write_report` with its :class:`~specholo.preview.source.PictureSource`)
+shows the facts its source gives, every figure its ``verify.json`` holds, and
+the pictures in its folder, animations included.
+"""
 
 from __future__ import annotations
 
@@ -6,10 +12,13 @@ import base64
 import html
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
+
+if TYPE_CHECKING:
+    from specholo.preview.source import PictureSource
 
 #: Pictures shown when present in the design folder, with their captions.
 PICTURES = (
@@ -20,11 +29,25 @@ PICTURES = (
 )
 
 
+#: Pictures and animations shown when present in a folder of any other kind.
+KIND_PICTURES = (
+    ("preview.png", "The design's own preview."),
+    ("preview.gif", "The design's own animation."),
+    ("verify.png", "Verification by view."),
+    ("render.png", "Rendered still (specholo render)."),
+    ("stereo.png", "Stereo pair (specholo stereo)."),
+    ("turntable.gif", "Walking past (specholo animate --kind turntable)."),
+    ("turn.gif", "The plate turning (specholo animate --kind turn)."),
+    ("light.gif", "The light moving (specholo animate --kind light)."),
+)
+
+
 def _img(path: Path) -> str:
     from specholo.readback import MAX_PICTURE_BYTES, read_bytes
 
     data = base64.b64encode(read_bytes(path, MAX_PICTURE_BYTES)).decode("ascii")
-    return f'<img alt="{html.escape(path.name)}" src="data:image/png;base64,{data}">'
+    kind = "gif" if path.suffix.lower() == ".gif" else "png"
+    return f'<img alt="{html.escape(path.name)}" src="data:image/{kind};base64,{data}">'
 
 
 def _rows(pairs: list[tuple[str, str]]) -> str:
@@ -86,12 +109,16 @@ def fabrication_figures(info: dict[str, Any]) -> list[tuple[str, str]]:
     return rows
 
 
-def write_report(folder: str | os.PathLike[str], verify: dict[str, Any] | None) -> Path:
+def write_report(folder: str | os.PathLike[str], verify: dict[str, Any] | None,
+                 source: PictureSource | None = None) -> Path:
     """Write ``folder/report.html`` from the design's files.
 
     Args:
         folder: a design folder (with hologram.json).
         verify: the contents of verify.json, or None if not verified.
+        source: the design as the picture commands see it; None (or a source
+            without facts, the flat plate's) for the flat plate's report, read
+            from its hologram.json.
 
     Returns:
         The report's path.
@@ -107,7 +134,10 @@ def write_report(folder: str | os.PathLike[str], verify: dict[str, Any] | None) 
     # The files may have been edited since they were written: whatever the page
     # cannot show is refused in one line, naming the key or the value.
     try:
-        page = _page(folder, info, verify)
+        if source is None or source.facts is None:
+            page = _page(folder, info, verify)
+        else:
+            page = _kind_page(folder, source.title, source.facts, verify)
     except KeyError as exc:
         raise SpecholoError(f"{folder}: hologram.json or verify.json lacks {exc.args[0]!r}, "
                             "which the report shows") from exc
@@ -210,3 +240,102 @@ figcaption {{ color: #666; font-size: .9em; }}
 </body></html>
 """
     return page
+
+
+def _label(key: str) -> str:
+    """A verify.json key as a column's or a row's label: 'worst_p95_mm' ->
+    'worst p95 mm'."""
+    return key.replace("_", " ")
+
+
+def _cell(key: str, value: Any) -> str:
+    """A figure of a verify.json row as the report prints it: angles signed in
+    degrees, measures to a micrometre, counts whole, nothing measured as '-'."""
+    if value is None:
+        return "–"
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return html.escape(str(value))
+    if key in ("azimuth", "elevation", "position") or key.endswith("_deg"):
+        return f"{float(value):+.1f}°"
+    if isinstance(value, int):
+        return f"{value:,}"
+    return f"{float(value):.3f}"
+
+
+def _kind_accuracy(verify: Any) -> str:
+    """Every figure a verify.json of any kind holds: its shared figures, its
+    kind's summary and a row per verified position."""
+    if not isinstance(verify, dict) or not isinstance(verify.get("summary"), dict):
+        raise TypeError("verify.json holds no summary")
+    summary = verify["summary"]
+    key = verify.get("rows")
+    rows = verify.get(key) if isinstance(key, str) else None
+    if not isinstance(rows, list):
+        raise TypeError("verify.json names no rows")
+    figures = verify.get("figures")
+    head = [("positions verified", f"{len(rows):,} {html.escape(_label(str(key)))}, every "
+             f"{float(verify.get('step_deg', 0.0)):g}°")]
+    head += [(_label(k), _cell(k, v)) for k, v in summary.items()]
+    columns: list[str] = []
+    for row in rows:
+        for k in row:
+            if k not in columns:
+                columns.append(k)
+    thead = "".join(f"<th>{html.escape(_label(k))}</th>" for k in columns)
+    body = "".join("<tr>" + "".join(f"<td>{_cell(k, row.get(k))}</td>" for k in columns)
+                   + "</tr>" for row in rows)
+    lead = ""
+    if isinstance(figures, dict):  # the figures every kind shares (not in older files)
+        lead = (f"<p>Worst 95th-percentile error {_cell('worst', figures['worst_p95_mm'])} "
+                f"mm, lowest visibility {_cell('lowest', figures['lowest_visibility'])} over "
+                f"{_cell('positions', figures['positions'])} positions.</p>")
+    rows_html = "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in head)
+    return (f"{lead}<table>{rows_html}</table>"
+            f"<table class=num><tr>{thead}</tr>{body}</table>")
+
+
+def _kind_page(folder: Path, title: str, facts: list[tuple[str, str]], verify: Any) -> str:
+    """The report of a design of any kind but the flat plate: its facts, its
+    verification's figures and its pictures."""
+    accuracy = ("<p>Not verified yet: run <code>specholo verify</code>.</p>"
+                if verify is None else _kind_accuracy(verify))
+    steps = []
+    if verify is None:
+        steps.append("Check it by simulating both eyes: <code>specholo verify "
+                     f"{html.escape(str(folder))}</code>.")
+    steps.append("Look at it before cutting: <code>specholo render</code>, "
+                 "<code>stereo</code>, <code>animate</code> and <code>view</code> draw it "
+                 "from the same glints as its verification.")
+    for name, what in (("hologram.gcode", "the program that cuts it, read back by the "
+                                          "safety check before it was kept (its header "
+                                          "says how to set it up)"),
+                       ("relief.gcode", "the second pass, with the V-bit its header names, "
+                                        "that cuts the unused walls away"),
+                       ("hologram.svg", "the grooves at 1:1 for a laser or plotter"),
+                       ("hologram.stl", "the plate as a mesh")):
+        if (folder / name).is_file():
+            steps.append(f"<code>{name}</code>: {what}.")
+    pictures = "".join(
+        f"<figure>{_img(folder / name)}<figcaption>{html.escape(text)}</figcaption></figure>"
+        for name, text in KIND_PICTURES if (folder / name).is_file())
+    return f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8">
+<title>specholo report: {html.escape(folder.name)}</title>
+<style>
+body {{ font: 15px/1.45 system-ui, sans-serif; max-width: 980px; margin: 2em auto;
+       padding: 0 1em; color: #222; }}
+h1 {{ font-size: 1.5em; }} h2 {{ font-size: 1.15em; margin-top: 1.6em; }}
+table {{ border-collapse: collapse; margin: .5em 0; }}
+th, td {{ padding: .2em .7em; border-bottom: 1px solid #ddd; text-align: left; }}
+table.num td {{ text-align: right; font-variant-numeric: tabular-nums; }}
+figure {{ margin: 1em 0; }} img {{ max-width: 100%; }}
+figcaption {{ color: #666; font-size: .9em; }}
+</style></head><body>
+<h1>Specular hologram: {html.escape(folder.name)}</h1>
+<p>{html.escape(title[0].upper() + title[1:])}.</p>
+<h2>Design</h2><table>{_rows(facts)}</table>
+<h2>Accuracy</h2>{accuracy}
+<h2>What to do next</h2><ol>{"".join(f"<li>{s}</li>" for s in steps)}</ol>
+<h2>Pictures</h2>{pictures}
+</body></html>
+"""
