@@ -245,8 +245,10 @@ def test_ridged_folder_refuses_groove_options(designed: Path, tmp_path: Path, ca
     assert "no grooves" in _one_line_error(
         ["render", designed, "--grooves", "--out", tmp_path / "r.png"], capsys)
     assert "height field" in _one_line_error(["verify", designed, "--cut"], capsys)
-    assert "ridged" in _one_line_error(["stereo", designed, "--out", tmp_path / "s.png"],
-                                       capsys)
+    assert "ridged" in _one_line_error(["animate", designed, "--kind", "turn", "--out",
+                                        tmp_path / "t.gif"], capsys)
+    assert "--azimuth" in _one_line_error(["stereo", designed, "--at", "10", "--out",
+                                           tmp_path / "s.png"], capsys)
     assert sorted(p.name for p in designed.iterdir()) == before
     assert list(tmp_path.iterdir()) == []
 

@@ -240,7 +240,7 @@ def test_stipple_on_the_plate_gets_a_dimple_seen_in_place() -> None:
             np.testing.assert_allclose(dot, [[5.0, -3.0, 0.0]], atol=1e-12)
 
 
-def test_folder_reverifies_and_other_commands_refuse(tmp_path: Path,
+def test_folder_reverifies_and_refuses_what_it_cannot(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "spin"
     assert main(["spin", str(BUNNY), "--out", str(out), "--stipples", "120", "--frames", "0",
@@ -253,8 +253,11 @@ def test_folder_reverifies_and_other_commands_refuse(tmp_path: Path,
     # the folder alone reproduces the design's figures (15 deg is every third angle)
     p95 = [a["p95_mm"] for a in again["angles"][::3]]
     assert max(p95) == pytest.approx(first["worst_p95_mm"], abs=1e-12)
-    for cmd in ("render", "report", "view", "stereo", "animate"):
-        rc = main([cmd, str(out)])
-        err = capsys.readouterr().err.strip()
-        assert rc != 0 and "turning-plate" in err and len(err.splitlines()) == 1
+    # --at is the plate's angle; a turning plate moves by more than the eye
+    assert main(["render", str(out), "--at", "nan"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert "--at" in err and len(err.splitlines()) == 1
+    assert main(["animate", str(out), "--kind", "light"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert "turning-plate" in err and len(err.splitlines()) == 1
     assert main(["verify", str(out), "--cut"]) != 0

@@ -120,10 +120,13 @@ def test_cli_writes_a_verified_folder(tmp_path: Path, capsys: pytest.CaptureFixt
         assert im.format == "PNG" and im.size[0] > 2 * im.size[1]
     assert main(["verify", str(out)]) == 0
     assert "drift" in capsys.readouterr().out
-    # a picture command that does not draw scoops says so in one line, naming the preview
-    assert main(["render", str(out)]) != 0
+    # the picture commands draw scoops too (tests/test_pictures.py checks what they draw)
+    assert main(["render", str(out), "--width", "32", "--height", "32"]) == 0
+    assert (out / "render.png").is_file()
+    # and --at is a light elevation: one in the plate's plane is refused in one line
+    assert main(["render", str(out), "--at", "0", "--width", "32", "--height", "32"]) != 0
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "steady-image design" in err[0] and "preview.png" in err[0]
+    assert len(err) == 1 and "light elevation" in err[0]
 
 
 @pytest.mark.parametrize("args, message", [

@@ -173,11 +173,13 @@ def _check_folder(folder: Path, command: str) -> None:
     refuse_picture(job_of(folder), folder, command)
 
 
-def _design_folder(folder: Path, command: str) -> Any:
-    from specholo.pipeline import load_design
+def _picture_source(folder: Path, command: str) -> Any:
+    """The design in ``folder``, of any kind, as the picture commands draw it
+    (``Job.picture_source``), read back and checked."""
+    from specholo.jobs import job_of
 
     _check_folder(folder, command)
-    return load_design(folder)
+    return job_of(folder).picture_source(folder)
 
 
 def _finite_option(name: str, value: float) -> float:

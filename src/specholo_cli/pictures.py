@@ -1,9 +1,14 @@
-"""The picture commands: ``render``, ``animate``, ``stereo``, ``report``, ``view``."""
+"""The picture commands: ``render``, ``animate``, ``stereo``, ``report``, ``view``.
+
+Each serves every kind of design through its ``PictureSource``
+(:mod:`specholo.preview.source`): one path, whatever the folder holds.
+"""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -12,23 +17,43 @@ from specholo_cli.app import (
     _SIZE_HELP,
     MAX_FRAMES,
     _check_folder,
-    _design_folder,
     _distance,
     _finite_option,
     _fov,
     _look_options,
+    _picture_source,
     _png_out,
     _stderr_console,
     cli,
 )
 
+#: ``--at``'s help, the same for every picture of one state.
+_AT_HELP = ("The state of the design's motion, degrees: a turning plate's angle, a steady "
+            "image's or a moving-light composition's light elevation [the design's own]. A "
+            "design that moves only with the eye (a flat or ridged plate, a composition the "
+            "viewer walks past) takes --azimuth instead.")
+
+
+def _at(at: float | None) -> float | None:
+    """``--at`` in radians (None: not given)."""
+    return None if at is None else math.radians(_finite_option("at", at))
+
+
+def _state_words(source: Any, state: float | None) -> str:
+    """', plate angle 30 deg' for a picture at a state of a motion of its own."""
+    if source.motion.moves_eye or state is None:
+        return ""
+    return f", {source.motion.name} {math.degrees(state):g} deg"
+
 
 @cli.command()
 @click.argument("folder", type=click.Path(path_type=Path))
-@click.option("--azimuth", type=float, default=0.0, show_default=True,
-              help="Camera azimuth, degrees right of straight-on.")
+@click.option("--azimuth", type=float, default=None,
+              help="Camera azimuth, degrees right of straight-on [0; for a design seen from "
+                   "still eyes (spin, steady, a moving-light composition) its left eye's].")
 @click.option("--elevation", type=float, default=0.0, show_default=True,
               help="Camera elevation above the eyes' plane, degrees.")
+@click.option("--at", "at", type=float, default=None, help=_AT_HELP)
 @click.option("--width", type=int, default=1024, help=_SIZE_HELP.format("width", 1024))
 @click.option("--height", type=int, default=1024, help=_SIZE_HELP.format("height", 1024))
 @click.option("--distance", type=float, default=None,
@@ -38,94 +63,87 @@ from specholo_cli.app import (
 @_look_options
 @click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
               help="PNG file [FOLDER/render.png].")
-def render(folder: Path, azimuth: float, elevation: float, width: int, height: int,
-           distance: float | None, fov: float | None, roughness: float, grooves: bool,
-           ghost: bool, out: Path | None) -> None:
-    """Render the lit plate of the design in FOLDER as a camera sees it (glints only)."""
-    from specholo.preview.render import design_camera, render_still, save_png
-    from specholo.ridged import is_ridged_folder
+def render(folder: Path, azimuth: float | None, elevation: float, at: float | None,
+           width: int, height: int, distance: float | None, fov: float | None,
+           roughness: float, grooves: bool, ghost: bool, out: Path | None) -> None:
+    """Render the lit design in FOLDER as a camera sees it (glints only), any kind."""
+    from specholo.preview.render import save_png
+    from specholo.preview.source import camera, state_at, still
 
     out = _png_out(out, folder, "render.png", "render")
-    if is_ridged_folder(folder):
-        if grooves:
-            raise SpecholoError("a ridged plate has no grooves to draw: leave out --grooves")
-        _render_ridged(folder, azimuth, elevation, width, height, distance, fov, roughness,
-                       ghost, out)
-        return
-    loaded = _design_folder(folder, "render")
-    setup = loaded.config.setup()
-    camera = design_camera(
-        setup, loaded.grooves, math.radians(_finite_option("azimuth", azimuth)),
-        math.radians(_finite_option("elevation", elevation)),
-        None if distance is None else _distance(distance), _fov(fov),
-        width, height, plate=loaded.plate)
-    model = (loaded.mesh if loaded.mesh is not None else loaded.points) if ghost else None
-    image = render_still(loaded.grooves, setup, camera,
-                         math.radians(_finite_option("roughness", roughness)),
-                         grooves_overlay=grooves, ghost=model, plate=loaded.plate)
+    source = _picture_source(folder, "render")
+    if grooves and not source.grooves:  # said before anything is drawn
+        raise SpecholoError(f"{source.title} has no grooves to draw: leave out --grooves")
+    az = None if azimuth is None else math.radians(_finite_option("azimuth", azimuth))
+    cam = camera(source, az, math.radians(_finite_option("elevation", elevation)),
+                 None if distance is None else _distance(distance), _fov(fov), width, height)
+    state = state_at(source, _at(at), cam.azimuth)
+    image = still(source, cam, state, math.radians(_finite_option("roughness", roughness)),
+                  grooves, ghost)
     save_png(image, out)
-    click.echo(f"{width}x{height} render at azimuth {azimuth:+g} -> {out}")
-
-
-def _render_ridged(folder: Path, azimuth: float, elevation: float, width: int, height: int,
-                   distance: float | None, fov: float | None, roughness: float, ghost: bool,
-                   out: Path) -> None:
-    """The render command for a ridged plate: the glints on its height field."""
-    from specholo.preview.render import field_plate, plate_camera, render_field_still, save_png
-    from specholo.ridged import load_ridged_design
-
-    loaded = load_ridged_design(folder)
-    setup = loaded.config.setup()
-    camera = plate_camera(
-        setup, field_plate(loaded.heights), math.radians(_finite_option("azimuth", azimuth)),
-        math.radians(_finite_option("elevation", elevation)),
-        None if distance is None else _distance(distance), _fov(fov), width, height)
-    model = (loaded.mesh if loaded.mesh is not None else loaded.points) if ghost else None
-    image = render_field_still(loaded.heights, setup, camera,
-                               math.radians(_finite_option("roughness", roughness)), ghost=model)
-    save_png(image, out)
-    click.echo(f"{width}x{height} render of the ridged plate at azimuth {azimuth:+g}, "
-               f"elevation {elevation:+g} -> {out}")
+    where = f"azimuth {math.degrees(cam.azimuth):+g}" + (
+        f", elevation {elevation:+g}" if elevation else "")
+    click.echo(f"{width}x{height} render at {where}{_state_words(source, state)} -> {out}")
 
 
 @cli.command()
 @click.argument("folder", type=click.Path(path_type=Path))
-@click.option("--kind", type=click.Choice(["turntable", "light"]), default="turntable",
-              show_default=True,
-              help="Camera walking the viewing arc, or the light's elevation moving.")
+@click.option("--kind", type=click.Choice(["turntable", "turn", "light"]), default=None,
+              help="What moves: turntable, the camera walking the viewing arc; turn, a "
+                   "turning plate's angle over a whole turn; light, the light's elevation "
+                   "(over a steady image's or a composition's range, else +-"
+                   "--light-span about the design's) [the design's own motion: turn for "
+                   "spin, light for steady and moving-light compositions, else turntable].")
 @click.option("--frames", type=int, default=90, show_default=True, help="Number of frames.")
 @click.option("--width", type=int, default=512, help=_SIZE_HELP.format("width", 512))
 @click.option("--height", type=int, default=512, help=_SIZE_HELP.format("height", 512))
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Frames per second.")
 @click.option("--light-span", type=float, default=10.0, show_default=True,
-              help="--kind light: the light moves +- this many degrees about the design's.")
-@click.option("--azimuth", type=float, default=0.0, show_default=True,
-              help="--kind light: camera azimuth, degrees.")
+              help="--kind light on a design whose light has no motion of its own: the light "
+                   "moves +- this many degrees about the design's.")
+@click.option("--azimuth", type=float, default=None,
+              help="A still camera's azimuth (--kind turn or light), degrees [0; the left "
+                   "eye's for a design seen from still eyes].")
+@click.option("--at", "at", type=float, default=None,
+              help="--kind turntable: the state the design's motion is held at while the "
+                   "camera walks, degrees [the design's own].")
 @_look_options
 @click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
-              help="GIF or MP4 file, by suffix [FOLDER/turntable.gif or FOLDER/light.gif].")
-def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: float,
-            light_span: float, azimuth: float, roughness: float, grooves: bool, ghost: bool,
-            out: Path | None) -> None:
-    """Animate the design in FOLDER: a walk along the viewing arc, or a moving light."""
+              help="GIF or MP4 file, by suffix [FOLDER/<kind>.gif].")
+def animate(folder: Path, kind: str | None, frames: int, width: int, height: int, fps: float,
+            light_span: float, azimuth: float | None, at: float | None, roughness: float,
+            grooves: bool, ghost: bool, out: Path | None) -> None:
+    """Animate the design in FOLDER, any kind: along its motion (a walk past, a
+    turning plate, a moving light), or along another with --kind."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
 
-    from specholo.preview.motion import FORMATS, light_sweep, turntable, write_animation
+    from specholo.preview.motion import write_animation
+    from specholo.preview.source import along_options
+    from specholo.preview.source import frames as draw_frames
 
     _check_folder(folder, "animate")
-    out = folder / f"{kind}.gif" if out is None else out
-    if out.suffix.lower() not in FORMATS:
-        raise SpecholoError(f"animation file must end in .gif or .mp4, got {out.name!r}")
-    if not out.parent.is_dir():
-        raise SpecholoError(f"folder {out.parent} does not exist")
-    if out.is_dir():  # found now, not once every frame is rendered
-        raise SpecholoError(f"{out} is a folder: name a .gif or .mp4 file")
+    if out is not None:
+        _check_animation_out(out)
     if not 0 < frames <= MAX_FRAMES:
         raise SpecholoError(f"--frames must be in [1, {MAX_FRAMES}], got {frames}")
     if not (math.isfinite(fps) and 0.01 <= fps <= 240):
         raise SpecholoError(f"--fps must be in [0.01, 240], got {fps:g}")
-    loaded = _design_folder(folder, "animate")
+    source = _picture_source(folder, "animate")
+    kind = source.motion.key if kind is None else kind
+    allowed = along_options(source)
+    if kind not in allowed:
+        raise SpecholoError(f"{source.title} does not move along --kind {kind}: its "
+                            f"animations are --kind {', '.join(allowed)}")
+    if grooves and not source.grooves:
+        raise SpecholoError(f"{source.title} has no grooves to draw: leave out --grooves")
+    if at is not None and kind != "turntable":
+        raise SpecholoError("--at holds the design's motion while the camera walks: it is "
+                            "for --kind turntable")
+    if out is None:
+        out = folder / f"{kind}.gif"
+        _check_animation_out(out)
     rough = math.radians(_finite_option("roughness", roughness))
+    az = None if azimuth is None else math.radians(_finite_option("azimuth", azimuth))
     console = _stderr_console()
     # Off a terminal the bar would only leave an empty line on stderr.
     with Progress("[progress.description]{task.description}", BarColumn(),
@@ -136,23 +154,33 @@ def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: 
         def advance(done: int, total: int) -> None:
             bar.update(task, completed=done)
 
-        if kind == "turntable":
-            images = turntable(loaded, frames, (width, height), rough, grooves, ghost,
-                               progress=advance)
-        else:
-            images = light_sweep(loaded, frames, (width, height),
-                                 math.radians(_finite_option("light-span", light_span)),
-                                 math.radians(_finite_option("azimuth", azimuth)), rough,
-                                 grooves, ghost, progress=advance)
+        images = draw_frames(source, frames, (width, height), kind, rough, grooves, ghost,
+                             azimuth=az, at=_at(at),
+                             span=math.radians(_finite_option("light-span", light_span)),
+                             progress=advance)
         bar.update(task, description="encoding")
         write_animation(images, out, fps)
     click.echo(f"{frames} frames {width}x{height} at {fps:g} fps -> {out}")
 
 
+def _check_animation_out(out: Path) -> None:
+    """Refuse an animation file that cannot be written, before any frame is drawn."""
+    from specholo.preview.motion import FORMATS
+
+    if out.suffix.lower() not in FORMATS:
+        raise SpecholoError(f"animation file must end in .gif or .mp4, got {out.name!r}")
+    if not out.parent.is_dir():
+        raise SpecholoError(f"folder {out.parent} does not exist")
+    if out.is_dir():  # found now, not once every frame is rendered
+        raise SpecholoError(f"{out} is a folder: name a .gif or .mp4 file")
+
+
 @cli.command()
 @click.argument("folder", type=click.Path(path_type=Path))
 @click.option("--azimuth", type=float, default=0.0, show_default=True,
-              help="Head azimuth on the viewing arc, degrees.")
+              help="Head azimuth on the viewing arc, degrees (0: a design seen from still "
+                   "eyes is seen from its own).")
+@click.option("--at", "at", type=float, default=None, help=_AT_HELP)
 @click.option("--mode", type=click.Choice(["parallel", "cross", "anaglyph"]),
               default="anaglyph", show_default=True,
               help="Side by side for parallel or cross-eyed viewing, or red-cyan anaglyph.")
@@ -164,42 +192,43 @@ def animate(folder: Path, kind: str, frames: int, width: int, height: int, fps: 
               help="Width of the plate's specular lobe, degrees.")
 @click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
               help="PNG file [FOLDER/stereo.png].")
-def stereo(folder: Path, azimuth: float, mode: str, width: int, height: int,
+def stereo(folder: Path, azimuth: float, at: float | None, mode: str, width: int, height: int,
            fov: float | None, roughness: float, out: Path | None) -> None:
-    """Render what both eyes of a viewer see of the design in FOLDER, as one picture."""
+    """Render what both eyes of a viewer see of the design in FOLDER (any kind), as one
+    picture."""
     from specholo.preview.render import save_png
-    from specholo.preview.stereo import anaglyph, head_camera, side_by_side, stereo_pair
+    from specholo.preview.source import head, state_at, stereo_stills
+    from specholo.preview.stereo import anaglyph, side_by_side
 
     out = _png_out(out, folder, "stereo.png", "stereo")
-    loaded = _design_folder(folder, "stereo")
-    setup = loaded.config.setup()
-    head = head_camera(setup, loaded.grooves, math.radians(_finite_option("azimuth", azimuth)),
-                       width, height, _fov(fov), plate=loaded.plate)
-    left, right = stereo_pair(loaded.grooves, setup, head,
-                              roughness=math.radians(_finite_option("roughness", roughness)),
-                              plate=loaded.plate)
+    source = _picture_source(folder, "stereo")
+    az = math.radians(_finite_option("azimuth", azimuth))
+    state = state_at(source, _at(at), az)  # refuses --at where the motion is the eye
+    head_cam = head(source, az, width, height, _fov(fov))
+    left, right = stereo_stills(source, head_cam, _at(at),
+                                roughness=math.radians(_finite_option("roughness", roughness)))
     image = anaglyph(left, right) if mode == "anaglyph" else side_by_side(
         left, right, mode, gap=max(2, width // 32))
     save_png(image, out)
-    click.echo(f"{mode} stereo at azimuth {azimuth:+g}, IPD {setup.viewer.ipd:g} mm -> {out}")
+    click.echo(f"{mode} stereo at azimuth {azimuth:+g}{_state_words(source, state)}, IPD "
+               f"{source.setup.viewer.ipd:g} mm -> {out}")
+
 
 @cli.command()
 @click.argument("folder", type=click.Path(path_type=Path))
 def report(folder: Path) -> None:
-    """Write FOLDER/report.html: settings, fabrication figures, accuracy and pictures.
+    """Write FOLDER/report.html (any kind): settings, fabrication figures, accuracy and
+    pictures.
 
     Uses FOLDER/verify.json when present; run `specholo verify` first to include it.
     """
-    from specholo.pipeline import load_design
     from specholo.preview.report import write_report
     from specholo.readback import read_json
 
-    if Path(folder).is_dir():
-        _check_folder(folder, "report")  # another kind of design gets its own message
-    load_design(folder)  # a clear error if this is not a design folder
+    source = _picture_source(folder, "report")  # a clear error if this is not a design
     verify_file = Path(folder) / "verify.json"
     verify = read_json(verify_file) if verify_file.exists() else None
-    click.echo(f"report -> {write_report(folder, verify)}")
+    click.echo(f"report -> {write_report(folder, verify, source)}")
 
 
 @cli.command()
@@ -211,16 +240,20 @@ def report(folder: Path) -> None:
 @click.option("--height", type=int, default=None,
               help="Fixed canvas height in pixels [fills the window].")
 @click.option("--step", type=float, default=2.0, show_default=True,
-              help="Ridged design: spacing of the views whose glints the page holds, degrees.")
+              help="Spacing of the views whose glints the page holds, degrees: along the "
+                   "design's motion, or over its azimuth (and elevation) range. A flat "
+                   "plate's page recomputes its glints live and takes none.")
 def view(folder: Path, out: Path | None, width: int | None, height: int | None,
          step: float) -> None:
-    """Write an interactive page of the design in FOLDER: drag to move the eye (WebGL2).
+    """Write an interactive page of the design in FOLDER (any kind): drag to move the eye.
 
-    One self-contained HTML file: the glints are recomputed in the browser for
-    every viewpoint with the same physics as `verify`. Shift+drag moves the light.
-    For a ridged design the glints of a grid of views (every --step degrees) are
-    found beforehand with the physics of `verify`, and the page shows the view
-    nearest the pointer's.
+    One self-contained HTML file. A flat plate's glints are recomputed in the
+    browser (WebGL2) for every viewpoint with the same physics as `verify`;
+    shift+drag moves the light. Every other kind's glints are found beforehand,
+    with its own physics, for views every --step degrees (over the eye's
+    azimuth and elevation ranges, or along its motion: a turning plate's
+    angle, a moving light), and the page shows the view nearest the pointer's;
+    along a motion, drag moves the motion and shift+drag the eye.
     """
     from specholo.jobs.page import write_page
 

@@ -18,9 +18,12 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from specholo.errors import SpecholoError
+
+if TYPE_CHECKING:
+    from specholo.preview.source import PictureSource
 
 #: Told what a long step is doing ("simulating eye pairs..."), for a status line.
 Status = Callable[[str], None]
@@ -126,7 +129,8 @@ class Job(Protocol):
         title: the kind in a sentence ("a turning-plate design").
         verified_on: what its verification reads, for the refusal of options
             it has no use for ("its grooves").
-        pictures: the picture commands that draw it (of :data:`PICTURE_COMMANDS`).
+        pictures: the picture commands that draw it (of :data:`PICTURE_COMMANDS`),
+            through :meth:`picture_source`.
         own_pictures: what it draws itself when it is designed ("preview.gif"),
             named when a picture command does not serve it.
         design_step: for a kind verified as it is designed, the step between
@@ -182,6 +186,11 @@ class Job(Protocol):
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         """Simulate the viewers of the design in ``folder``; nothing is written."""
+        ...
+
+    def picture_source(self, folder: Path) -> PictureSource:
+        """The design in ``folder``, read back and checked, as the picture commands
+        draw it: its setup, plate, glints and motion."""
         ...
 
 

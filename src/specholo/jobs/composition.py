@@ -6,10 +6,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from specholo.errors import SpecholoError
 from specholo.jobs.base import (
+    PICTURE_COMMANDS,
     Designed,
     Status,
     Summary,
@@ -20,6 +21,9 @@ from specholo.jobs.base import (
     refuse_cut_options,
     refuse_formats,
 )
+
+if TYPE_CHECKING:
+    from specholo.preview.source import PictureSource
 
 
 def design_summary(d: Any, check: dict[str, Any]) -> Summary:
@@ -45,7 +49,7 @@ class CompositionJob:
     kind = "composition"
     title = "a composition"
     verified_on = "its grooves"
-    pictures: frozenset[str] = frozenset()
+    pictures: frozenset[str] = PICTURE_COMMANDS
     own_pictures = "preview.png and preview.gif"
     design_step: tuple[float, float, float] | None = (5.0, 0.1, 30.0)
     preview_frames: int | None = 48
@@ -124,6 +128,39 @@ class CompositionJob:
         if frames:
             files["preview.gif"] = lambda into: None  # written with preview.png
         return files
+
+    def picture_source(self, folder: Path) -> PictureSource:
+        """Its grooves on their host along its motion (glints found per position,
+        as verify finds them), its scenes posed for ``--ghost``."""
+        from specholo.preview.sources import ComposedSource
+
+        d = self.load(folder)
+        comp, m = d.comp, d.comp.motion
+        host = comp.host.describe()
+        shape = ", ".join(f"{k} {v:g} mm" for k, v in host.items()
+                          if isinstance(v, int | float) and k not in ("kind", "axis_z"))
+        if m.mode == "walk":
+            motion = f"the viewer walks past: head azimuth +-{math.degrees(m.half_range):g} deg"
+        else:
+            motion = (f"the light moves from {math.degrees(m.light_elevation):g} to "
+                      f"{math.degrees(m.light_stop):g} deg, the viewer still")
+        light = (f"elevation {math.degrees(m.light_elevation):g} deg, " +
+                 ("sun" if m.light_distance is None else f"point at {m.light_distance:g} mm"))
+        facts = [
+            ("kind", "composition (specholo compose)"),
+            ("host", comp.host.kind + (f": {shape}" if shape else "")),
+            ("motion", motion),
+            ("scenes", f"{len(d.scenes)}, {sum(len(s.points) for s in d.scenes):,} stipples"),
+            ("grooves", f"{len(set(d.grooves.stripe.tolist())):,} stripes, "
+                        f"{d.grooves.length() / 1000:.2f} m"),
+            ("light", light),
+            ("viewer", f"{m.view_distance:g} mm away, eye height {m.eye_height:g} mm, IPD "
+                       f"{m.ipd:g} mm"),
+            ("tool", f"ball radius {comp.tool.radius:g} mm, {comp.tool.depth:g} mm deep, "
+                     f"grooves {comp.tool.width:.3f} mm wide; {comp.axes}-axis program"),
+        ]
+        return ComposedSource(d.grooves, comp.host, comp.tool, m,
+                              [(s.key, s.points) for s in d.scenes], facts)
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.compose import load_composition_folder, verify_composition

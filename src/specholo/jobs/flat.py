@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from specholo.jobs.base import (
+    PICTURE_COMMANDS,
     Designed,
     Status,
     Summary,
@@ -20,6 +21,7 @@ from specholo.jobs.base import (
 
 if TYPE_CHECKING:
     from specholo.preview.chart import ChartDrawer
+    from specholo.preview.source import PictureSource
 
 
 def design_summary(d: Any, written: Any, out: Path) -> Summary:
@@ -170,7 +172,7 @@ class FlatJob:
     kind = "flat"
     title = "a flat-plate design"
     verified_on = "its grooves"
-    pictures = frozenset({"render", "animate", "stereo", "report", "view"})
+    pictures = PICTURE_COMMANDS
     own_pictures = "preview.png"
     design_step: tuple[float, float, float] | None = None
     preview_frames: int | None = None
@@ -232,6 +234,15 @@ class FlatJob:
         status("finding the glints of the preview's eyes...")
         return {"preview.png": lambda into: render_preview(
             loaded.grooves, loaded.config.setup(), into / "preview.png", plate=loaded.plate)}
+
+    def picture_source(self, folder: Path) -> PictureSource:
+        """Its grooves (glints found on the engraved arcs), the plate its files
+        name, and the model for ``--ghost``."""
+        from specholo.preview.sources import FlatSource
+
+        loaded = self.load(folder)
+        model = loaded.mesh if loaded.mesh is not None else loaded.points
+        return FlatSource(loaded.grooves, loaded.config.setup(), loaded.plate, model)
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.preview.chart import ChartDrawer

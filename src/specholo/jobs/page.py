@@ -1,6 +1,7 @@
-"""The interactive page of a designed folder (``specholo view``): grooves are
-redrawn in the browser for every viewpoint; a ridged plate's glints are found
-beforehand for a grid of views."""
+"""The interactive page of a designed folder of any kind (``specholo view``): a
+flat plate's grooves are redrawn in the browser for every viewpoint; every other
+kind's glints are found beforehand for a grid of views, along its motion
+(:func:`specholo.preview.source.page`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,6 @@ from pathlib import Path
 from typing import Any
 
 from specholo.errors import SpecholoError
-from specholo.ridged import is_ridged_folder, load_ridged_design
 
 
 def write_page(folder: str | os.PathLike[str], out: str | os.PathLike[str] | None = None,
@@ -18,28 +18,22 @@ def write_page(folder: str | os.PathLike[str], out: str | os.PathLike[str] | Non
     """Write the interactive page of the design in ``folder``.
 
     Args:
-        folder: a design folder written by ``specholo design``.
+        folder: a design folder of any kind.
         out: the HTML file; default ``folder/view.html``.
         size: fixed canvas (width, height) in CSS pixels, or None to fill the window.
-        step: for a ridged design (a height field), the spacing of the views whose
-            glints the page holds, degrees (default
+        step: for a page of precomputed views (every kind but the flat plate),
+            their spacing, degrees (default
             :data:`specholo.preview.page.FIELD_VIEW_STEP`).
-        progress: for a ridged design, called with (views done, views), or None.
+        progress: for a page of precomputed views, called with (views done,
+            views), or None.
 
     Returns:
         The path written.
     """
     from specholo.fabrication.atomic import atomic_open
-    from specholo.pipeline import load_design
-    from specholo.preview.page import (
-        FIELD_VIEW_STEP,
-        FieldViews,
-        build_field_page,
-        build_page,
-        field_page_views,
-    )
+    from specholo.jobs import job_of
+    from specholo.preview.source import page
 
-    step = FIELD_VIEW_STEP if step is None else step
     path = Path(folder) / "view.html" if out is None else Path(out)
     if path.suffix.lower() not in (".html", ".htm"):
         raise SpecholoError(f"page must be an .html file, got {path.name!r}")
@@ -48,15 +42,8 @@ def write_page(folder: str | os.PathLike[str], out: str | os.PathLike[str] | Non
     if size is not None and not all(0 < v <= 8192 for v in size):
         raise SpecholoError(f"canvas size must be in [1, 8192] pixels, got {size}")
     title = f"specholo: {Path(folder).resolve().name}"
-    if is_ridged_folder(folder):
-        ridged = load_ridged_design(folder)
-        setup = ridged.config.setup()
-        az, el = field_page_views(setup, float(ridged.config.elevation_range), step)
-        views = FieldViews.build(ridged.heights, setup, az, el, progress=progress)
-        text = build_field_page(views, ridged.heights, setup, title, size)
-    else:
-        loaded = load_design(folder)
-        text = build_page(loaded.grooves, loaded.config.setup(), title, size)
+    source = job_of(Path(folder)).picture_source(Path(folder))
+    text = page(source, title, size, step, progress)
     with atomic_open(path) as fh:
         fh.write(text)
     return path

@@ -6,9 +6,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from specholo.jobs.base import (
+    PICTURE_COMMANDS,
     Designed,
     Status,
     Summary,
@@ -17,6 +18,9 @@ from specholo.jobs.base import (
     WriteOptions,
     refuse_cut_options,
 )
+
+if TYPE_CHECKING:
+    from specholo.preview.source import PictureSource
 
 
 def design_summary(d: Any, written: dict[str, Any], out: Path) -> Summary:
@@ -58,7 +62,7 @@ class RidgedJob:
     kind = "ridged"
     title = "a ridged design"
     verified_on = "its height field (plate.npz)"
-    pictures = frozenset({"render", "view"})
+    pictures = PICTURE_COMMANDS
     own_pictures = "preview.png"
     design_step: tuple[float, float, float] | None = None
     preview_frames: int | None = None
@@ -101,6 +105,35 @@ class RidgedJob:
         from specholo.ridged import load_ridged_design
 
         return load_ridged_design(folder)
+
+    def picture_source(self, folder: Path) -> PictureSource:
+        """Its exact heights (glints found on the height field, as verify finds
+        them), over the heads' azimuth and elevation ranges."""
+        from specholo.preview.sources import FieldSource
+        from specholo.ridged import plate_edges
+
+        loaded = self.load(folder)
+        c = loaded.config
+        setup = c.setup()
+        model = loaded.mesh if loaded.mesh is not None else loaded.points
+        (x0, y0), (x1, y1) = plate_edges(loaded.heights)
+        light = (f"a clear plate {c.stock_thickness:g} mm thick (index {c.index:g}) lit from "
+                 f"behind at {c.light_elevation:g} deg" if c.optic == "refract" else
+                 f"elevation {c.light_elevation:g} deg")
+        facts = [
+            ("kind", "ridged plate: full parallax from a milled height field "
+                     "(specholo design --method ridged)"),
+            ("stipples", f"{len(loaded.points):,}"),
+            ("plate", f"{x1 - x0:.1f} x {y1 - y0:.1f} mm, raster {loaded.heights.resolution:g} "
+                      f"mm, deepest {-float(loaded.heights.z.min()):.3f} mm"),
+            ("light", light + (", sun" if c.light_distance is None
+                               else f", point at {c.light_distance:g} mm")),
+            ("viewer", f"{c.view_distance:g} mm away, azimuth +-{c.view_range:g} deg, "
+                       f"elevation +-{c.elevation_range:g} deg, IPD {c.ipd:g} mm"),
+            ("tool", f"ball-end mill, radius {c.ball_radius:g} mm (raster finishing)"),
+        ]
+        return FieldSource(loaded.heights, setup, math.radians(c.elevation_range), model,
+                           facts)
 
     def preview(self, folder: Path, status: Status) -> dict[str, Callable[[Path], object]]:
         from specholo.preview.preview import render_field_preview

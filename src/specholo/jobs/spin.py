@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from specholo.jobs.base import (
+    PICTURE_COMMANDS,
     Designed,
     Status,
     Summary,
@@ -17,6 +18,9 @@ from specholo.jobs.base import (
     refuse_cut_options,
     refuse_formats,
 )
+
+if TYPE_CHECKING:
+    from specholo.preview.source import PictureSource
 
 
 def _fig(v: float) -> str:
@@ -46,7 +50,7 @@ class SpinJob:
     kind = "spin"
     title = "a turning-plate design"
     verified_on = "its grooves"
-    pictures: frozenset[str] = frozenset()
+    pictures: frozenset[str] = PICTURE_COMMANDS
     own_pictures = "preview.gif"
     design_step: tuple[float, float, float] | None = (5.0, 0.5, 90.0)
     preview_frames: int | None = 48
@@ -105,6 +109,35 @@ class SpinJob:
                             into / "preview.gif", fps=12)
 
         return {"preview.gif": gif}
+
+    def picture_source(self, folder: Path) -> PictureSource:
+        """Its grooves turning under the still eyes (glints found per plate angle,
+        as verify finds them), the blank its files name turning with them."""
+        from specholo.preview.sources import SpinSource
+        from specholo.spin import spin_plate
+
+        job = self.load(folder)
+        c, d = job.config, job.design
+        s = c.setup
+        light = "a sun on the axis" if s.light_height is None else \
+            f"a point light on the axis, {s.light_height:g} mm above the plate"
+        plate = spin_plate(job)
+        (x0, y0), (x1, y1) = plate.box
+        scene = ("turning with the plate (closed grooves)" if c.turns == 1 else
+                 f"circling {c.turns} times a turn (stipples sliding on open grooves)")
+        facts = [
+            ("kind", "turning plate (specholo spin)"),
+            ("stipples", f"{len(d.points):,}, the scene {scene}"),
+            ("grooves", f"{d.grooves.n_paths:,} paths, {d.grooves.total_length() / 1000:.2f} m"),
+            ("viewer", f"{s.distance:g} mm away, {math.degrees(s.elevation):g} deg above the "
+                       f"plate, IPD {s.ipd:g} mm"),
+            ("light", light),
+            ("tool", f"ball radius {c.tool.radius:g} mm, {c.tool.depth:g} mm deep, grooves "
+                     f"{c.tool.width:.3f} mm wide, walls: {s.walls}"),
+            ("plate", f"{x1 - x0:.1f} x {y1 - y0:.1f} mm, {c.stock_thickness:g} mm thick"),
+        ]
+        model = job.mesh if job.mesh is not None else d.points
+        return SpinSource(d, c.tool, plate.box, model, facts)
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.spin import load_spin_folder, summarise, verify_spin, write_spin_verification

@@ -6,10 +6,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from specholo.errors import SpecholoError
 from specholo.jobs.base import (
+    PICTURE_COMMANDS,
     Designed,
     Status,
     Summary,
@@ -19,6 +20,9 @@ from specholo.jobs.base import (
     refuse_cut_options,
     refuse_formats,
 )
+
+if TYPE_CHECKING:
+    from specholo.preview.source import PictureSource
 
 
 def _fig(v: float) -> str:
@@ -45,7 +49,7 @@ class SteadyJob:
     kind = "steady"
     title = "a steady-image design"
     verified_on = "its cuts"
-    pictures: frozenset[str] = frozenset()
+    pictures: frozenset[str] = PICTURE_COMMANDS
     own_pictures = "preview.png"
     design_step: tuple[float, float, float] | None = (1.0, 0.05, 10.0)
     preview_frames: int | None = None
@@ -99,6 +103,29 @@ class SteadyJob:
         design, config = self.load(folder)
         return {"preview.png": lambda into: steady_preview(design, config.tool,
                                                            into / "preview.png")}
+
+    def picture_source(self, folder: Path) -> PictureSource:
+        """Its scoops seen from the still eyes as the light moves (glints found per
+        light elevation, as verify finds them), on the plate its files name."""
+        from specholo.preview.sources import SteadySource
+        from specholo.steady import steady_plate
+
+        design, config = self.load(folder)
+        s = config.setup
+        plate = steady_plate(design, config)
+        (x0, y0), (x1, y1) = plate.box
+        mid, half = math.degrees(s.elevation), math.degrees(s.half_range)
+        facts = [
+            ("kind", "steady image under a moving light (specholo steady)"),
+            ("stipples", f"{len(design.points):,} ({design.dropped} dropped)"),
+            ("cuts", f"{design.n_cuts:,} {design.shape}s, one per stipple and eye"),
+            ("viewer", f"{s.distance:g} mm away, still, eye height {s.height:g} mm, IPD "
+                       f"{s.ipd:g} mm"),
+            ("light", f"a sun from {mid - half:g} to {mid + half:g} deg elevation"),
+            ("tool", f"ball radius {config.tool.radius:g} mm, {config.tool.depth:g} mm deep"),
+            ("plate", f"{x1 - x0:.1f} x {y1 - y0:.1f} mm, {config.stock_thickness:g} mm thick"),
+        ]
+        return SteadySource(design, config.tool, plate.box, facts)
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.steady import (
