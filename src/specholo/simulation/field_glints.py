@@ -6,6 +6,13 @@ where the two one-sided slopes differ by more than :data:`KINK` the smaller
 is the facet's), and the cell shines with a Gaussian specular lobe of its
 angle to the normality vector h (angular sigma ``lobe``, cut at
 :data:`CUTOFF` sigmas); shadows and riser hiding are traced over the field.
+The surface between the samples is smooth: where a facet's normal turns by
+more than the lobe across one cell (an optic for a point a few millimetres
+behind the plate turns it by ~res / 2d radians a cell, several lobes), the
+lobe is averaged over sub-samples of the cell with the normal turning as
+the neighbouring cells say (:data:`MAX_SUBSAMPLES` a side), so a spot
+smaller than a cell is found, at its place within the cell, with the weight
+a continuous mirror gives it.
 Only the tiles whose facet slopes come near h's are searched
 (:class:`SlopeIndex`, built once per field). The clear plate
 (:mod:`specholo.simulation.transmission`) uses the same index and kernels;
@@ -51,6 +58,11 @@ CUTOFF = 3.0
 #: (a riser or a region edge); facets turn by ~resolution / 20 mm per cell.
 KINK = 0.25
 ESTIMATES = ("centroid", "fit")
+#: Most sub-samples a side of a cell whose normal turns by several lobes.
+MAX_SUBSAMPLES = 24
+#: Largest change of a facet's slope across one cell that the search allows
+#: for (an optic for a point 0.5 mm behind the plate, at 0.02 mm cells).
+MAX_CELL_TURN = 0.02
 #: Cells steeper than this (riser walls) are not searched: h would have to tilt
 #: more than 72 degrees from the plate normal to make them glint.
 MAX_SLOPE = 3.0
@@ -83,6 +95,76 @@ def _slope(zm: float, z0: float, zp: float, ok_m: bool, ok_p: bool,
     if ok_p:
         return (zp - z0) / res, True
     return 0.0, False
+
+
+@kernel(helper=True)
+def _slopes(z: np.ndarray, labels: np.ndarray, j: int, i: int,
+            res: float) -> tuple[float, float, bool]:
+    """The facet slope (gx, gy) at a cell (:func:`_normal`'s, as slopes)."""
+    nx_, ny_, nz_, ok = _normal(z, labels, j, i, res)
+    return -nx_ / nz_, -ny_ / nz_, ok
+
+
+@kernel(helper=True)
+def _on_facet(z: np.ndarray, labels: np.ndarray, j: int, i: int, dj: int, di: int,
+              gx: float, gy: float, res: float) -> bool:
+    """Whether the neighbour (j + dj, i + di) lies on the cell's own facet: the
+    same stipple, at the height the cell's slope predicts (not across a riser
+    or onto the next facet's level)."""
+    ny, nx = z.shape
+    jj, ii = j + dj, i + di
+    if jj < 0 or ii < 0 or jj >= ny or ii >= nx or labels[jj, ii] != labels[j, i]:
+        return False
+    return abs(z[jj, ii] - z[j, i] - (gx * di + gy * dj) * res) <= FACET_TOL * res
+
+
+@kernel(helper=True)
+def _cell_turn(z: np.ndarray, labels: np.ndarray, j: int, i: int,
+               res: float) -> tuple[float, float, float]:
+    """How the facet's slope (gx, gy) changes across the cell, per cell: d gx/dx,
+    d gy/dy and the cross term, times res, from the slopes of the neighbours
+    on the same facet (:func:`_on_facet`); 0 where none is, or the change is
+    more than a facet turns (:data:`MAX_CELL_TURN`)."""
+    gx, gy, ok = _slopes(z, labels, j, i, res)
+    if not ok:
+        return 0.0, 0.0, 0.0
+    # Both neighbours on each axis must lie on the facet and agree on its turn:
+    # a facet's curve is smooth, a riser's foot or the plate's edge is not.
+    turn = np.zeros((2, 2, 2))  # axis, side, (d gx, d gy)
+    for axis in range(2):
+        for side in range(2):
+            di = (2 * side - 1) if axis == 0 else 0
+            dj = (2 * side - 1) if axis == 1 else 0
+            if not _on_facet(z, labels, j, i, dj, di, gx, gy, res):
+                return 0.0, 0.0, 0.0
+            sx, sy, okn = _slopes(z, labels, j + dj, i + di, res)
+            if not okn:
+                return 0.0, 0.0, 0.0
+            sign = 2 * side - 1
+            turn[axis, side, 0] = (sx - gx) * sign
+            turn[axis, side, 1] = (sy - gy) * sign
+    for axis in range(2):
+        for c in range(2):
+            a, b = turn[axis, 0, c], turn[axis, 1, c]
+            if abs(a - b) > 0.5 * max(abs(a), abs(b)) + 1e-5:
+                return 0.0, 0.0, 0.0
+    txx = 0.5 * (turn[0, 0, 0] + turn[0, 1, 0])
+    tyy = 0.5 * (turn[1, 0, 1] + turn[1, 1, 1])
+    # The slope field of a surface is a gradient: its cross terms agree.
+    cross = 0.25 * (turn[0, 0, 1] + turn[0, 1, 1] + turn[1, 0, 0] + turn[1, 1, 0])
+    if abs(txx) > MAX_CELL_TURN or abs(tyy) > MAX_CELL_TURN or abs(cross) > MAX_CELL_TURN:
+        return 0.0, 0.0, 0.0
+    return txx, tyy, cross
+
+
+@kernel(helper=True)
+def _mismatch(gx: float, gy: float, e1x: float, e1z: float, e2x: float, e2y: float,
+              e2z: float) -> tuple[float, float]:
+    """The angular mismatch (2,) of the normal of slope (gx, gy) to h, in h's
+    tangent basis e1, e2."""
+    norm = math.sqrt(gx * gx + gy * gy + 1.0)
+    nx_, ny_, nz_ = -gx / norm, -gy / norm, 1.0 / norm
+    return nx_ * e1x + nz_ * e1z, nx_ * e2x + ny_ * e2y + nz_ * e2z
 
 
 @kernel(helper=True)
@@ -243,12 +325,19 @@ def _lit_cells(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: flo
                     continue
                 # Cheap test on the slope first; the exact one on the few left.
                 gx, gy = -nx_ / nz_, -ny_ / nz_
-                if abs(gx - tgx) > m or abs(gy - tgy) > m:
+                if abs(gx - tgx) > m + 0.5 * MAX_CELL_TURN or \
+                        abs(gy - tgy) > m + 0.5 * MAX_CELL_TURN:
                     continue
                 hx, hy, hz = _half(x0 + i * res, y, z[j, i], eye, light, point)
-                if nx_ * hx + ny_ * hy + nz_ * hz >= cos_cut:
-                    out[k, c] = j * nx + i
-                    c += 1
+                cos_n = nx_ * hx + ny_ * hy + nz_ * hz
+                if cos_n < cos_cut:
+                    # The normal turns across the cell: it may meet h within it.
+                    txx, tyy, txy = _cell_turn(z, labels, j, i, res)
+                    turn = 0.5 * (abs(txx) + abs(tyy) + 2.0 * abs(txy)) * nz_ * nz_
+                    if turn <= 0.0 or math.acos(min(cos_n, 1.0)) > reach + turn:
+                        continue
+                out[k, c] = j * nx + i
+                c += 1
         count[k] = c
     return out, count
 
@@ -296,9 +385,13 @@ def _blocked(z: np.ndarray, x0: float, y0: float, res: float, sx: float, sy: flo
 def _spots(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
            flat: np.ndarray, eye: np.ndarray, light: np.ndarray, point: bool, lobe: float,
            shadows: bool) -> np.ndarray:
-    """Per lit cell: weight, x, y, z, the 2-D angular mismatch and the slope (k, 8)."""
+    """Per lit cell: weight, x, y, z, the 2-D angular mismatch and the slope, and
+    |det| of the mismatch's gradient over the cell, per mm^2 (0 where the facet
+    does not turn across it) (k, 9). Where the normal turns by more than the
+    lobe across the cell, the weight is the lobe averaged over sub-samples and
+    x, y, z their weighted mean."""
     nx = z.shape[1]
-    out = np.zeros((flat.size, 8))
+    out = np.zeros((flat.size, 9))
     for k in nb.prange(flat.size):
         j = flat[k] // nx
         i = flat[k] % nx
@@ -314,6 +407,40 @@ def _spots(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
         m1 = nx_ * e1x + nz_ * e1z
         m2 = nx_ * e2x + ny_ * e2y + nz_ * e2z
         w = math.exp(-(m1 * m1 + m2 * m2) / (2.0 * lobe * lobe))
+        gx0, gy0 = -nx_ / nz_, -ny_ / nz_
+        txx, tyy, txy = _cell_turn(z, labels, j, i, res)
+        det = 0.0
+        px, py, pz = x, y, h
+        if txx != 0.0 or tyy != 0.0 or txy != 0.0:
+            # The mismatch's gradient across the cell, per mm.
+            ax1, ax2 = _mismatch(gx0 + 0.5 * txx, gy0 + 0.5 * txy, e1x, e1z, e2x, e2y, e2z)
+            bx1, bx2 = _mismatch(gx0 - 0.5 * txx, gy0 - 0.5 * txy, e1x, e1z, e2x, e2y, e2z)
+            ay1, ay2 = _mismatch(gx0 + 0.5 * txy, gy0 + 0.5 * tyy, e1x, e1z, e2x, e2y, e2z)
+            by1, by2 = _mismatch(gx0 - 0.5 * txy, gy0 - 0.5 * tyy, e1x, e1z, e2x, e2y, e2z)
+            j11, j21 = (ax1 - bx1) / res, (ax2 - bx2) / res
+            j12, j22 = (ay1 - by1) / res, (ay2 - by2) / res
+            det = abs(j11 * j22 - j12 * j21)
+            spread = max(abs(j11) + abs(j12), abs(j21) + abs(j22)) * res
+            if spread > lobe:
+                sub = min(MAX_SUBSAMPLES, int(math.ceil(2.0 * spread / lobe)))
+                tw = 0.0
+                sx = 0.0
+                sy = 0.0
+                for a in range(sub):
+                    u = (a + 0.5) / sub - 0.5
+                    for b in range(sub):
+                        v = (b + 0.5) / sub - 0.5
+                        q1, q2 = _mismatch(gx0 + txx * u + txy * v, gy0 + txy * u + tyy * v,
+                                           e1x, e1z, e2x, e2y, e2z)
+                        ws = math.exp(-(q1 * q1 + q2 * q2) / (2.0 * lobe * lobe))
+                        tw += ws
+                        sx += ws * u
+                        sy += ws * v
+                w = tw / (sub * sub)
+                if tw > 0.0:
+                    du, dv = sx / tw * res, sy / tw * res
+                    px, py = x + du, y + dv
+                    pz = h + gx0 * du + gy0 * dv
         if shadows and w > 0.0:
             ex, ey, ez = eye[0] - x, eye[1] - y, eye[2] - h
             r = math.sqrt(ex * ex + ey * ey + ez * ez)
@@ -327,13 +454,14 @@ def _spots(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
                     _blocked(z, x0, y0, res, x, y, h, lx, ly, lz):
                 w = 0.0
         out[k, 0] = w
-        out[k, 1] = x
-        out[k, 2] = y
-        out[k, 3] = h
+        out[k, 1] = px
+        out[k, 2] = py
+        out[k, 3] = pz
         out[k, 4] = m1
         out[k, 5] = m2
-        out[k, 6] = -nx_ / nz_
-        out[k, 7] = -ny_ / nz_
+        out[k, 6] = gx0
+        out[k, 7] = gy0
+        out[k, 8] = det
     return out
 
 
@@ -433,8 +561,9 @@ def find_reflected_glints(field: HeightMap | SlopeIndex, eye: np.ndarray, light:
     x0, y0 = (float(v) for v in hm.origin)
     res = hm.resolution
     spread = index.depth
+    # A cell's normal turns by up to half of MAX_CELL_TURN past its centre's.
     flag = _candidate_tiles(index.box, x0, y0, res, index.tile, eye, lvec, point,
-                            CUTOFF * lobe, spread)
+                            CUTOFF * lobe + 0.5 * MAX_CELL_TURN, spread)
     tiles = np.flatnonzero(flag)
     buf, count = _lit_cells(z, labels, x0, y0, res, index.tile, tiles, eye, lvec, point,
                             math.cos(CUTOFF * lobe), CUTOFF * lobe, spread)
@@ -523,6 +652,13 @@ def _gather(cells: np.ndarray, lab: np.ndarray, lobe: float, res: float,
     fitted = np.where(good[:, None], fitted, centroid)
     full = 2.0 * math.pi * lobe * lobe / np.abs(safe_j) / (res * res)
     coverage = np.where(good, wg / full, (wg >= 1.0) * 1.0)
+    if cells.shape[1] > 8:
+        # A spot within a cell or two has no fit: its cells' own turn says how
+        # large the uncropped spot is.
+        det_c = per(glint, g, cells[:, 8]) / wg
+        small = ~good & (det_c > 0)
+        full_c = 2.0 * math.pi * lobe * lobe / np.where(small, det_c, 1.0) / (res * res)
+        coverage = np.where(small, wg / full_c, coverage)
     dc = xyz[:, :2] - centroid[glint, :2]
     spread = np.sqrt(per(glint, g, np.sum(dc * dc, axis=1)) / wg)
     stipple = np.zeros(g, np.int64)

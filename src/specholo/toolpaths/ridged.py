@@ -57,6 +57,13 @@ DEPTH_MARGIN = 0.95
 MIN_LEAN_FACTOR = 0.3
 #: Largest number of sectors a column of the shell may cross.
 MAX_SECTORS = 8
+#: How many times wider than its two eyes' sightlines lie apart on the plate a
+#: region is made: a head whose one eye's sightline falls in a region has the
+#: other's there too for about 1 - 1/EYE_SPAN of its views.
+EYE_SPAN = 2.5
+#: Largest horizontal stretch of the regions (a region this many times wider
+#: than high serves a band of elevations 1/64 of its azimuths).
+MAX_ASPECT = 64.0
 #: Models of a refraction plate's front optic (see :class:`Refraction`).
 REFRACTION_MODELS = ("exact", "approx", "single")
 
@@ -72,7 +79,9 @@ class RidgeOptions:
         elevation_range: largest head elevation served, radians (the azimuth
             range is the viewer's).
         view_step: spacing of the eye grid, radians.
-        aspect: horizontal stretch of the regions (>= 1).
+        aspect: horizontal stretch of the regions (>= 1); None: regions
+            :data:`EYE_SPAN` times as wide as a head's two sightlines through
+            a stipple lie apart on the plate (:func:`region_aspect`).
         margin: blank border around the patches, mm (a milling ball needs its radius).
         dot_depth: |p_z| below which a stipple is a dot (a small cap at p), mm.
         dot_radius: radius of a dot's spherical cap, mm.
@@ -84,7 +93,7 @@ class RidgeOptions:
     block: float = 0.2
     elevation_range: float = math.radians(20.0)
     view_step: float = math.radians(1.0)
-    aspect: float = 8.0
+    aspect: float | None = None
     margin: float = 1.0
     dot_depth: float = 0.5
     dot_radius: float = 0.2
@@ -99,7 +108,7 @@ class RidgeOptions:
             v = float(getattr(self, name))
             if not (math.isfinite(v) and v >= 0):
                 raise SpecholoError(f"{name.replace('_', ' ')} must be >= 0, got {v:g}")
-        if not (math.isfinite(self.aspect) and self.aspect >= 1.0):
+        if self.aspect is not None and not (math.isfinite(self.aspect) and self.aspect >= 1.0):
             raise SpecholoError(f"aspect must be at least 1, got {self.aspect:g}")
         e = float(self.elevation_range)
         if not (math.isfinite(e) and 0.0 <= e < math.radians(80.0)):
@@ -735,9 +744,11 @@ def design_ridged(points: np.ndarray, normals: np.ndarray | None, mesh: Any, set
 
     # Seeds and regions.
     t0 = time.perf_counter()
-    seed_block = _seeds(ptr, cells, counts, nbx, nby, opts.aspect, points, viewer,
+    aspect = opts.aspect if opts.aspect is not None else region_aspect(
+        points, counts, np.unique(cells).size, viewer, opts.block)
+    seed_block = _seeds(ptr, cells, counts, nbx, nby, aspect, points, viewer,
                         opts.elevation_range, bx0, by0, opts.block)
-    block_labels = _assign(cells, owner, seed_block, nbx, nby, opts.aspect)
+    block_labels = _assign(cells, owner, seed_block, nbx, nby, aspect)
     region = np.bincount(block_labels[block_labels >= 0], minlength=n)
     kept = np.where(counts > 0, region / np.maximum(counts, 1), 0.0)
     block_area = opts.block**2
@@ -816,6 +827,30 @@ def design_ridged(points: np.ndarray, normals: np.ndarray | None, mesh: Any, set
         timings=timings, model=model)
 
 
+def region_aspect(points: np.ndarray, counts: np.ndarray, union: int, viewer: Viewer,
+                  block: float) -> float:
+    """The horizontal stretch that makes the regions :data:`EYE_SPAN` times as
+    wide as a head's two sightlines through a stipple lie apart on the plate
+    (the median stipple's, IPD |p_z| / (D - p_z)), at the area each region gets
+    (the patches' union over the stipples with a patch); within [1, :data:`MAX_ASPECT`].
+
+    Args:
+        points: (n, 3) stipples, mm.
+        counts: (n,) blocks in each stipple's patch (0: none).
+        union: blocks in the patches' union.
+        viewer: the viewer (IPD, eye distance).
+        block: block side, mm.
+    """
+    live = counts > 0
+    if not live.any() or union <= 0:
+        return 1.0
+    z = points[live, 2]
+    apart = viewer.ipd * np.abs(z) / np.maximum(viewer.eye_radius - z, 1.0)
+    width = EYE_SPAN * float(np.median(apart)) / block  # blocks
+    area = union / float(live.sum())  # blocks per region
+    return float(min(max(width * width / area, 1.0), MAX_ASPECT))
+
+
 def _seeds(ptr: np.ndarray, cells: np.ndarray, counts: np.ndarray, nbx: int, nby: int,
            aspect: float, points: np.ndarray, viewer: Viewer, elevation_range: float,
            bx0: float, by0: float, block: float) -> np.ndarray:
@@ -884,3 +919,95 @@ def _assign(cells: np.ndarray, owner: np.ndarray, seed: np.ndarray, nbx: int, nb
     first = order[np.r_[True, cells[order][1:] != cells[order][:-1]]]
     labels[cells[first]] = owner[first]
     return labels.reshape(nby, nbx)
+
+
+@dataclass(frozen=True)
+class StereoBudget:
+    """How many stipples a ridged plate can show one head, from its regions.
+
+    One plate cell sends one ray, so each eye sees about (plate area) / (one
+    stipple's patch) stipples whatever their number; both eyes see a stipple
+    only where its region holds both their sightlines. Found on the heads'
+    grid, from the regions' geometry (the physics of ``verify`` then loses
+    the glints that riser shadows or region edges cut).
+
+    Attributes:
+        per_head: mean stipples whose regions hold both eyes' sightlines (and
+            both eyes see them), over the heads.
+        per_eye: mean stipples whose regions hold one eye's sightline.
+        ceiling: plate area over the median patch area: what each eye could
+            see if every cell served a stipple in view.
+        eye_spacing: median distance on the plate between a stipple's two
+            eyes' sightlines, mm (a region narrower than this never holds both).
+        region_width: median width (x extent) of the regions, mm.
+        heads: heads counted.
+    """
+
+    per_head: float
+    per_eye: float
+    ceiling: float
+    eye_spacing: float
+    region_width: float
+    heads: int
+
+    def as_dict(self) -> dict[str, float]:
+        return {"stipples_per_head_both_eyes": self.per_head,
+                "stipples_per_eye": self.per_eye, "ceiling_per_eye": self.ceiling,
+                "eye_spacing_on_plate_mm": self.eye_spacing,
+                "region_width_mm": self.region_width, "heads": float(self.heads)}
+
+
+def stereo_budget(plate: RidgedPlate, viewer: Viewer, elevation_range: float,
+                  step: float = math.radians(2.0)) -> StereoBudget:
+    """The plate's :class:`StereoBudget` over heads every ``step`` radians within
+    the viewer's azimuth range and +-``elevation_range``."""
+    points = plate.points
+    n = len(points)
+    labels = plate.block_labels
+    nby, nbx = labels.shape
+    x0, y0 = plate.heights.bounds[0] - 0.5 * plate.heights.resolution
+    az = _grid(viewer.half_range, step)
+    el = _grid(elevation_range, step)
+    half = viewer.eye_half_angle
+    grid_az, grid_el = plate.azimuths, plate.elevations
+    ids = np.arange(n)
+    both_total = eye_total = 0.0
+    spacing: list[np.ndarray] = []
+
+    def look(eye: np.ndarray, a: float, e: float) -> tuple[np.ndarray, np.ndarray]:
+        cross = sightline_crossing(np.broadcast_to(eye, (n, 3)), points)[:, :2]
+        bx = np.floor((cross[:, 0] - x0) / plate.block).astype(np.int64)
+        by = np.floor((cross[:, 1] - y0) / plate.block).astype(np.int64)
+        inside = (bx >= 0) & (bx < nbx) & (by >= 0) & (by < nby)
+        mine = np.zeros(n, dtype=bool)
+        mine[inside] = labels[by[inside], bx[inside]] == ids[inside]
+        ia = int(np.clip(np.rint(np.interp(a, grid_az, np.arange(len(grid_az)))), 0,
+                         len(grid_az) - 1))
+        ie = int(np.clip(np.rint(np.interp(e, grid_el, np.arange(len(grid_el)))), 0,
+                         len(grid_el) - 1))
+        return mine & plate.visible[:, ia, ie], cross
+
+    for a in az:
+        for e in el:
+            left, cl = look(view_eyes(viewer, a - half, e), a - half, e)
+            right, cr = look(view_eyes(viewer, a + half, e), a + half, e)
+            both_total += float(np.count_nonzero(left & right))
+            eye_total += 0.5 * float(np.count_nonzero(left) + np.count_nonzero(right))
+            spacing.append(np.hypot(*(cl - cr).T))
+    heads = len(az) * len(el)
+    live = plate.area > 0
+    ceiling = 0.0
+    if live.any():
+        ceiling = float(np.prod(plate.heights.bounds[1] - plate.heights.bounds[0])
+                        / np.median(plate.patch_area[live]))
+    flat = labels.ravel()
+    has = flat >= 0
+    cols = np.flatnonzero(has) % nbx
+    lo = np.full(n, np.iinfo(np.int64).max)
+    hi = np.full(n, -1)
+    np.minimum.at(lo, flat[has], cols)
+    np.maximum.at(hi, flat[has], cols)
+    width = (hi - lo + 1)[live] * plate.block
+    return StereoBudget(both_total / heads, eye_total / heads, ceiling,
+                        float(np.median(np.concatenate(spacing))) if spacing else 0.0,
+                        float(np.median(width)) if width.size else 0.0, heads)
