@@ -486,8 +486,11 @@ class SteadySource(BaseSource):
     def glints(self, eye: np.ndarray, state: float | None) -> np.ndarray:
         from specholo.simulation.steady import find_steady_glints
 
-        light = self.setup.light if state is None else Light(float(state))
-        return find_steady_glints(self.design, np.asarray(eye, dtype=float), light.direction,
+        s = self.design.setup
+        if state is not None:
+            Light(float(state))  # a light in the plate's plane, or behind it, is refused
+        light = s.light(s.elevation if state is None else float(state))  # as verify moves it
+        return find_steady_glints(self.design, np.asarray(eye, dtype=float), light,
                                   self.tool).point
 
     def ghost(self, state: float | None) -> Any:
