@@ -87,10 +87,9 @@ class Motion:
         """States (k,) at most ``step`` (radians) apart over the range: a whole
         turn without its far end (the same as its start)."""
         span = self.high - self.low
-        if self.closed:
-            n = max(int(math.ceil(span / step - 1e-9)), 1)
-            return self.low + span * np.arange(n) / n
         n = max(int(math.ceil(span / step - 1e-9)), 1)
+        if self.closed:
+            return self.low + span * np.arange(n) / n
         return np.linspace(self.low, self.high, n + 1)
 
 
