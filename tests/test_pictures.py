@@ -425,3 +425,29 @@ def test_the_report_names_the_kind_s_verified_figures(
     for column in rows[0]:
         assert f"<th>{column.replace('_', ' ')}</th>" in page
     assert f"{verify['figures']['worst_p95_mm']:.3f} mm" in page
+
+
+@pytest.mark.parametrize("kind, argv, says", [
+    ("flat", ["render", "--at", "5"], "--azimuth"),
+    ("cup", ["stereo", "--at", "5"], "--azimuth"),
+    ("flat", ["animate", "--kind", "turn"], "turntable, light"),
+    ("spin", ["animate", "--kind", "light"], "turn, turntable"),
+    ("spin", ["animate", "--at", "30"], "--kind turntable"),
+    ("steady", ["render", "--at", "190"], "light elevation"),
+    ("light", ["render", "--at", "-5"], "light elevation"),
+    ("spin", ["render", "--at", "inf"], "--at"),
+    ("ridged", ["render", "--grooves"], "no grooves"),
+    ("spin", ["view", "--step", "0.01"], "view step"),
+])
+def test_a_state_or_motion_a_kind_has_not_is_refused_in_one_line(
+        folders: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        kind: str, argv: list[str], says: str) -> None:
+    folder = folders[kind]
+    before = sorted(p.name for p in folder.iterdir())
+    out = tmp_path / ("x.gif" if argv[0] == "animate" else
+                      "x.html" if argv[0] == "view" else "x.png")
+    code = main([argv[0], str(folder), *argv[1:], "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code != 0 and err.startswith("error: ") and err.count("\n") == 1, err
+    assert says in err, err
+    assert sorted(p.name for p in folder.iterdir()) == before and not out.exists()
