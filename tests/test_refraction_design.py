@@ -42,7 +42,7 @@ VIEWER = Viewer(600.0, 0.0, math.radians(20.0))
 # A few bunny stipples on a small, coarse plate: designs and verifies in seconds.
 SMALL = ["--method", "ridged", "--optic", "refract", "--light-distance", "600",
          "--stipples", "40", "--view-range", "8", "--elevation-range", "4",
-         "--raster", "0.05", "--formats", "png"]
+         "--raster", "0.05", "--formats", "png", "--size", "60", "--center-z", "-40"]
 
 
 def run(argv: list[Any], capsys) -> tuple[int, str, str]:

@@ -57,6 +57,8 @@ class RidgedDesign:
         normals: (n, 3) their face normals, or None for a point cloud.
         plate: the plate (``toolpaths.ridged.RidgedPlate``).
         timings: seconds per stage.
+        budget: how many stipples the plate's regions can show a head
+            (``toolpaths.ridged.StereoBudget``).
     """
 
     config: DesignConfig
@@ -65,6 +67,7 @@ class RidgedDesign:
     normals: np.ndarray | None
     plate: Any
     timings: dict[str, float]
+    budget: Any = None
 
 
 def ridge_options(config: DesignConfig) -> Any:
@@ -108,7 +111,7 @@ def design_ridged_model(model_path: str | os.PathLike[str], config: DesignConfig
     Raises:
         SpecholoError: on bad input, or a raster too large for the memory.
     """
-    from specholo.toolpaths.ridged import design_ridged
+    from specholo.toolpaths.ridged import design_ridged, stereo_budget
 
     if config.method != "ridged":
         raise SpecholoError(f"design_ridged_model needs method ridged, got {config.method!r}")
@@ -128,7 +131,10 @@ def design_ridged_model(model_path: str | os.PathLike[str], config: DesignConfig
                             f"raster cells: coarsen --raster {config.raster:g}, narrow the view "
                             "or elevation range, or make the model smaller") from exc
     timings["plate"] = time.perf_counter() - t0
-    return RidgedDesign(config, model, st.points, st.normals, plate, timings)
+    t0 = time.perf_counter()
+    budget = stereo_budget(plate, setup.viewer, math.radians(float(config.elevation_range)))
+    timings["budget"] = time.perf_counter() - t0
+    return RidgedDesign(config, model, st.points, st.normals, plate, timings, budget)
 
 
 def plate_edges(heights: Any) -> np.ndarray:
@@ -166,7 +172,8 @@ def ridged_json(d: RidgedDesign) -> dict[str, Any]:
                   "cells": [int(hm.shape[1]), int(hm.shape[0])],
                   "shell_mm": [-2.0 * plate.delta, 0.0],
                   "stock_thickness_mm": d.config.stock_thickness},
-        "ridged": summary,
+        "ridged": {**summary, **({} if d.budget is None else
+                                 {"stereo_budget": d.budget.as_dict()})},
         **({"refraction": refraction_json(d.config)} if d.config.optic == "refract" else {}),
         "stats": {"stipples": len(d.points), "kept_stipples": summary["kept_stipples"],
                   "dropped_stipples": summary["dropped_stipples"],

@@ -37,6 +37,8 @@ def design_summary(d: Any, written: dict[str, Any], out: Path) -> Summary:
              f"plate {x1 - x0:.1f} x {y1 - y0:.1f} mm, raster {hm.resolution:g} mm "
              f"({hm.shape[1]} x {hm.shape[0]} cells); shell {-2 * d.plate.delta:g} to 0 mm, "
              f"deepest {s['deepest_mm']:.3f} mm"]
+    if getattr(d, "budget", None) is not None:
+        lines.append(budget_line(d.budget, len(d.points)))
     if config.optic == "refract":
         light = config.setup().light
         where = ("a sun" if light.position is None else
@@ -54,6 +56,37 @@ def design_summary(d: Any, written: dict[str, Any], out: Path) -> Summary:
                      f"check passed ({mach['lines']:,} lines)")
     lines.append("files: " + ", ".join(written["files"]))
     return Summary(lines, [])
+
+
+#: Below this many stipples a head, the summary says how to show more.
+FEW_PER_HEAD = 50.0
+
+
+def budget_line(budget: Any, stipples: int) -> str:
+    """What the plate can show one head, in words (a ``StereoBudget``)."""
+    line = (f"per head: the plate's regions hold both eyes' sightlines for about "
+            f"{budget.per_head:.0f} of the {stipples} stipples ({budget.per_eye:.0f} for each "
+            f"eye; `specholo verify` counts those that glint). Each cell sends one ray, so "
+            f"a plate shows each eye about its area over one stipple's patch "
+            f"({budget.ceiling:.0f} here) whatever the count")
+    if budget.per_head < FEW_PER_HEAD:
+        line += ("; a narrower --view-range or --elevation-range, or a model nearer the "
+                 "plate (--center-z), shows more")
+    return line
+
+
+def stated_budget(folder: Path) -> str:
+    """The per-head figure a ridged folder's hologram.json states ('' if none)."""
+    from specholo.pipeline import design_json
+
+    ridged = design_json(folder).get("ridged")
+    budget = ridged.get("stereo_budget") if isinstance(ridged, dict) else None
+    if not isinstance(budget, dict):
+        return ""
+    try:
+        return f"{float(budget['stipples_per_head_both_eyes']):.0f}"
+    except (KeyError, TypeError, ValueError):
+        return ""
 
 
 class RidgedJob:
@@ -185,6 +218,12 @@ class RidgedJob:
                      f"mean visibility {summary['mean_visibility']:.3f} "
                      f"({summary['mean_glinting_per_head']:.1f} stipples per head), "
                      f"max false glints {summary['max_false_glints']:.3f}")
+        stated = stated_budget(folder)
+        if stated:
+            lines.append(f"per head: {summary['mean_glinting_per_head']:.0f} stipples glint "
+                         f"for both eyes, of the {stated} whose regions hold both eyes' "
+                         "sightlines (the design's budget; riser shadows and region edges "
+                         "take the rest)")
 
         def verify_json(into: Path) -> None:
             write_verify_json(into, self.kind, step, summary, "views", rows,

@@ -49,9 +49,12 @@ from specholo.simulation.field_glints import (
     CUTOFF,
     ESTIMATES,
     LOBE,
+    MAX_CELL_TURN,
+    MAX_SUBSAMPLES,
     FieldGlints,
     SlopeIndex,
     _blocked,
+    _cell_turn,
     _gather,
     _height_at,
     _normal,
@@ -227,6 +230,41 @@ def _exit_mismatch(nx_: float, ny_: float, nz_: float, x: float, y: float, h: fl
     return m1, m2, True, dx, dy, dz
 
 
+@kernel(helper=True)
+def _slope_mismatch(gx: float, gy: float, x: float, y: float, h: float, eye: np.ndarray,
+                    light: np.ndarray, point: bool, n: float,
+                    zback: float) -> tuple[float, float, bool]:
+    """:func:`_exit_mismatch` for the normal of slope (gx, gy)."""
+    norm = math.sqrt(gx * gx + gy * gy + 1.0)
+    m1, m2, lit, _, _, _ = _exit_mismatch(-gx / norm, -gy / norm, 1.0 / norm, x, y, h, eye,
+                                          light, point, n, zback)
+    return m1, m2, lit
+
+
+@kernel(helper=True)
+def _mismatch_gradient(z: np.ndarray, labels: np.ndarray, j: int, i: int, res: float,
+                       gx: float, gy: float, x: float, y: float, h: float, eye: np.ndarray,
+                       light: np.ndarray, point: bool, n: float,
+                       zback: float) -> tuple[float, float, float, float, bool]:
+    """The exit ray's miss turning across the cell, per mm (j11, j12, j21, j22),
+    as the cell's facet turns (:func:`~specholo.simulation.field_glints._cell_turn`);
+    False where the facet does not turn or a probe's ray is lost."""
+    txx, tyy, txy = _cell_turn(z, labels, j, i, res)
+    if txx == 0.0 and tyy == 0.0 and txy == 0.0:
+        return 0.0, 0.0, 0.0, 0.0, False
+    a1, a2, la = _slope_mismatch(gx + 0.5 * txx, gy + 0.5 * txy, x, y, h, eye, light, point,
+                                 n, zback)
+    b1, b2, lb = _slope_mismatch(gx - 0.5 * txx, gy - 0.5 * txy, x, y, h, eye, light, point,
+                                 n, zback)
+    c1, c2, lc = _slope_mismatch(gx + 0.5 * txy, gy + 0.5 * tyy, x, y, h, eye, light, point,
+                                 n, zback)
+    d1, d2, ld = _slope_mismatch(gx - 0.5 * txy, gy - 0.5 * tyy, x, y, h, eye, light, point,
+                                 n, zback)
+    if not (la and lb and lc and ld):
+        return 0.0, 0.0, 0.0, 0.0, False
+    return (a1 - b1) / res, (c1 - d1) / res, (a2 - b2) / res, (c2 - d2) / res, True
+
+
 @kernel(parallel=True)
 def _lit_cells(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
                tile: int, tiles: np.ndarray, eye: np.ndarray, light: np.ndarray, point: bool,
@@ -255,13 +293,26 @@ def _lit_cells(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: flo
                     continue
                 # Cheap test on the slope first; the traced one on the few left.
                 gx, gy = -nx_ / nz_, -ny_ / nz_
-                if abs(gx - tgx) > m or abs(gy - tgy) > m:
+                if abs(gx - tgx) > m + 0.5 * MAX_CELL_TURN or \
+                        abs(gy - tgy) > m + 0.5 * MAX_CELL_TURN:
                     continue
-                m1, m2, lit, _, _, _ = _exit_mismatch(nx_, ny_, nz_, x0 + i * res, y, z[j, i],
+                x = x0 + i * res
+                m1, m2, lit, _, _, _ = _exit_mismatch(nx_, ny_, nz_, x, y, z[j, i],
                                                       eye, light, point, n, zback)
-                if lit and m1 * m1 + m2 * m2 <= cut * cut:
-                    out[k, c] = j * nx + i
-                    c += 1
+                if not lit:
+                    continue
+                if m1 * m1 + m2 * m2 > cut * cut:
+                    # The facet turns across the cell: the exit ray may meet the eye in it.
+                    j11, j12, j21, j22, turns = _mismatch_gradient(
+                        z, labels, j, i, res, gx, gy, x, y, z[j, i], eye, light, point, n,
+                        zback)
+                    if not turns:
+                        continue
+                    half = 0.5 * res * max(abs(j11) + abs(j12), abs(j21) + abs(j22))
+                    if math.sqrt(m1 * m1 + m2 * m2) > cut + half:
+                        continue
+                out[k, c] = j * nx + i
+                c += 1
         count[k] = c
     return out, count
 
@@ -270,9 +321,12 @@ def _lit_cells(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: flo
 def _spots(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
            flat: np.ndarray, eye: np.ndarray, light: np.ndarray, point: bool, n: float,
            zback: float, sigma: float, shadows: bool, floor: float) -> np.ndarray:
-    """Per lit cell: weight, x, y, z, the exit ray's 2-D miss and the slope (k, 8)."""
+    """Per lit cell: weight, x, y, z, the exit ray's 2-D miss, the slope and |det|
+    of the miss's gradient per mm^2 (k, 9); where the miss turns by more than
+    the lobe across the cell, the lobe is averaged over sub-samples of its
+    linear change and x, y, z are their weighted mean (as on a mirror plate)."""
     nx = z.shape[1]
-    out = np.zeros((flat.size, 8))
+    out = np.zeros((flat.size, 9))
     for k in nb.prange(flat.size):
         j = flat[k] // nx
         i = flat[k] % nx
@@ -283,6 +337,35 @@ def _spots(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
         m1, m2, lit, dx, dy, dz = _exit_mismatch(nx_, ny_, nz_, x, y, h, eye, light, point,
                                                  n, zback)
         w = math.exp(-(m1 * m1 + m2 * m2) / (2.0 * sigma * sigma)) if lit else 0.0
+        gx0, gy0 = -nx_ / nz_, -ny_ / nz_
+        det = 0.0
+        px, py, pz = x, y, h
+        if lit:
+            j11, j12, j21, j22, turns = _mismatch_gradient(z, labels, j, i, res, gx0, gy0, x,
+                                                           y, h, eye, light, point, n, zback)
+            if turns:
+                det = abs(j11 * j22 - j12 * j21)
+                spread = max(abs(j11) + abs(j12), abs(j21) + abs(j22)) * res
+                if spread > sigma:
+                    sub = min(MAX_SUBSAMPLES, int(math.ceil(2.0 * spread / sigma)))
+                    tw = 0.0
+                    sx = 0.0
+                    sy = 0.0
+                    for a in range(sub):
+                        u = ((a + 0.5) / sub - 0.5) * res
+                        for b in range(sub):
+                            v = ((b + 0.5) / sub - 0.5) * res
+                            q1 = m1 + j11 * u + j12 * v
+                            q2 = m2 + j21 * u + j22 * v
+                            ws = math.exp(-(q1 * q1 + q2 * q2) / (2.0 * sigma * sigma))
+                            tw += ws
+                            sx += ws * u
+                            sy += ws * v
+                    w = tw / (sub * sub)
+                    if tw > 0.0:
+                        du, dv = sx / tw, sy / tw
+                        px, py = x + du, y + dv
+                        pz = h + gx0 * du + gy0 * dv
         if shadows and w > 0.0:
             ex, ey, ez = eye[0] - x, eye[1] - y, eye[2] - h
             r = math.sqrt(ex * ex + ey * ey + ez * ez)
@@ -290,13 +373,14 @@ def _spots(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
                     not _through_glass(z, x0, y0, res, x, y, h, dx, dy, dz, floor):
                 w = 0.0
         out[k, 0] = w
-        out[k, 1] = x
-        out[k, 2] = y
-        out[k, 3] = h
+        out[k, 1] = px
+        out[k, 2] = py
+        out[k, 3] = pz
         out[k, 4] = m1
         out[k, 5] = m2
-        out[k, 6] = -nx_ / nz_
-        out[k, 7] = -ny_ / nz_
+        out[k, 6] = gx0
+        out[k, 7] = gy0
+        out[k, 8] = det
     return out
 
 
@@ -369,7 +453,7 @@ def find_transmitted_glints(field: HeightMap | SlopeIndex, eye: np.ndarray, ligh
     # the normal's turn.
     reach = CUTOFF * sigma / (n - 1.0)
     flag = _candidate_tiles(index.box, x0, y0, res, index.tile, eye, lvec, point, n, zback,
-                            reach, spread)
+                            reach + 0.5 * MAX_CELL_TURN, spread)
     tiles = np.flatnonzero(flag)
     buf, count = _lit_cells(z, labels, x0, y0, res, index.tile, tiles, eye, lvec, point, n,
                             zback, CUTOFF * sigma, reach, spread)
