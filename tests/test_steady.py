@@ -161,3 +161,71 @@ def test_a_pose_is_kept_and_read_back(tmp_path: Path) -> None:
                               np.random.default_rng(0))
     assert moved.points.shape == plain.points.shape
     np.testing.assert_allclose(moved.points - plain.points - [5.0, -2.0, 0.0], 0.0, atol=1e-9)
+
+
+def _program_floor(path: Path, feed: float, plunge: float, rapid: float = 3000.0
+                   ) -> tuple[float, float]:
+    """Seconds a program's moves take at their full rates with no acceleration
+    (a floor of any estimate): all of them, and the feed moves along the cuts."""
+    pos, total, cutting = np.zeros(3), 0.0, 0.0
+    for line in path.read_text().splitlines():
+        if line.startswith("(") or not line.strip():
+            continue
+        words = dict(re.findall(r"([A-Z])(-?[\d.]+)", line))
+        new = pos.copy()
+        for i, k in enumerate("XYZ"):
+            if k in words:
+                new[i] = float(words[k])
+        moved = float(np.linalg.norm(new - pos))
+        if words.get("G") == "0":
+            total += 60.0 * moved / rapid
+        elif words.get("G") == "1":
+            along = "X" in words or "Y" in words
+            seconds = 60.0 * moved / (feed if along else plunge)
+            total += seconds
+            cutting += seconds if along else 0.0
+        pos = new
+    return total, cutting
+
+
+def test_summary_says_what_became_of_every_stipple_asked_for_and_how_long_it_cuts(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The summary accounts for every stipple asked for (cut, hidden, no scoop),
+    names the plate, the tool and its depth, and the machining time at the feed,
+    which is the program's own: no less than its moves at full speed."""
+    from specholo.fabrication.timing import describe_machining
+
+    out = tmp_path / "steady"
+    # a high, wide light: some visible stipples find no scoop that keeps the other
+    # eye's glint off it over the range
+    assert main(["steady", str(BUNNY), "--out", str(out), "--stipples", "60",
+                 "--light-elevation", "70", "--light-range", "15", "--step", "5"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    meta = json.loads((out / "hologram.json").read_text())
+    kept, dropped, st = meta["stipples"], meta["stipples_dropped"], meta["stippling"]
+    assert dropped > 0 and st["hidden_both_eyes"] > 0 and st["asked"] == st["placed"] == 60
+    # every stipple asked for is cut or has its reason
+    assert kept + dropped + st["hidden_both_eyes"] + st["hidden_one_eye"] == 60
+    assert lines[0].startswith(f"{kept} of the 60 stipples asked for got scoops "
+                               f"({2 * kept}, one for each eye)")
+    left = next(ln for ln in lines if ln.startswith("not cut:"))
+    assert left.startswith(f"not cut: {60 - kept} of the 60: ")
+    assert f"{st['hidden_both_eyes']} hidden from both eyes" in left
+    assert f"{dropped} with no scoop" in left and "--light-range" in left
+    assert (f"{st['hidden_one_eye']} hidden from one eye" in left) == (st["hidden_one_eye"] > 0)
+    (x0, y0), (x1, y1) = meta["plate_mm"]
+    assert any(ln.startswith(f"plate: {x1 - x0:.0f} x {y1 - y0:.0f} mm, 3 mm thick (fitted "
+                             "to the cuts") for ln in lines)
+    assert any(ln.startswith("tool: ball end, radius 0.05 mm, 0.02 mm deep at most, scoops "
+                             "0.080 mm wide") for ln in lines)
+    machining = describe_machining(meta["machining"], 300.0)
+    assert machining.startswith("machining: about ") and " at 300 mm/min" in machining
+    assert machining in lines
+    # the estimate is of the program written: its moves at full rates are a floor
+    # that acceleration adds to, by a fraction of a second a move at most
+    floor, cutting = _program_floor(out / "hologram.gcode", 300.0, 100.0)
+    estimate = 3600.0 * meta["machining"]["estimated_hours"]
+    moves = sum(meta["safety_check"]["moves"][k] for k in ("G0", "G1"))
+    assert floor <= estimate <= floor + 0.5 * moves
+    assert cutting <= 3600.0 * meta["machining"]["cutting_hours"] <= 1.2 * cutting
+    assert meta["machining"]["hops"] == 0  # the program retracts after every cut

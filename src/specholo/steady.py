@@ -104,18 +104,48 @@ class SteadyConfig:
         return saved_config(self, STEADY_ANGLES)
 
 
+@dataclass(frozen=True)
+class Stippling:
+    """What became of the stipples asked for before any was given its scoops
+    (those left out after, for want of a scoop, are ``SteadyDesign.dropped``).
+
+    Attributes:
+        asked: stipples asked for (``SteadyConfig.stipples``).
+        placed: stipples placed on the model (a point cloud gives no more than
+            its distinct points).
+        hidden_both: placed stipples hidden from both eyes (facing away, or
+            behind another part of the model).
+        hidden_one: placed stipples hidden from one eye only: a stipple needs a
+            scoop for each eye, so these are left out too.
+    """
+
+    asked: int
+    placed: int
+    hidden_both: int
+    hidden_one: int
+
+    @property
+    def hidden(self) -> int:
+        return self.hidden_both + self.hidden_one
+
+    def as_dict(self) -> dict[str, int]:
+        """As ``hologram.json`` records it."""
+        return {"asked": self.asked, "placed": self.placed, "hidden_both_eyes": self.hidden_both,
+                "hidden_one_eye": self.hidden_one}
+
+
 def design_steady_job(model_path: str | os.PathLike[str], config: SteadyConfig,
                       rng: np.random.Generator | None = None) -> SteadyDesign:
     """Stipple the model, keep the stipples both eyes see, and design their cuts
     (at ``config.size``: :func:`design_steady_sized` fits it to the plate)."""
     from specholo.scene.loading import load_model
 
-    return _design_loaded(load_model(model_path), config, rng)
+    return _design_loaded(load_model(model_path), config, rng)[0]
 
 
 def design_steady_sized(model_path: str | os.PathLike[str], config: SteadyConfig,
                         rng: np.random.Generator | None = None
-                        ) -> tuple[SteadyDesign, SteadyConfig]:
+                        ) -> tuple[SteadyDesign, SteadyConfig, Stippling]:
     """:func:`design_steady_job`, and with ``config.fit`` first the size: the
     largest whose cuts lie on the given plate, 5 mm in from its edges.
 
@@ -126,7 +156,8 @@ def design_steady_sized(model_path: str | os.PathLike[str], config: SteadyConfig
     measures it on a first design and fits again.
 
     Returns:
-        The design and its settings, whose size is the fitted one with ``fit``.
+        The design, its settings (whose size is the fitted one with ``fit``) and
+        what became of the stipples asked for.
     """
     import copy
     import dataclasses
@@ -145,7 +176,8 @@ def design_steady_sized(model_path: str | os.PathLike[str], config: SteadyConfig
     loaded = load_model(model_path)
     plate = config.plate
     if not config.fit or plate is None:
-        return _design_loaded(loaded, config, rng), config
+        design, stippling = _design_loaded(loaded, config, rng)
+        return design, config, stippling
     eyes = config.setup.eyes()
     unit = place(loaded, 1.0, 0.0, config.pose.rotation()).points  # size 1 about its box centre
     center = np.array([*config.pose.offset, config.center_z])
@@ -156,11 +188,15 @@ def design_steady_sized(model_path: str | os.PathLike[str], config: SteadyConfig
         return round_size(fit_size_from(unit, center, plate, eyes, reach, PLATE_MARGIN,
                                         0.9 * config.setup.distance))
 
+    stippled: dict[float, Stippling] = {}  # by size: the kept design's is said with it
+
     def design_at(size: float) -> SteadyDesign:
         # each try from the same stippling seed: the kept design is the one a
         # design at the recorded size gives
         fresh = copy.deepcopy(rng) if rng is not None else None
-        return _design_loaded(loaded, dataclasses.replace(config, size=size), fresh)
+        design, stippled[size] = _design_loaded(loaded, dataclasses.replace(config, size=size),
+                                                fresh)
+        return design
 
     def spread(d: SteadyDesign) -> tuple[np.ndarray, np.ndarray]:
         if not len(d.points):
@@ -170,12 +206,13 @@ def design_steady_sized(model_path: str | os.PathLike[str], config: SteadyConfig
 
     size, design = fit_design(size_with, design_at, spread, plate_room(plate, PLATE_MARGIN),
                               np.array([half, half]))
-    return design, dataclasses.replace(config, size=size)
+    return design, dataclasses.replace(config, size=size), stippled[size]
 
 
-def _design_loaded(loaded: Any, config: SteadyConfig,
-                   rng: np.random.Generator | None) -> SteadyDesign:
-    """:func:`design_steady_job` for a model already loaded."""
+def _design_loaded(loaded: Any, config: SteadyConfig, rng: np.random.Generator | None
+                   ) -> tuple[SteadyDesign, Stippling]:
+    """:func:`design_steady_job` for a model already loaded, and what became of
+    the stipples asked for on the way."""
     from specholo.scene.placement import place
     from specholo.scene.stippling import stipple
     from specholo.visibility.occlusion import visible
@@ -184,13 +221,15 @@ def _design_loaded(loaded: Any, config: SteadyConfig,
                   config.pose.offset)
     rng = rng if rng is not None else np.random.default_rng(config.seed)
     st = stipple(model, rng, count=config.stipples)
-    keep = np.ones(len(st.points), dtype=bool)
-    if model.mesh is not None:
-        for eye in config.setup.eyes():
-            keep &= visible(model.mesh, st.points, st.normals, eye)
+    seen = np.zeros(len(st.points), dtype=np.int64)  # by how many eyes
+    for eye in config.setup.eyes():
+        seen += visible(model.mesh, st.points, st.normals, eye)
+    keep = seen == 2
     if not keep.any():
         raise SpecholoError("no stipple is visible to both eyes: nothing to cut")
-    return design_steady(st.points[keep], config.setup, config.tool, config.shape)
+    stippling = Stippling(config.stipples, len(st.points), int(np.sum(seen == 0)),
+                          int(np.sum(seen == 1)))
+    return design_steady(st.points[keep], config.setup, config.tool, config.shape), stippling
 
 
 def light_steps(setup: SteadySetup, step_deg: float) -> np.ndarray:
@@ -223,7 +262,67 @@ def steady_plate(design: SteadyDesign, config: SteadyConfig) -> Any:
 
     tips = tool_tips(design, config.tool)[:, :2] if len(design.centres) else np.zeros((1, 2))
     return job_plate(np.stack([tips.min(axis=0), tips.max(axis=0)]), config.tool.width,
-                     config.plate)
+                     config.plate, config.stock_thickness)
+
+
+def steady_machining(design: SteadyDesign, config: SteadyConfig) -> dict[str, float]:
+    """How long :func:`write_path_gcode`'s program takes, as a flat design's
+    ``machining`` figures (hours; :func:`specholo.fabrication.timing.describe_machining`
+    words them), from the same timing model
+    (:func:`~specholo.fabrication.timing.estimate_time`).
+
+    The program rapids to each cut's start at the safe height, plunges to it,
+    feeds along the cut in X, Y and Z and retracts: never a hop. A cut starts
+    and ends at the surface (it rises out of the plate at both ends), so the
+    plunges and retracts are the safe height's; the travel between cuts runs
+    between their real ends. Along a cut the planner sees only the lengths of
+    its moves and the turns between them, so the cut is timed unrolled into
+    the plane with the same lengths and turns (its Z moves counted, not dropped).
+    """
+    import dataclasses
+
+    from specholo.fabrication.timing import estimate_time
+    from specholo.toolpaths.grooves import Grooves
+
+    n = design.n_cuts
+    if n == 0:
+        return {"estimated_hours": 0.0, "cutting_hours": 0.0, "rapid_hours": 0.0,
+                "plunge_hours": 0.0, "hop_hours": 0.0, "hops": 0, "stipples_per_second": 0.0}
+    machining = dataclasses.replace(config.machining, hop_max=0.0)
+    tips = tool_tips(design, config.tool)
+    offsets = np.asarray(design.offsets, dtype=np.int64)
+    ids = np.asarray(design.stipple, dtype=np.int64)
+    ends = np.stack([tips[offsets[:-1], :2], tips[offsets[1:] - 1, :2]], axis=1).reshape(-1, 2)
+    travel = estimate_time(Grooves(ends, np.zeros(2 * n), 2 * np.arange(n + 1, dtype=np.int64),
+                                   ids), 0.0, machining)
+    cutting = estimate_time(Grooves(_unrolled(tips, offsets), np.zeros(len(tips)), offsets, ids),
+                            0.0, machining).cutting_s
+    total = travel.rapid_s + travel.plunge_s + cutting
+    return {"estimated_hours": total / 3600.0, "cutting_hours": cutting / 3600.0,
+            "rapid_hours": travel.rapid_s / 3600.0, "plunge_hours": travel.plunge_s / 3600.0,
+            "hop_hours": 0.0, "hops": 0,
+            "stipples_per_second": len(design.points) / total if total > 0 else 0.0}
+
+
+def _unrolled(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """(m, 2) paths in the plane whose moves have the lengths of the 3D paths
+    ``points`` (m, 3) (path j is ``points[offsets[j]:offsets[j + 1]]``) and turn
+    by the same angles between them."""
+    step = np.diff(points, axis=0)
+    length = np.linalg.norm(step, axis=1)
+    path = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
+    within = path[1:] == path[:-1]  # the moves inside a path, not those between two
+    unit = step / np.where(length > 0, length, 1.0)[:, None]
+    turn = np.zeros(len(step))
+    turn[1:] = np.arccos(np.clip(np.sum(unit[1:] * unit[:-1], axis=1), -1.0, 1.0))
+    turn[1:][~within[:-1]] = 0.0  # a path's first move turns from nothing
+    turn[~within] = 0.0
+    heading = np.cumsum(turn)
+    first = offsets[:-1][path[:-1]]  # each move's path's first move
+    heading -= heading[np.minimum(first, len(step) - 1)]
+    flat = np.where(within, length, 0.0)[:, None] * np.stack([np.cos(heading),
+                                                              np.sin(heading)], axis=1)
+    return np.concatenate([np.zeros((1, 2)), np.cumsum(flat, axis=0)])
 
 
 def write_path_gcode(path: Path, design: SteadyDesign, tool: Tool, machining: Machining,
@@ -286,12 +385,14 @@ def steady_limits(design: SteadyDesign, config: SteadyConfig) -> Any:
 
 
 def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathLike[str],
-                 step_deg: float = 1.0, inputs: Iterable[str | os.PathLike[str] | None] = ()
-                 ) -> dict[str, Any]:
+                 step_deg: float = 1.0, inputs: Iterable[str | os.PathLike[str] | None] = (),
+                 stippling: Stippling | None = None) -> dict[str, Any]:
     """Write the folder atomically: hologram.gcode, stipples.npz, verify.json,
     preview.png and hologram.json. Returns the verification summary. ``inputs`` are the model
     file, which ``out`` must not hold as a file a design writes. The G-code is
-    read back by the safety check (:func:`steady_limits`) before anything is kept."""
+    read back by the safety check (:func:`steady_limits`) before anything is kept.
+    hologram.json records the program's machining time (:func:`steady_machining`)
+    and, given ``stippling``, what became of the stipples asked for."""
     from specholo.fabrication.atomic import atomic_open
     from specholo.folders import check_out
     from specholo.preview.steady import steady_preview
@@ -324,14 +425,18 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
                                 dropped=np.array(design.dropped))
         write_verification(reports, tmp, step_deg)
         steady_preview(design, config.tool, tmp / "preview.png")
-        meta = {"design": "steady", "config": config.as_dict(), "cuts": design.n_cuts,
-                "stipples": len(design.points), "stipples_dropped": design.dropped,
-                "gcode_lines": lines, "verify": json_ready(summary),
-                "plate_mm": plate.box.tolist(),
-                "safety_check": {"moves": safety.moves, "violations": 0,
-                                 "deepest_cut_mm": safety.deepest},
-                "scoop_radius_mm": {"median": float(np.median(design.radius))}
-                if design.shape == "scoop" else None}
+        meta: dict[str, Any] = {
+            "design": "steady", "config": config.as_dict(), "cuts": design.n_cuts,
+            "stipples": len(design.points), "stipples_dropped": design.dropped,
+            "gcode_lines": lines, "verify": json_ready(summary),
+            "machining": steady_machining(design, config),
+            "plate_mm": plate.box.tolist(),
+            "safety_check": {"moves": safety.moves, "violations": 0,
+                             "deepest_cut_mm": safety.deepest},
+            "scoop_radius_mm": {"median": float(np.median(design.radius))}
+            if design.shape == "scoop" else None}
+        if stippling is not None:
+            meta["stippling"] = stippling.as_dict()
         with atomic_open(tmp / "hologram.json") as fh:
             json.dump(meta, fh, indent=1, sort_keys=True)
     return summary

@@ -31,16 +31,78 @@ def _fig(v: float) -> str:
     return "-" if math.isnan(v) else f"{v:.3f}"
 
 
-def design_summary(design: Any, config: Any, s: dict[str, Any], out: Path) -> Summary:
+def design_summary(design: Any, config: Any, s: dict[str, Any], out: Path,
+                   stippling: Any = None, machining: dict[str, float] | None = None
+                   ) -> Summary:
     """What a steady image (``toolpaths.steady.SteadyDesign`` with its
-    ``steady.SteadyConfig``) and its verification over the light's range say."""
+    ``steady.SteadyConfig``) and its verification over the light's range say, in
+    a flat design's words (:func:`specholo.jobs.flat.design_summary`): how many of
+    the stipples asked for got scoops and why the rest did not
+    (``steady.Stippling``, when known), the plate, the tool, the machining time
+    (``machining``: hologram.json's figures, when known) and the verification."""
+    from specholo.fabrication.timing import describe_machining
+    from specholo.steady import steady_plate
+
+    noun = "scoop" if config.shape == "scoop" else "flat groove"
+    kept = len(design.points)
     mid = math.degrees(config.setup.elevation)
     half = math.degrees(config.setup.half_range)
-    return Summary([
-        f"{len(design.points)} stipples, {design.n_cuts} {config.shape}s -> {out}",
-        f"light {mid - half:g} to {mid + half:g} deg: worst p95 {_fig(s['worst_p95_mm'])} mm, "
-        f"image drift p95 {_fig(s['worst_drift_p95_mm'])} mm, lowest visibility "
-        f"{_fig(s['lowest_visibility'])}, stray glints {s['stray']}"], [])
+    if stippling is None:
+        lines = [f"{kept} stipples, {design.n_cuts} {noun}s -> {out}"]
+    else:
+        lines = [f"{kept} of the {stippling.asked} stipples asked for got {noun}s "
+                 f"({design.n_cuts}, one for each eye) -> {out}"]
+        if kept < stippling.asked:
+            lines.append(f"not cut: {stippling.asked - kept} of the {stippling.asked}: "
+                         + "; ".join(_left_out(design, stippling, noun)))
+    lines.append(_plate_line(steady_plate(design, config), config))
+    tool = config.tool
+    lines.append(f"tool: ball end, radius {tool.radius:g} mm, {tool.depth:g} mm deep at most, "
+                 f"{noun}s {tool.width:.3f} mm wide at the surface (each rises out of the "
+                 "plate at both ends)")
+    if machining is not None:
+        lines.append(describe_machining(machining, config.machining.feed))
+    lines.append(f"light {mid - half:g} to {mid + half:g} deg: worst p95 "
+                 f"{_fig(s['worst_p95_mm'])} mm, image drift p95 "
+                 f"{_fig(s['worst_drift_p95_mm'])} mm, lowest visibility "
+                 f"{_fig(s['lowest_visibility'])}, stray glints {s['stray']}")
+    return Summary(lines, [])
+
+
+def _left_out(design: Any, stippling: Any, noun: str) -> list[str]:
+    """Why the stipples asked for and not cut were left out, a clause a reason
+    (those with none left out say nothing)."""
+    from specholo.toolpaths.steady import RADIUS_RANGE
+
+    why = []
+    if stippling.placed < stippling.asked:
+        why.append(f"{stippling.asked - stippling.placed} never placed (the model has only "
+                   f"{stippling.placed} distinct points)")
+    if stippling.hidden_both:
+        why.append(f"{stippling.hidden_both} hidden from both eyes (on the model's far side "
+                   "or behind another part of it)")
+    if stippling.hidden_one:
+        why.append(f"{stippling.hidden_one} hidden from one eye (a stipple needs a {noun} for "
+                   "each eye)")
+    if design.dropped:
+        why.append(f"{design.dropped} with no {noun} of radius up to {RADIUS_RANGE[1]:g} mm "
+                   "that keeps the other eye's glint off it and its own inside the cut over "
+                   "the light's range (a narrower --light-range keeps more)")
+    return why
+
+
+def _plate_line(plate: Any, config: Any) -> str:
+    """The plate a maker prepares, in one line, as a flat design's summary words
+    it (:func:`specholo.jobs.flat.plate_line`)."""
+    from specholo.fabrication.plate import PLATE_MARGIN
+
+    thick = f", {plate.thickness:g} mm thick" if plate.thickness else ""
+    how = ("as given" if config.plate is not None
+           else f"fitted to the cuts with a {PLATE_MARGIN:g} mm border")
+    line = f"plate: {plate.width:.0f} x {plate.height:.0f} mm{thick} ({how})"
+    if config.fit:
+        line += f"; --fit sized the model {config.size:g} mm"
+    return line
 
 
 class SteadyJob:
@@ -79,13 +141,17 @@ class SteadyJob:
 
     def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
               options: WriteOptions, status: Status) -> Summary:
+        import json
+
         from specholo.steady import write_steady
 
-        design, config = designed.design
+        design, config, stippling = designed.design
         step = options.step_deg or 1.0
         status("moving the light and writing...")
-        s = write_steady(design, config, out, step, inputs=inputs)
-        return design_summary(design, config, s, out)
+        s = write_steady(design, config, out, step, inputs=inputs, stippling=stippling)
+        # the machining time as the folder records it
+        written = json.loads((out / "hologram.json").read_text(encoding="utf-8"))
+        return design_summary(design, config, s, out, stippling, written["machining"])
 
     def holds(self, folder: Path) -> bool:
         from specholo.steady import is_steady_folder
