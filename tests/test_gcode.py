@@ -944,3 +944,37 @@ def test_chunks_made_in_threads_come_in_order(monkeypatch):
     monkeypatch.setattr(gcode, "concurrent_kernels_safe", lambda: False)
     assert list(gcode.in_order(make, bounds)) == [(i, i + 1) for i in range(40)]
     assert makers == {threading.get_ident()}
+
+
+@pytest.mark.parametrize(("drawings", "named"), [
+    (("SVG", "DXF"), "layer PLATE of the SVG and DXF, not cut"),
+    (("SVG",), "layer PLATE of the SVG, not cut"),
+    ((), "in no drawing of this design, not cut")])
+def test_plate_marks_name_only_the_drawings_written(tmp_path, groove_example, drawings, named):
+    """The header sends a maker to the drawings the design writes, no other."""
+    out = tmp_path / "x.ngc"
+    write_gcode(out, groove_example, Tool(), Machining(), drawings=drawings)
+    marks = [t for t in lines_of(out) if t.startswith("(plate marks:")]
+    assert len(marks) == 1 and marks[0].endswith(named + ")")
+    for other in {"SVG", "DXF"} - set(drawings):
+        assert other not in out.read_text()
+    # a flat design's program (the default) names both, as its golden files hold
+    default = tmp_path / "flat.ngc"
+    write_gcode(default, groove_example, Tool(), Machining())
+    assert "layer PLATE of the SVG and DXF, not cut" in default.read_text()
+
+
+def test_a_v_bit_program_names_the_v_s_groove_width(tmp_path, groove_example):
+    """Written through its small round-tip model, a V-bit's program names the
+    groove the V cuts: its width at the surface, 2 d tan(angle / 2)."""
+    from specholo.fabrication.tools import VBit
+
+    vbit, depth = VBit(math.radians(30.0)), 0.4
+    out = tmp_path / "v.ngc"
+    write_gcode(out, groove_example, vbit.model(depth), Machining(), depth=depth,
+                width=vbit.section(depth).width)
+    tool = next(t for t in lines_of(out) if t.startswith("(tool:"))
+    width = float(re.search(r"groove width ([0-9.]+) mm", tool).group(1))
+    assert width == pytest.approx(2 * depth * math.tan(math.radians(15.0)), abs=1e-5)
+    assert width == pytest.approx(vbit.section(depth).width, abs=1e-5)
+    assert width > 10 * vbit.model(depth).width  # not the round tip's

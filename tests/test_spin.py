@@ -261,3 +261,28 @@ def test_folder_reverifies_and_refuses_what_it_cannot(tmp_path: Path,
     err = capsys.readouterr().err.strip()
     assert "turning-plate" in err and len(err.splitlines()) == 1
     assert main(["verify", str(out), "--cut"]) != 0
+
+
+def test_programs_name_the_drawing_it_writes_and_the_v_s_groove_width(tmp_path: Path) -> None:
+    """A turning plate writes an SVG and no DXF: both programs' headers send a
+    maker to the SVG's marks alone. The relief is cut by the V-bit: its header
+    names the groove the V cuts (2 d tan(angle / 2) wide), not its tip model's."""
+    from specholo.fabrication.tools import VBit
+
+    out = tmp_path / "spin"
+    assert main(["spin", str(BUNNY), "--out", str(out), "--stipples", "8", "--frames", "0",
+                 "--step", "45"]) == 0
+    assert (out / "hologram.svg").is_file() and not list(out.glob("*.dxf"))
+    for name in ("hologram.gcode", "relief.gcode"):
+        head = [ln for ln in (out / name).read_text().splitlines() if ln.startswith("(")]
+        marks = [ln for ln in head if ln.startswith("(plate marks:")]
+        assert len(marks) == 1 and marks[0].endswith("layer PLATE of the SVG, not cut)")
+        assert not any("DXF" in ln for ln in head)
+    meta = json.loads((out / "hologram.json").read_text())
+    depth = meta["relief"]["depth_mm"]
+    head = (out / "relief.gcode").read_text().splitlines()
+    tool = next(ln for ln in head if ln.startswith("(tool:"))
+    width = float(tool.split("groove width ")[1].split(" mm")[0])
+    vbit = VBit(RELIEF_ANGLE)
+    assert width == pytest.approx(vbit.section(depth).width, abs=2e-5)
+    assert width == pytest.approx(2 * depth * math.tan(0.5 * RELIEF_ANGLE), abs=2e-5)

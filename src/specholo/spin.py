@@ -41,6 +41,9 @@ SPIN_ANGLES = ("elevation",)
 SEED_RANGE = (0, 2**32)
 
 
+#: The drawings a turning plate writes beside its programs (hologram.svg; no
+#: DXF), which carry the plate's marks: the programs' headers name these alone.
+SPIN_DRAWINGS = ("SVG",)
 #: Why a verification row's figures are null.
 NOTHING_SEEN = "no stipple glints for both eyes here: nothing to measure"
 
@@ -434,14 +437,16 @@ def stock_line(config: Any) -> str:
 
 def spin_plate(job: SpinJob) -> Any:
     """The plate (``fabrication.plate.Plate``) a turning plate's files name: the
-    one given, centred on the axis, or the grooves' with a 5 mm border.
+    one given, centred on the axis, or the grooves' with a 5 mm border; of the
+    blank's thickness, which the programs' headers name with it.
 
     Raises:
         SpecholoError: a given plate is smaller than the grooves.
     """
     from specholo.fabrication.plate import job_plate
 
-    return job_plate(job.design.grooves.extent(), job.config.tool.width, job.config.plate)
+    return job_plate(job.design.grooves.extent(), job.config.tool.width, job.config.plate,
+                     job.config.stock_thickness)
 
 
 def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
@@ -504,7 +509,8 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                   "times per turn", "walls": cfg.setup.walls, "stock": stock_line(cfg)}
         limits = spin_limits(d.grooves, cfg.tool.depth, cfg.machining, cfg.stock_thickness)
         gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
-                             header={**header, **limits.header()}, plate=plate)
+                             header={**header, **limits.header()}, plate=plate,
+                             drawings=SPIN_DRAWINGS)
         safety = stage.check("hologram.gcode", limits)
         meta: dict[str, Any] = {
             "design": "spin", "config": cfg.as_dict(),
@@ -527,7 +533,8 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
             depth = relief_depth
             if relief.n_paths:
                 # one tool named, the V-bit that cuts it: as a flat design's V-bit
-                # program, the header gives the bit and its round-tip model
+                # program, the header gives the bit, its round-tip model and the
+                # groove the V cuts (its width at the surface, not the model's)
                 vbit = VBit(RELIEF_ANGLE, max_depth=max(depth, VBit.max_depth))
                 rhead = {"design": "relief cut: takes away each groove's other wall",
                          "stock": stock_line(cfg),
@@ -535,7 +542,8 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                                    "groove's edge"}
                 rlimits = spin_limits(relief, depth, cfg.machining, cfg.stock_thickness)
                 write_gcode(tmp / "relief.gcode", relief, vbit.model(depth), cfg.machining,
-                            header={**rhead, **rlimits.header()}, depth=depth, plate=plate)
+                            header={**rhead, **rlimits.header()}, depth=depth, plate=plate,
+                            width=vbit.section(depth).width, drawings=SPIN_DRAWINGS)
                 stage.check("relief.gcode", rlimits)
             meta["relief"] = {"depth_mm": depth, "v_bit_included_deg": 30.0,
                               "other_wall_keeps_tilts_below_deg":

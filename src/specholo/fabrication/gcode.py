@@ -25,8 +25,9 @@ Three dialects share one writer (:class:`GcodeOptions`):
 A mill program works in absolute coordinates, the XY plane and feed per
 minute, with its origin at the plate centre and Z = 0 on the plate surface.
 Its header names the plate (:mod:`~specholo.fabrication.plate`): size, corners
-and thickness, the registration marks of the SVG and DXF drawings, and how to
-set the origin on it; comments only, after the ``check`` lines.
+and thickness, the registration marks of the drawings written with it (a flat
+design's SVG and DXF, a turning plate's SVG), and how to set the origin on it;
+comments only, after the ``check`` lines.
 Each groove is cut as: a comment ``(stipple N)``, a rapid to its start at the
 safe height, a plunge to ``-depth``, its arcs as ``G2``/``G3`` (centre given by
 ``I J`` relative to the arc's start) or ``G1`` when they are straight, and a
@@ -440,11 +441,20 @@ def drawn_extent(grooves: Grooves) -> np.ndarray:
     return Grooves(grooves.vertices, bulges, grooves.offsets, grooves.stipple).extent()
 
 
-def plate_lines(plate: Plate, options: GcodeOptions) -> list[str]:
+#: The drawings a flat design writes beside its program, which carry the plate's marks.
+FLAT_DRAWINGS = ("SVG", "DXF")
+
+
+def plate_lines(plate: Plate, options: GcodeOptions,
+                drawings: Sequence[str] = FLAT_DRAWINGS) -> list[str]:
     """The header's plate block, comment texts in the program's units: the plate's
     size, corners and thickness, the registration marks, and how to set the
     origin. The words it quotes (``G10 L20``, ``G92``) set the origin of the
-    dialect's machine where the tool stands; nothing here moves it."""
+    dialect's machine where the tool stands; nothing here moves it.
+
+    ``drawings`` names the drawings written with the program ("SVG", "DXF"),
+    whose PLATE layer holds the marks: the header names only those, so that a
+    maker looks for no file the design did not write."""
     unit = "mm" if options.units == "mm" else "in"
 
     def num(mm: float) -> str:
@@ -468,10 +478,19 @@ def plate_lines(plate: Plate, options: GcodeOptions) -> list[str]:
         f"plate: {num(plate.width)} x {num(plate.height)} {unit}{thick}, "
         f"corners {xy(corners[0])} to {xy(corners[2])}",
         f"plate marks: crosshair and {num(plate.mark_radius)} {unit} radius circle, "
-        "layer PLATE of the SVG and DXF, not cut",
+        + _marks_drawn(drawings) + ", not cut",
         "plate marks at: " + ", ".join(xy(m) for m in marks[:4]) + f", origin {xy(marks[4])}",
         f"plate zero: {zero}",
     ]
+
+
+def _marks_drawn(drawings: Sequence[str]) -> str:
+    """Where the plate marks are drawn, in words: "layer PLATE of the SVG and DXF"."""
+    names = list(drawings)
+    if not names:
+        return "in no drawing of this design"
+    listed = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+    return f"layer PLATE of the {listed}"
 
 
 def _short_number(value: float) -> str:
@@ -674,6 +693,7 @@ def write_gcode(
     depth: float | None = None,
     plate: Plate | None = None,
     width: float | None = None,
+    drawings: Sequence[str] = FLAT_DRAWINGS,
 ) -> GcodeStats:
     """Write the program that cuts the grooves, atomically.
 
@@ -692,7 +712,10 @@ def write_gcode(
             plate fitted to the grooves (:func:`~specholo.fabrication.plate.fit_plate`
             of their :func:`drawn_extent`).
         width: the groove's width at the surface, mm, when it is not the round
-            model's (a drag tip's cone widens the groove past its round tip).
+            model's (a drag tip's cone or a V-bit's flanks widen the groove past
+            its round tip).
+        drawings: the drawings written with the program, which carry the plate's
+            marks (:func:`plate_lines`); a flat design's SVG and DXF by default.
 
     Returns:
         Line count, path count and move lengths (mm) of the program.
@@ -743,7 +766,7 @@ def write_gcode(
     head += [comment(f"{k}: {v}") for k, v in (header or {}).items() if k != "cutter"]
     if plate is None:
         plate = Plate.fitted(drawn_extent(grooves), width)
-    head += [comment(text) for text in plate_lines(plate, opt)]
+    head += [comment(text) for text in plate_lines(plate, opt, drawings)]
     setup_codes = ["G21" if opt.units == "mm" else "G20", "G90"]
     if mill:
         head.append(" ".join([*setup_codes, "G17", "G94", "G40"]))
