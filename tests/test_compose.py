@@ -314,3 +314,57 @@ def test_a_scene_s_pose_turns_and_moves_it_on_the_plate(tmp_path: Path) -> None:
     np.testing.assert_allclose(moved - plain - [4.0, -3.0, 0.0], 0.0, atol=1e-9)
     with pytest.raises(SpecholoError, match="up must be one of"):
         points('up = "w"\n')
+
+
+#: Panels tilted towards the middle, a folding screen set back behind the frame's
+#: origin: [[host.panels]] entries of a composition.
+_SET_BACK = ('[[host.panels]]\ncentre = [-26, 0, -12]\nnormal = [0.25, 0, 1]\nwidth = 50\n'
+             'height = 60\n[[host.panels]]\ncentre = [26, 0, -12]\nnormal = [-0.25, 0, 1]\n'
+             'width = 50\nheight = 60\n')
+#: A third panel between them on the axis, the others moved out to leave it room
+#: (seen from above no panel covers another: a vertical tool reaches each).
+_THREE = (_SET_BACK.replace("[-26,", "[-37,").replace("[26,", "[37,")
+          + '[[host.panels]]\ncentre = [0, 0, -9]\nnormal = [0, 0.2, 1]\nwidth = 20\n'
+          'height = 60\n')
+
+
+@pytest.mark.parametrize("panels, on_axis", [(_SET_BACK, False), (_THREE, True)],
+                         ids=["two, gap at the axis", "three, the middle one on the axis"])
+def test_tilted_panels_set_back_get_a_checked_program(tmp_path: Path, panels: str,
+                                                      on_axis: bool) -> None:
+    """Tilted panels wholly behind the frame's origin: the program is written and
+    passes its check, Z = 0 on a point of the panels a maker can touch off on
+    (under the axis, or the highest corner where a gap lies there), rapids the
+    safe height above the highest corner, and every cut the depth into the
+    panel under it."""
+    comp = tmp_path / "panels.toml"
+    comp.write_text(f'stipples = 20\nseed = 1\n[host]\nkind = "panels"\n{panels}'
+                    f'[viewer]\nrange = 20\n[[scene]]\nmodel = "{BUNNY}"\nsize = 30\n'
+                    'center_z = -25\n')
+    out = tmp_path / "out"
+    assert main(["compose", str(comp), "--out", str(out), "--step", "10"]) == 0
+    meta = json.loads((out / "hologram.json").read_text())
+    assert meta["gcode"]["check"]["violations"] == 0 and meta["gcode"]["paths"] > 0
+    host = parse_composition(comp.read_text(), tmp_path).host
+    corners = np.array([c + 0.5 * sx * p.width * r + 0.5 * sy * p.height * u
+                        for p in host.panels for c, r, u, _ in [p.frame()]
+                        for sx in (-1, 1) for sy in (-1, 1)])
+    top = corners[:, 2].max()
+    assert top < 0  # the whole host lies behind the frame's origin
+    down = host.intersect(np.array([[0.0, 0.0, 100.0]]), np.array([0.0, 0.0, -1.0]))
+    assert bool(down.valid[0]) == on_axis
+    zero = float(down.point[0, 2]) if on_axis else top
+    lines = (out / "hologram.gcode").read_text().splitlines()
+    origin = next(ln for ln in lines if ln.startswith("(origin:"))
+    assert ("crosses the axis" in origin) == on_axis
+    assert ("highest point" in origin) != on_axis
+    assert f"Z{zero:.4f}".rstrip("0").rstrip(".") + " in that frame" in origin
+    # rapids at the safe height, 1 mm, above the highest corner
+    assert next(ln for ln in lines if ln.startswith("G0 Z")) == f"G0 Z{top - zero + 1.0:.4f}"
+    # each cut's tip lies the depth into the panel straight under it, at most
+    cuts = np.array([[float(w[1:]) for w in ln.split()[1:4]] for ln in lines
+                     if ln.startswith("G1 X")])
+    under = host.intersect(cuts * [1, 1, 0] + [0, 0, 100.0], np.array([0.0, 0.0, -1.0]))
+    assert under.valid.all()
+    into = under.point[:, 2] - zero - cuts[:, 2]
+    assert into.min() > -1e-3 and into.max() <= 0.02 + 2e-3

@@ -8,6 +8,10 @@ as long as its shank clears the surface; that holds while the surface tilts
 less than asin(1 - d / R) from vertical. Samples beyond that reach are left out
 (and counted). The program moves the tool tip, R below the centre; rapids go
 at the safe height above the host's highest point, wherever the grooves are.
+X and Y are the host's frame; Z = 0 is a point of the host a maker can touch
+off on (:func:`program_zero`): where its front crosses the axis (X0 Y0), or,
+for a host with no surface there (panels with a gap at the axis, a host set
+back behind its frame's origin), its highest point.
 
 4-axis (cylinder only): the cylinder's axis lies along the machine's X, the A
 axis turns it (degrees), and the tool stays over the axis, so it always cuts
@@ -109,8 +113,17 @@ def _header(grooves: ConformingGrooves, host: Host, tool: Tool, machining: Machi
     elif isinstance(host, Plane):
         lines.append("origin: plate centre; X right, Y up, Z = 0 on the plate surface")
     else:
+        zero, on_axis = program_zero(host)
+        shift = _short(float(zero[2]))
+        if on_axis:
+            where = "where the host's front crosses the axis" + (
+                "" if shift == "0" else f", Z{shift} in that frame")
+        else:
+            where = (f"at the host's highest point X{_short(float(zero[0]))} "
+                     f"Y{_short(float(zero[1]))}, Z{shift} in that frame: its front does not "
+                     "cross the axis")
         lines.append("origin: the host's frame, as hologram.json's host says; X right, Y up, Z = 0 "
-                     "where the host's front crosses the axis")
+                     + where)
     lines += [f"tool: ball end, round tip radius {_short(tool.radius)} mm, groove width "
               f"{_short(tool.width)} mm",
               f"depth: {_short(tool.depth)} mm below the surface"]
@@ -170,7 +183,10 @@ def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
     dropped = 0
     length = 0.0
     if axes == 3:
-        safe = host_top(host) + machining.safe_z
+        # machine Z is the host's z less the program's zero: the rapids clear the
+        # host's highest point by the safe height whatever its height in the frame
+        shift = np.array([0.0, 0.0, program_zero(host)[0][2]])
+        safe = host_top(host) - shift[2] + machining.safe_z
         lines.append(f"G0 Z{_f(safe)}")
         limit = math.cos(reach_tilt(tool))
         for path in np.split(np.arange(len(grooves.point)),
@@ -185,7 +201,7 @@ def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
                 if run.size < 2 or grooves.normal[run[0], 2] < limit:
                     continue
                 tip = (grooves.point[run] + (tool.radius - tool.depth) * grooves.normal[run]
-                       - np.array([0.0, 0.0, tool.radius]))
+                       - np.array([0.0, 0.0, tool.radius]) - shift)
                 lines.append(f"(stipple {int(grooves.stipple[run[0]])})")
                 lines.append(f"G0 X{_f(tip[0, 0])} Y{_f(tip[0, 1])}")
                 lines.append(f"G1 Z{_f(tip[0, 2])} F{machining.plunge:.1f}")
@@ -218,23 +234,56 @@ def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
 
 
 def host_top(host: Host) -> float:
-    """The host's highest point, mm: the 3-axis safe height is measured from it (a
-    rapid clears every part of the host, not only the grooves)."""
+    """The height of the host's highest point, mm: the 3-axis safe height is
+    measured from it (a rapid clears every part of the host, not only the grooves)."""
+    return float(_highest(host)[2])
+
+
+def _highest(host: Host) -> np.ndarray:
+    """(3,) the host's highest point in its frame, mm (one of them, where several
+    are as high)."""
     if isinstance(host, Plane | Cylinder | Sphere):
-        return 0.0  # their front passes through the origin, at their top
+        return np.zeros(3)  # their front passes through the origin, at their top
     if isinstance(host, HeightField):
         # the bicubic spline may rise between its samples: it is read on a grid
         # four times finer too
         x = np.linspace(host.x[0], host.x[-1], 4 * len(host.x))
         y = np.linspace(host.y[0], host.y[-1], 4 * len(host.y))
         xx, yy = np.meshgrid(x, y)
-        between = np.nanmax(_vertical_hits(host, xx.ravel(), yy.ravel(), float(host.z.max())))
-        return float(max(host.z.max(), between))
+        between = _vertical_hits(host, xx.ravel(), yy.ravel(), float(host.z.max()))
+        row, col = np.unravel_index(int(np.argmax(host.z)), host.z.shape)
+        if np.isnan(between).all() or host.z[row, col] >= np.nanmax(between):
+            return np.array([host.x[col], host.y[row], host.z[row, col]], dtype=float)
+        k = int(np.nanargmax(between))
+        return np.array([xx.ravel()[k], yy.ravel()[k], between[k]], dtype=float)
     if isinstance(host, MeshHost):
-        return float(host.mesh.bounds[1][2])
+        vertices = np.asarray(host.mesh.vertices, dtype=float)
+        return vertices[int(np.argmax(vertices[:, 2]))]
     if isinstance(host, Panels):
-        return float(_panel_corners(host)[:, 2].max())
+        corners = _panel_corners(host)
+        return corners[int(np.argmax(corners[:, 2]))]
     raise SpecholoError(f"no highest point known for a {host.kind} host")
+
+
+def program_zero(host: Host) -> tuple[np.ndarray, bool]:
+    """Where a 3-axis program on a curved host has Z = 0, and whether that is at
+    X0 Y0: (3,) a point of the host in its frame, mm.
+
+    A maker touches Z off on the host itself, so the zero is on it: where the
+    host's first surface lies straight under the frame's origin (every host of
+    one piece passes through the origin, and there Z = 0 is its frame's z = 0);
+    where nothing lies there (panels with a gap at the axis, or set back
+    behind the origin), its highest point. Either way the highest point is
+    at or above Z = 0, so the safe height above it is a height above the zero,
+    as every program's safe height is (``check.Limits``).
+    """
+    if isinstance(host, Plane | Cylinder | Sphere):
+        return np.zeros(3), True  # their front passes through the origin, at their top
+    top = _highest(host)
+    under = _vertical_hits(host, np.zeros(1), np.zeros(1), float(top[2]))[0]
+    if np.isfinite(under):
+        return np.array([0.0, 0.0, min(float(under), float(top[2]))]), True
+    return top, False
 
 
 def _panel_corners(host: Panels) -> np.ndarray:
@@ -337,7 +386,8 @@ def surface_limits(grooves: ConformingGrooves, host: Host, tool: Tool, machining
     3 axes: the tool tip inside the host seen from above, no deeper than the
     groove below the surface under it (``Limits.surface``: the host's first
     surface straight down, extended a little past its edges), rapids at the
-    safe height above the host's top.
+    safe height above the host's top; heights in the program's Z, which is
+    zero at :func:`program_zero`.
     4 axes: the tip over the cylinder's axis (Y within half a groove) and along
     its length, no deeper than the groove below the top of the turning cylinder
     (Z = 0 there, however it turns), rapids at the safe height. Feeds and
@@ -369,12 +419,13 @@ def surface_limits(grooves: ConformingGrooves, host: Host, tool: Tool, machining
                       machining.safe_z, feeds, spindle, kind, hop_max=0.0,
                       groove_depth=tool.depth)
     top = host_top(host)
+    zero = float(program_zero(host)[0][2])  # the program's Z is the host's z less this
 
     def under(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        return _surface_under(host, x, y, top, tool.radius - tool.depth)
+        return _surface_under(host, x, y, top, tool.radius - tool.depth) - zero
 
     return Limits(Stock(*host_extent(host, grooves), thickness), tool.depth,
-                  top + machining.safe_z, feeds, spindle, kind, surface=under,
+                  top - zero + machining.safe_z, feeds, spindle, kind, surface=under,
                   tolerance=SURFACE_TOLERANCE)
 
 
