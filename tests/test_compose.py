@@ -368,3 +368,47 @@ def test_tilted_panels_set_back_get_a_checked_program(tmp_path: Path, panels: st
     assert under.valid.all()
     into = under.point[:, 2] - zero - cuts[:, 2]
     assert into.min() > -1e-3 and into.max() <= 0.02 + 2e-3
+
+
+def _check_exit(args: list[str]) -> int:
+    """``specholo check ...``'s exit status (a violation exits through SystemExit)."""
+    try:
+        return main(["check", *args])
+    except SystemExit as exc:
+        return int(exc.code or 0)
+
+
+@pytest.mark.parametrize("axes", [4, 3])
+def test_check_on_a_cup_s_program_says_where_its_limits_went(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], axes: int) -> None:
+    """`specholo check` on a curved host's program has no limits to read: it says
+    in one line that they follow the surface, that the program passed them when
+    written (hologram.json's gcode.check, with its figures), and which options
+    check it as a flat plate; those options run that check."""
+    text = (ROOT / "examples" / "cup.toml").read_text()
+    text = text.replace("stipples = 600", "stipples = 10").replace("axes = 4", f"axes = {axes}")
+    text = text.replace('model = "bunny.obj"', f'model = "{BUNNY}"')
+    comp = tmp_path / "cup.toml"
+    comp.write_text(text)
+    out = tmp_path / "cup"
+    assert main(["compose", str(comp), "--out", str(out), "--step", "15"]) == 0
+    capsys.readouterr()
+    program = out / "hologram.gcode"
+    assert _check_exit([str(program)]) == 1
+    got = capsys.readouterr()
+    err = got.err.strip().splitlines()
+    assert len(err) == 1 and not got.out, got
+    line = err[0]
+    check = json.loads((out / "hologram.json").read_text())["gcode"]["check"]
+    assert "follow the host's curved surface" in line and f"{axes}-axis" in line
+    assert f"{out / 'hologram.json'} records that check (gcode.check: " in line
+    assert f"{check['cutting_moves']} cutting moves" in line and "0 violations" in line
+    assert "--plate-width, --plate-height and --max-depth check it as a flat plate" in line
+    assert ("A turns" in line) == (axes == 4)
+    # the options named check it as a flat plate: a report, not the refusal
+    status = _check_exit([str(program), "--plate-width", "100", "--plate-height", "100",
+                          "--max-depth", "0.02"])
+    got = capsys.readouterr()
+    assert "violation(s)" in got.out and "names no limits" not in got.err
+    if axes == 4:  # a flat plate has no rotary axis: its A words are flagged
+        assert status == 1 and "unsupported word A" in got.out

@@ -124,8 +124,7 @@ def check(gcode: Path, plate_width: float | None, plate_height: float | None,
             raise SpecholoError(f"G-code file {gcode} not found")
         own = limits_from_header(gcode)
         if own is None:
-            raise SpecholoError(f"{gcode} names no limits (no check lines in its header): give "
-                                "--plate-width, --plate-height and --max-depth")
+            raise SpecholoError(_no_limits(gcode))
         report = check_limits(gcode, own)
         click.echo(report.summary() + " (against the limits in its header)")
         if not report.ok:
@@ -154,3 +153,73 @@ def check(gcode: Path, plate_width: float | None, plate_height: float | None,
     click.echo(report.summary())
     if not report.ok:
         sys.exit(1)
+
+
+#: Header lines read for what a program says it was made for (a specholo header
+#: is a dozen or so).
+_HEADER_LINES = 40
+#: The header line of a program on a curved host, whose limits no line can name
+#: (``fabrication.surface_gcode``).
+_SURFACE_LIMITS = "limits: not in this header"
+
+
+def _header_comments(gcode: Path) -> list[str]:
+    """The texts of the comments heading a program, up to its first command."""
+    import os
+
+    from specholo.readback import open_regular
+
+    fd, _ = open_regular(gcode, "G-code file")
+    texts: list[str] = []
+    with os.fdopen(fd, "r", encoding="ascii", errors="replace") as fh:
+        for _ in range(_HEADER_LINES):
+            # a line longer than any header line is read in part: no comment, the end
+            line = fh.readline(1000).strip()
+            if not (line.startswith("(") and line.endswith(")")):
+                break
+            texts.append(line[1:-1])
+    return texts
+
+
+def _no_limits(gcode: Path) -> str:
+    """Why ``specholo check`` without options has no limits for a program, and what
+    to do, in one line. A program for a curved host says its limits follow the
+    host's surface: it was checked against them when it was written, as its
+    folder's hologram.json records (``gcode.check``), and the options check it as
+    a flat plate instead."""
+    head = _header_comments(gcode)
+    if not any(t.startswith(_SURFACE_LIMITS) for t in head):
+        return (f"{gcode} names no limits (no check lines in its header): give "
+                "--plate-width, --plate-height and --max-depth")
+    made = next((t.removeprefix("specholo: grooves on ") for t in head
+                 if t.startswith("specholo: grooves on ")), "a curved host")
+    rotary = made.endswith("4-axis")
+    flat = ("--plate-width, --plate-height and --max-depth check it as a flat plate instead, "
+            + ("which cannot follow its A turns (every A word is flagged)" if rotary
+               else "with the plane Z = 0 for the host's surface"))
+    surface = "panels" if made.startswith("a panels host") else "curved surface"
+    return (f"{gcode} names no limits to check: it cuts grooves on {made}, and its limits follow "
+            f"the host's {surface}, which no header line can name; it passed them when it was "
+            f"written: {_check_record(gcode)}; {flat}")
+
+
+def _check_record(gcode: Path) -> str:
+    """Where the check a composition's program passed when it was written is
+    recorded, with its figures when hologram.json beside it holds them."""
+    from specholo.readback import read_json
+
+    record = gcode.parent / "hologram.json"
+    general = "its design folder's hologram.json records that check (gcode.check)"
+    if gcode.name != "hologram.gcode" or not record.is_file():
+        return general
+    try:
+        meta = read_json(record)
+        check = meta["gcode"]["check"]
+        figures = (f"{int(check['cutting_moves'])} cutting moves, deepest "
+                   f"{float(check['deepest_cut_mm']):.4g} mm below the surface, "
+                   f"{int(check['violations'])} violations")
+    except (SpecholoError, KeyError, TypeError, ValueError):
+        return general  # not a composition's record: the program was moved or is older
+    if meta.get("design") not in ("composition", "conforming"):
+        return general
+    return f"{record} records that check (gcode.check: {figures})"
