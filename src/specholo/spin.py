@@ -437,16 +437,14 @@ def stock_line(config: Any) -> str:
 
 def spin_plate(job: SpinJob) -> Any:
     """The plate (``fabrication.plate.Plate``) a turning plate's files name: the
-    one given, centred on the axis, or the grooves' with a 5 mm border; of the
-    blank's thickness, which the programs' headers name with it.
+    one given, centred on the axis, or the grooves' with a 5 mm border.
 
     Raises:
         SpecholoError: a given plate is smaller than the grooves.
     """
     from specholo.fabrication.plate import job_plate
 
-    return job_plate(job.design.grooves.extent(), job.config.tool.width, job.config.plate,
-                     job.config.stock_thickness)
+    return job_plate(job.design.grooves.extent(), job.config.tool.width, job.config.plate)
 
 
 def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,

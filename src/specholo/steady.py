@@ -262,7 +262,7 @@ def steady_plate(design: SteadyDesign, config: SteadyConfig) -> Any:
 
     tips = tool_tips(design, config.tool)[:, :2] if len(design.centres) else np.zeros((1, 2))
     return job_plate(np.stack([tips.min(axis=0), tips.max(axis=0)]), config.tool.width,
-                     config.plate, config.stock_thickness)
+                     config.plate)
 
 
 def steady_machining(design: SteadyDesign, config: SteadyConfig) -> dict[str, float]:

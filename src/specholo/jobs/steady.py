@@ -96,7 +96,7 @@ def _plate_line(plate: Any, config: Any) -> str:
     it (:func:`specholo.jobs.flat.plate_line`)."""
     from specholo.fabrication.plate import PLATE_MARGIN
 
-    thick = f", {plate.thickness:g} mm thick" if plate.thickness else ""
+    thick = f", {config.stock_thickness:g} mm thick"
     how = ("as given" if config.plate is not None
            else f"fitted to the cuts with a {PLATE_MARGIN:g} mm border")
     line = f"plate: {plate.width:.0f} x {plate.height:.0f} mm{thick} ({how})"
