@@ -248,7 +248,7 @@ def _label(key: str) -> str:
     return key.replace("_", " ")
 
 
-def _cell(key: str, value: Any) -> str:
+def _table_cell(key: str, value: Any) -> str:
     """A figure of a verify.json row as the report prints it: angles signed in
     degrees, measures to a micrometre, counts whole, nothing measured as '-'."""
     if value is None:
@@ -275,20 +275,20 @@ def _kind_accuracy(verify: Any) -> str:
     figures = verify.get("figures")
     head = [("positions verified", f"{len(rows):,} {html.escape(_label(str(key)))}, every "
              f"{float(verify.get('step_deg', 0.0)):g}°")]
-    head += [(_label(k), _cell(k, v)) for k, v in summary.items()]
+    head += [(_label(k), _table_cell(k, v)) for k, v in summary.items()]
     columns: list[str] = []
     for row in rows:
         for k in row:
             if k not in columns:
                 columns.append(k)
     thead = "".join(f"<th>{html.escape(_label(k))}</th>" for k in columns)
-    body = "".join("<tr>" + "".join(f"<td>{_cell(k, row.get(k))}</td>" for k in columns)
+    body = "".join("<tr>" + "".join(f"<td>{_table_cell(k, row.get(k))}</td>" for k in columns)
                    + "</tr>" for row in rows)
     lead = ""
     if isinstance(figures, dict):  # the figures every kind shares (not in older files)
-        lead = (f"<p>Worst 95th-percentile error {_cell('worst', figures['worst_p95_mm'])} "
-                f"mm, lowest visibility {_cell('lowest', figures['lowest_visibility'])} over "
-                f"{_cell('positions', figures['positions'])} positions.</p>")
+        lead = (f"<p>Worst 95th-percentile error {_table_cell('worst', figures['worst_p95_mm'])} "
+                f"mm, lowest visibility {_table_cell('lowest', figures['lowest_visibility'])} over "
+                f"{_table_cell('positions', figures['positions'])} positions.</p>")
     rows_html = "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in head)
     return (f"{lead}<table>{rows_html}</table>"
             f"<table class=num><tr>{thead}</tr>{body}</table>")
