@@ -124,10 +124,6 @@ class Stippling:
     hidden_both: int
     hidden_one: int
 
-    @property
-    def hidden(self) -> int:
-        return self.hidden_both + self.hidden_one
-
     def as_dict(self) -> dict[str, int]:
         """As ``hologram.json`` records it."""
         return {"asked": self.asked, "placed": self.placed, "hidden_both_eyes": self.hidden_both,

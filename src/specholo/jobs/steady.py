@@ -58,8 +58,8 @@ def design_summary(design: Any, config: Any, s: dict[str, Any], out: Path,
     lines.append(_plate_line(steady_plate(design, config), config))
     tool = config.tool
     lines.append(f"tool: ball end, radius {tool.radius:g} mm, {tool.depth:g} mm deep at most, "
-                 f"{noun}s {tool.width:.3f} mm wide at the surface (each rises out of the "
-                 "plate at both ends)")
+                 f"{noun}s {tool.width:.3f} mm wide at the surface"
+                 + (" (each rises out of the plate at both ends)" if noun == "scoop" else ""))
     if machining is not None:
         lines.append(describe_machining(machining, config.machining.feed))
     lines.append(f"light {mid - half:g} to {mid + half:g} deg: worst p95 "
