@@ -268,10 +268,11 @@ def steady_machining(design: SteadyDesign, config: SteadyConfig) -> dict[str, fl
     (:func:`~specholo.fabrication.timing.estimate_time`).
 
     The program rapids to each cut's start at the safe height, plunges to it,
-    feeds along the cut in X, Y and Z and retracts: never a hop. A cut starts
-    and ends at the surface (it rises out of the plate at both ends), so the
-    plunges and retracts are the safe height's; the travel between cuts runs
-    between their real ends. Along a cut the planner sees only the lengths of
+    feeds along the cut in X, Y and Z and retracts: never a hop. A scoop starts
+    and ends at the surface (it rises out of the plate at both ends), a flat
+    groove at its depth: the plunges and retracts run the safe height and the
+    cuts' mean depth at their starts; the travel between cuts runs between their
+    real ends. Along a cut the planner sees only the lengths of
     its moves and the turns between them, so the cut is timed unrolled into
     the plane with the same lengths and turns (its Z moves counted, not dropped).
     """
@@ -289,8 +290,9 @@ def steady_machining(design: SteadyDesign, config: SteadyConfig) -> dict[str, fl
     offsets = np.asarray(design.offsets, dtype=np.int64)
     ids = np.asarray(design.stipple, dtype=np.int64)
     ends = np.stack([tips[offsets[:-1], :2], tips[offsets[1:] - 1, :2]], axis=1).reshape(-1, 2)
+    depth = max(0.0, -float(np.mean(tips[offsets[:-1], 2])))
     travel = estimate_time(Grooves(ends, np.zeros(2 * n), 2 * np.arange(n + 1, dtype=np.int64),
-                                   ids), 0.0, machining)
+                                   ids), depth, machining)
     cutting = estimate_time(Grooves(_unrolled(tips, offsets), np.zeros(len(tips)), offsets, ids),
                             0.0, machining).cutting_s
     total = travel.rapid_s + travel.plunge_s + cutting
