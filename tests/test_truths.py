@@ -195,3 +195,14 @@ def test_a_hand_pattern_gives_the_hand_s_time(tmp_path: Path,
     assert f"by hand: {strokes:,} strokes" in text
     assert plain_duration(strokes * SECONDS_PER_STROKE) in text
     assert "machining:" not in text and "mm/min" not in text
+
+
+def test_the_header_names_only_the_drawings_written(fitted: tuple[Path, str], tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]):
+    out, _ = fitted
+    assert "layer PLATE of the SVG and DXF" in _header(out / "hologram.gcode")
+    code, _, err = run(["design", BUNNY, "--out", tmp_path / "g", "--stipples", "40",
+                        "--formats", "gcode"], capsys)
+    assert code == 0, err
+    head = _header(tmp_path / "g" / "hologram.gcode")
+    assert "in no drawing of this design" in head and "SVG" not in head

@@ -314,7 +314,8 @@ def write_design(d: Design, out: str | os.PathLike[str],
                                 # the limits `specholo check FILE` checks it against, mm
                                 **design_limits(d).header()},
                         options=options, depth=d.config.depth_mm, plate=plate,
-                        width=width)
+                        width=width,
+                        drawings=tuple(f.upper() for f in ("svg", "dxf") if f in formats))
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = stage.check(path.name, design_limits(d))
