@@ -168,6 +168,33 @@ def _mismatch(gx: float, gy: float, e1x: float, e1z: float, e2x: float, e2y: flo
 
 
 @kernel(helper=True)
+def _lobe_over_cell(m1: float, m2: float, j11: float, j12: float, j21: float, j22: float,
+                    res: float, lobe: float) -> tuple[float, float, float]:
+    """The lobe averaged over a cell whose mismatch is m at its centre and turns
+    by J (per mm) across it, as sub-samples (at most :data:`MAX_SUBSAMPLES` a
+    side, enough that each turns by half a lobe): the weight, and the weighted
+    mean offset (du, dv) from the centre, mm."""
+    spread = max(abs(j11) + abs(j12), abs(j21) + abs(j22)) * res
+    sub = min(MAX_SUBSAMPLES, int(math.ceil(2.0 * spread / lobe)))
+    tw = 0.0
+    sx = 0.0
+    sy = 0.0
+    for a in range(sub):
+        u = ((a + 0.5) / sub - 0.5) * res
+        for b in range(sub):
+            v = ((b + 0.5) / sub - 0.5) * res
+            q1 = m1 + j11 * u + j12 * v
+            q2 = m2 + j21 * u + j22 * v
+            w = math.exp(-(q1 * q1 + q2 * q2) / (2.0 * lobe * lobe))
+            tw += w
+            sx += w * u
+            sy += w * v
+    if tw <= 0.0:
+        return 0.0, 0.0, 0.0
+    return tw / (sub * sub), sx / tw, sy / tw
+
+
+@kernel(helper=True)
 def _normal(z: np.ndarray, labels: np.ndarray, j: int, i: int,
             res: float) -> tuple[float, float, float, bool]:
     ny, nx = z.shape
@@ -420,27 +447,10 @@ def _spots(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
             j11, j21 = (ax1 - bx1) / res, (ax2 - bx2) / res
             j12, j22 = (ay1 - by1) / res, (ay2 - by2) / res
             det = abs(j11 * j22 - j12 * j21)
-            spread = max(abs(j11) + abs(j12), abs(j21) + abs(j22)) * res
-            if spread > lobe:
-                sub = min(MAX_SUBSAMPLES, int(math.ceil(2.0 * spread / lobe)))
-                tw = 0.0
-                sx = 0.0
-                sy = 0.0
-                for a in range(sub):
-                    u = (a + 0.5) / sub - 0.5
-                    for b in range(sub):
-                        v = (b + 0.5) / sub - 0.5
-                        q1, q2 = _mismatch(gx0 + txx * u + txy * v, gy0 + txy * u + tyy * v,
-                                           e1x, e1z, e2x, e2y, e2z)
-                        ws = math.exp(-(q1 * q1 + q2 * q2) / (2.0 * lobe * lobe))
-                        tw += ws
-                        sx += ws * u
-                        sy += ws * v
-                w = tw / (sub * sub)
-                if tw > 0.0:
-                    du, dv = sx / tw * res, sy / tw * res
-                    px, py = x + du, y + dv
-                    pz = h + gx0 * du + gy0 * dv
+            if max(abs(j11) + abs(j12), abs(j21) + abs(j22)) * res > lobe:
+                w, du, dv = _lobe_over_cell(m1, m2, j11, j12, j21, j22, res, lobe)
+                px, py = x + du, y + dv
+                pz = h + gx0 * du + gy0 * dv
         if shadows and w > 0.0:
             ex, ey, ez = eye[0] - x, eye[1] - y, eye[2] - h
             r = math.sqrt(ex * ex + ey * ey + ez * ez)

@@ -50,13 +50,13 @@ from specholo.simulation.field_glints import (
     ESTIMATES,
     LOBE,
     MAX_CELL_TURN,
-    MAX_SUBSAMPLES,
     FieldGlints,
     SlopeIndex,
     _blocked,
     _cell_turn,
     _gather,
     _height_at,
+    _lobe_over_cell,
     _normal,
 )
 from specholo.toolpaths.heightmap import HeightMap
@@ -345,27 +345,10 @@ def _spots(z: np.ndarray, labels: np.ndarray, x0: float, y0: float, res: float,
                                                            y, h, eye, light, point, n, zback)
             if turns:
                 det = abs(j11 * j22 - j12 * j21)
-                spread = max(abs(j11) + abs(j12), abs(j21) + abs(j22)) * res
-                if spread > sigma:
-                    sub = min(MAX_SUBSAMPLES, int(math.ceil(2.0 * spread / sigma)))
-                    tw = 0.0
-                    sx = 0.0
-                    sy = 0.0
-                    for a in range(sub):
-                        u = ((a + 0.5) / sub - 0.5) * res
-                        for b in range(sub):
-                            v = ((b + 0.5) / sub - 0.5) * res
-                            q1 = m1 + j11 * u + j12 * v
-                            q2 = m2 + j21 * u + j22 * v
-                            ws = math.exp(-(q1 * q1 + q2 * q2) / (2.0 * sigma * sigma))
-                            tw += ws
-                            sx += ws * u
-                            sy += ws * v
-                    w = tw / (sub * sub)
-                    if tw > 0.0:
-                        du, dv = sx / tw, sy / tw
-                        px, py = x + du, y + dv
-                        pz = h + gx0 * du + gy0 * dv
+                if max(abs(j11) + abs(j12), abs(j21) + abs(j22)) * res > sigma:
+                    w, du, dv = _lobe_over_cell(m1, m2, j11, j12, j21, j22, res, sigma)
+                    px, py = x + du, y + dv
+                    pz = h + gx0 * du + gy0 * dv
         if shadows and w > 0.0:
             ex, ey, ez = eye[0] - x, eye[1] - y, eye[2] - h
             r = math.sqrt(ex * ex + ey * ey + ez * ez)
