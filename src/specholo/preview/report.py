@@ -218,21 +218,7 @@ def _page(folder: Path, info: Any, verify: Any) -> str:
     pictures = "".join(
         f"<figure>{_img(folder / name)}<figcaption>{html.escape(text)}</figcaption></figure>"
         for name, text in PICTURES if (folder / name).is_file())
-    page = f"""<!doctype html>
-<html lang="en"><head><meta charset="utf-8">
-<title>specholo report: {html.escape(folder.name)}</title>
-<style>
-body {{ font: 15px/1.45 system-ui, sans-serif; max-width: 980px; margin: 2em auto;
-       padding: 0 1em; color: #222; }}
-h1 {{ font-size: 1.5em; }} h2 {{ font-size: 1.15em; margin-top: 1.6em; }}
-table {{ border-collapse: collapse; margin: .5em 0; }}
-th, td {{ padding: .2em .7em; border-bottom: 1px solid #ddd; text-align: left; }}
-table.num td {{ text-align: right; font-variant-numeric: tabular-nums; }}
-figure {{ margin: 1em 0; }} img {{ max-width: 100%; }}
-figcaption {{ color: #666; font-size: .9em; }}
-</style></head><body>
-<h1>Specular hologram: {html.escape(folder.name)}</h1>
-<h2>Design</h2><table>{_rows(setup_rows)}</table>
+    page = _head(folder) + f"""<h2>Design</h2><table>{_rows(setup_rows)}</table>
 <h2>Fabrication</h2><table>{_rows(fabrication_figures(info))}</table>
 <h2>Accuracy, by head azimuth</h2>{accuracy}
 <h2>What to do next</h2>{_next_steps(folder, info, verify)}
@@ -246,6 +232,25 @@ def _label(key: str) -> str:
     """A verify.json key as a column's or a row's label: 'worst_p95_mm' ->
     'worst p95 mm'."""
     return key.replace("_", " ")
+
+
+def _head(folder: Path) -> str:
+    """The page's head and title, the same for every kind's report."""
+    return f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8">
+<title>specholo report: {html.escape(folder.name)}</title>
+<style>
+body {{ font: 15px/1.45 system-ui, sans-serif; max-width: 980px; margin: 2em auto;
+       padding: 0 1em; color: #222; }}
+h1 {{ font-size: 1.5em; }} h2 {{ font-size: 1.15em; margin-top: 1.6em; }}
+table {{ border-collapse: collapse; margin: .5em 0; }}
+th, td {{ padding: .2em .7em; border-bottom: 1px solid #ddd; text-align: left; }}
+table.num td {{ text-align: right; font-variant-numeric: tabular-nums; }}
+figure {{ margin: 1em 0; }} img {{ max-width: 100%; }}
+figcaption {{ color: #666; font-size: .9em; }}
+</style></head><body>
+<h1>Specular hologram: {html.escape(folder.name)}</h1>
+"""
 
 
 def _table_cell(key: str, value: Any) -> str:
@@ -318,21 +323,7 @@ def _kind_page(folder: Path, title: str, facts: list[tuple[str, str]], verify: A
     pictures = "".join(
         f"<figure>{_img(folder / name)}<figcaption>{html.escape(text)}</figcaption></figure>"
         for name, text in KIND_PICTURES if (folder / name).is_file())
-    return f"""<!doctype html>
-<html lang="en"><head><meta charset="utf-8">
-<title>specholo report: {html.escape(folder.name)}</title>
-<style>
-body {{ font: 15px/1.45 system-ui, sans-serif; max-width: 980px; margin: 2em auto;
-       padding: 0 1em; color: #222; }}
-h1 {{ font-size: 1.5em; }} h2 {{ font-size: 1.15em; margin-top: 1.6em; }}
-table {{ border-collapse: collapse; margin: .5em 0; }}
-th, td {{ padding: .2em .7em; border-bottom: 1px solid #ddd; text-align: left; }}
-table.num td {{ text-align: right; font-variant-numeric: tabular-nums; }}
-figure {{ margin: 1em 0; }} img {{ max-width: 100%; }}
-figcaption {{ color: #666; font-size: .9em; }}
-</style></head><body>
-<h1>Specular hologram: {html.escape(folder.name)}</h1>
-<p>{html.escape(title[0].upper() + title[1:])}.</p>
+    return _head(folder) + f"""<p>{html.escape(title[0].upper() + title[1:])}.</p>
 <h2>Design</h2><table>{_rows(facts)}</table>
 <h2>Accuracy</h2>{accuracy}
 <h2>What to do next</h2><ol>{"".join(f"<li>{s}</li>" for s in steps)}</ol>
