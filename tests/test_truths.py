@@ -206,3 +206,27 @@ def test_the_header_names_only_the_drawings_written(fitted: tuple[Path, str], tm
     assert code == 0, err
     head = _header(tmp_path / "g" / "hologram.gcode")
     assert "in no drawing of this design" in head and "SVG" not in head
+
+
+def test_a_model_facing_the_floor_gets_a_hint(tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]):
+    """A plaque standing upright in a z-up file (its face toward -y, as CAD's
+    front view has it), read y-up, turns its face to the floor: most stipples
+    face away from every view, and the summary says to try --up z, after which
+    they face the viewer."""
+    import trimesh
+
+    plaque = trimesh.creation.box((40.0, 3.0, 30.0))
+    path = tmp_path / "plaque.stl"
+    plaque.export(path)
+    code, out, err = run(["design", path, "--out", tmp_path / "a", "--stipples", "300",
+                          "--formats", "gcode"], capsys)
+    assert code == 0, err
+    hidden = re.search(r"(\d+) of 300 stipples face away from every view", out + err)
+    assert hidden is not None and int(hidden.group(1)) > 180
+    assert "add --up z" in out + err
+    code, out, err = run(["design", path, "--up", "z", "--out", tmp_path / "b",
+                          "--stipples", "300", "--formats", "gcode"], capsys)
+    assert code == 0 and "--up z" not in out + err
+    after = re.search(r"(\d+) of 300 stipples are hidden", out + err)
+    assert after is not None and int(after.group(1)) < int(hidden.group(1)) - 60

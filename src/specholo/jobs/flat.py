@@ -101,8 +101,20 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
                      "hidden from every view (no groove)")
     if getattr(d, "up_hint", ""):
         warnings.append(d.up_hint)
+    elif d.coverage is not None and d.config.up == "y" and \
+            d.coverage.hidden > HIDDEN_HINT * d.coverage.stipples:
+        # A z-up file read y-up turns its front (-y in CAD) to the floor.
+        warnings.append(f"{d.coverage.hidden} of {d.coverage.stipples} stipples face away "
+                        "from every view: if the model file is z-up (as CAD and slicer files "
+                        "are), add --up z; --rotate-x and --rotate-y turn it further")
     lines.append(next_steps(out))
     return Summary(lines, warnings)
+
+
+#: Share of the stipples hidden from every view past which the summary asks
+#: whether the model lies on its side (a model facing the viewer hides its back,
+#: about a third to a half).
+HIDDEN_HINT = 0.6
 
 
 def plate_line(plate: Any, config: Any) -> str:
