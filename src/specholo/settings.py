@@ -12,6 +12,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from specholo.errors import SpecholoError
+from specholo.fabrication.machines import MACHINES, MachineProfile, machine_profile
 from specholo.fabrication.plate import STOCK_THICKNESS
 from specholo.fabrication.tools import (
     Cutter,
@@ -226,6 +227,7 @@ class DesignConfig:
     hop: float = 0.03
     hop_max: float = 3.0
     spindle: float | None = None
+    machine: str | None = None
     elevation_range: float = 15.0
     shell: float = 0.1
     raster: float = 0.02
@@ -311,6 +313,7 @@ class DesignConfig:
         self._check_optic()
         self.setup()  # validates the physical settings
         _check_bounds(self)
+        self._check_machine()
         self._check_ridged_machine()
 
     def _check_ridged_ranges(self) -> None:
@@ -374,6 +377,34 @@ class DesignConfig:
                                 "or neither")
 
     @property
+    def profile(self) -> MachineProfile | None:
+        """The machine the design is timed on (``--machine``), or None for the
+        estimate's own model."""
+        return None if self.machine is None else machine_profile(self.machine)
+
+    def _check_machine(self) -> None:
+        """Refuse an unknown machine, a tool it does not carry, and feeds above
+        its rates (the feeds default to its own in :meth:`from_dict`)."""
+        profile = self.profile
+        if profile is None:
+            return
+        if self.method == "ridged":
+            raise SpecholoError("--machine times a grooved design: a ridged plate's raster "
+                                "is timed at its feed (leave out --machine)")
+        if self.tool not in profile.tools:
+            fits = [m.name for m in MACHINES.values() if self.tool in m.tools]
+            raise SpecholoError(f"the {profile.name} ({profile.title}) carries "
+                                f"--tool {' or '.join(profile.tools)}, not {self.tool}: "
+                                f"--tool {self.tool} runs on {', '.join(fits)}")
+        limits = [("feed", self.feed, profile.xy_rate, "X/Y")]
+        if profile.z_rate is not None:
+            limits.append(("plunge", self.plunge, profile.z_rate, "Z"))
+        for name, value, most, axes in limits:
+            if value > most:
+                raise SpecholoError(f"{name} {value:g} mm/min is above the {profile.name}'s "
+                                    f"{axes} maximum rate {most:g} mm/min")
+
+    @property
     def ball_radius(self) -> float:
         """Ball radius of a ridged plate's finishing raster, mm."""
         return float(self.tool_radius) if self.tool_radius is not None else RIDGED_BALL_RADIUS
@@ -398,6 +429,18 @@ class DesignConfig:
             # nearer the plate than a grooved one to show an image.
             for key, value in RIDGED_DEFAULTS.items():
                 clean.setdefault(key, value)
+        chosen = clean.get("machine")
+        if isinstance(chosen, str) and chosen in MACHINES:
+            # The machine's own feeds (and a laser's tool and a mill's dialect)
+            # where none is given; given ones are checked against its rates.
+            profile = MACHINES[chosen]
+            clean.setdefault("feed", profile.feed)
+            if profile.plunge is not None:
+                clean.setdefault("plunge", profile.plunge)
+            if profile.laser:
+                clean.setdefault("tool", "laser")
+            if profile.kind == "mill":
+                clean.setdefault("dialect", "linuxcnc")
         if clean.get("optic") == "refract":
             clean.setdefault("light_elevation", BACK_LIGHT_ELEVATION)  # behind the plate
         try:
