@@ -288,7 +288,7 @@ def write_design(d: Design, out: str | os.PathLike[str],
     # the program waits options.dwell after starting a spindle (a mill's only)
     estimate = estimate_time(grooves, d.config.depth_mm, setup.machining, laser=laser,
                              dwell=options.dwell if options.mill and setup.machining.spindle > 0
-                             else 0.0)
+                             else 0.0, machine=d.config.profile)
     info["machining"] = {
         "dialect": d.config.dialect, "units": d.config.units,
         "estimated_hours": estimate.total_s / 3600.0,
@@ -296,6 +296,12 @@ def write_design(d: Design, out: str | os.PathLike[str],
         "plunge_hours": estimate.plunge_s / 3600.0, "hop_hours": estimate.hop_s / 3600.0,
         "hops": estimate.hops, "stipples_per_second": estimate.stipples_per_s,
     }
+    profile = d.config.profile
+    if profile is not None:  # the machine timed on, and where its figures come from
+        info["machining"].update({
+            "machine": {"name": profile.name, "title": profile.title, "kind": profile.kind,
+                        "source": profile.source},
+            "lift_hours": estimate.lift_s / 3600.0, "delay_hours": estimate.delay_s / 3600.0})
     if d.config.order:
         info["machining"]["travel_unordered_mm"] = order_stats.travel_before_mm
         info["machining"]["travel_mm"] = order_stats.travel_after_mm

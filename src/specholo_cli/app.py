@@ -15,6 +15,7 @@ import click
 
 from specholo import __version__
 from specholo.errors import SpecholoError
+from specholo.fabrication.machines import MACHINES
 
 _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("size", float, "Largest side of the model's bounding box, mm [60]."),
@@ -73,6 +74,11 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
      "this far above the surface and moves over at the cutting feed, mm [0.03]."),
     ("hop-max", float, "Longest hop, mm; 0 retracts to --safe-z between all grooves [3]."),
     ("spindle", float, "Spindle speed, rpm; 0 for none [12000 for ball and vbit, else 0]."),
+    ("machine", click.Choice(list(MACHINES)),
+     "Time the design on this machine (its accelerations, rates, corners, pen lifts or laser "
+     "delays; docs/machines.md) and take its feeds, which --feed and --plunge override up to "
+     "its rates; a laser profile cuts with --tool laser [none: every axis at 250 mm/s^2, rapids at "
+     "3000 mm/min]."),
     ("elevation-range", float, "Ridged design: heads' elevation within +- this many degrees "
      "[15]."),
     ("shell", float, "Ridged design: half-thickness Delta of the shell; the facets lie within "
