@@ -72,8 +72,9 @@ def fabrication_figures(info: dict[str, Any]) -> list[tuple[str, str]]:
         # the design's own estimate, as its summary and hologram.json give it
         from specholo.fabrication.timing import describe_machining
 
+        # the row's label says machining; a machine, if any, stays ("on NAME (...): about ...")
         rows.append(("machining", describe_machining(mach, settings["feed"])
-                     .removeprefix("machining: ")))
+                     .removeprefix("machining").removeprefix(":").strip()))
     else:  # a folder written before the estimate was recorded: a floor
         minutes = length / settings["feed"] + paths * settings["depth"] / settings["plunge"]
         rows.append(("cutting time, feeds only", f"{minutes / 60:.1f} h"))
