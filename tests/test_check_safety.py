@@ -126,7 +126,11 @@ def programs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Program]:
         patch.setattr("specholo.preview.preview.render_preview", lambda *args, **kwargs: None)
         for method in ("striped", "hyperbola", "arc"):
             for tool in TOOLS:
-                d = design(BUNNY, DesignConfig(stipples=6, size=30, method=method, tool=tool))
+                # held rigid, as every tip was: a spring holder's program (the
+                # drag tip's default) is checked in tests/test_holders.py
+                held = {} if tool == "laser" else {"holder": "rigid"}
+                d = design(BUNNY, DesignConfig(stipples=6, size=30, method=method, tool=tool,
+                                               **held))
                 for dialect in ("marlin",) if tool == "laser" else ("grbl", "linuxcnc"):
                     for units in ("mm", "inch"):
                         name = f"{method}-{tool}-{dialect}-{units}"
@@ -590,7 +594,9 @@ def test_inch_designs_run_in_linuxcnc(tmp_path: Path, capsys: pytest.CaptureFixt
     from specholo.fabrication.gcode import GcodeOptions
     from specholo.pipeline import load_design
 
-    code, out, err = _design(tmp_path, capsys, "--units", "inch", "--dialect", "linuxcnc")
+    # a rigid holder's program (a spring holder's is read by rs274 in test_holders.py)
+    code, out, err = _design(tmp_path, capsys, "--units", "inch", "--dialect", "linuxcnc",
+                             "--holder", "rigid")
     assert code == 0, err
     loaded = load_design(out)
     setup = loaded.config.setup()

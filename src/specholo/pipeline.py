@@ -51,6 +51,7 @@ from specholo.settings import (
     BACK_LIGHT_ELEVATION,
     BAND,
     DEFAULT_STIPPLES,
+    DEPTH_ALLOWANCE,
     HAND_BAND,
     MAX_ELEVATION_RANGE,
     MAX_SETTING,
@@ -142,8 +143,10 @@ def design_limits(d: Design) -> Any:
     checked), every cut in X/Y at the groove's depth, rapids only at the safe
     height, feed moves between the surface and the safe height (hops) no longer
     than the longest hop nor lower than the hop height, feeds, spindle and
-    laser power as set. In mm whatever the program's units: the check reads a
-    G20 program in mm."""
+    laser power as set. A tip in a spring holder cuts at its preload below the
+    touch-off, and no feed move in X/Y that is not such a cut runs below its
+    lift (there the tip drags on the plate). In mm whatever the program's
+    units: the check reads a G20 program in mm."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
     from specholo.fabrication.gcode import GcodeOptions
 
@@ -157,10 +160,36 @@ def design_limits(d: Design) -> Any:
     power = GcodeOptions(dialect="marlin").laser_power if kind == "laser" else m.spindle
     # a laser has no Z: no hops, and its depth is set by power and feed
     milled = kind != "laser"
-    return Limits(stock, d.config.depth_mm, m.safe_z, (min(m.feed, m.plunge),
+    holder = d.config.holder_setup() if milled else None
+    spring = holder is not None and holder.spring
+    # the Z the cuts run at and the hop height, as the program has them
+    depth, m = holder.program(d.config.depth_mm, m) if holder is not None \
+        else (d.config.depth_mm, m)
+    return Limits(stock, depth, m.safe_z, (min(m.feed, m.plunge),
                   max(m.feed, m.plunge)), (power, power), kind,
                   hop_max=m.hop_max if milled else None, hop=m.hop,
-                  groove_depth=d.config.depth_mm if milled else None)
+                  groove_depth=depth if milled else None,
+                  holder="spring" if spring else "rigid", lift=m.hop if spring else None)
+
+
+def flatness_line(grooves: Grooves, holder: Any) -> dict[str, str]:
+    """The header line of a rigid holder's program saying how well the plate's Z
+    must be known (``flatness``), or none: the grooves keep their glints cut
+    within :data:`~specholo.settings.DEPTH_ALLOWANCE` of their depth, and a
+    rigid holder cuts at the Z it is given, so the plate's height over the
+    grooves must be known that well: on a hobby machine, by probing it."""
+    from specholo.fabrication.gcode import drawn_extent
+
+    if holder is None or holder.spring:
+        return {}
+    (x0, y0), (x1, y1) = drawn_extent(grooves)
+
+    def mm(v: float, up: bool) -> str:  # to 0.1 mm, outward
+        return f"{(math.ceil(v * 10.0) if up else math.floor(v * 10.0)) / 10.0:.1f}"
+
+    return {"flatness": f"the plate's Z must be known to {DEPTH_ALLOWANCE:g} mm over "
+                        f"X{mm(x0, False)}..{mm(x1, True)} Y{mm(y0, False)}..{mm(y1, True)} "
+                        "(the depth allowance): specholo probe, then specholo level"}
 
 
 def check_written_gcode(path: str | os.PathLike[str], d: Design) -> Any:
@@ -285,8 +314,13 @@ def write_design(d: Design, out: str | os.PathLike[str],
     options = GcodeOptions(dialect=d.config.dialect,  # type: ignore[arg-type]
                            units=d.config.units)  # type: ignore[arg-type]
     laser = d.config.dialect == "marlin"
+    holder = None if laser else d.config.holder_setup()
+    # timed as the program runs: a spring holder lowers from its lift to its
+    # preload and lifts back on every stroke (Holder.program, as the writer)
+    est_depth, est_machining = holder.program(d.config.depth_mm, setup.machining) \
+        if holder is not None else (d.config.depth_mm, setup.machining)
     # the program waits options.dwell after starting a spindle (a mill's only)
-    estimate = estimate_time(grooves, d.config.depth_mm, setup.machining, laser=laser,
+    estimate = estimate_time(grooves, est_depth, est_machining, laser=laser,
                              dwell=options.dwell if options.mill and setup.machining.spindle > 0
                              else 0.0, machine=d.config.profile)
     info["machining"] = {
@@ -296,6 +330,11 @@ def write_design(d: Design, out: str | os.PathLike[str],
         "plunge_hours": estimate.plunge_s / 3600.0, "hop_hours": estimate.hop_s / 3600.0,
         "hops": estimate.hops, "stipples_per_second": estimate.stipples_per_s,
     }
+    if holder is not None:
+        info["machining"]["holder"] = holder.kind
+        if holder.spring:
+            info["machining"]["preload_mm"] = holder.preload
+            info["machining"]["spring_lift_mm"] = est_machining.hop
     profile = d.config.profile
     if profile is not None:  # the machine timed on, and where its figures come from
         info["machining"].update({
@@ -317,11 +356,13 @@ def write_design(d: Design, out: str | os.PathLike[str],
             write_gcode(path, grooves, setup.tool, setup.machining,
                         header={"design": d.config.method, "stipples": str(len(d.points)),
                                 "cutter": d.config.cutter().describe(),
+                                **flatness_line(grooves, holder),
                                 # the limits `specholo check FILE` checks it against, mm
                                 **design_limits(d).header()},
                         options=options, depth=d.config.depth_mm, plate=plate,
                         width=width,
-                        drawings=tuple(f.upper() for f in ("svg", "dxf") if f in formats))
+                        drawings=tuple(f.upper() for f in ("svg", "dxf") if f in formats),
+                        holder=holder)
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = stage.check(path.name, design_limits(d))

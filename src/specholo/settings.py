@@ -21,13 +21,17 @@ from specholo.fabrication.tools import (
 from specholo.scene.pose import UP_AXES, Pose
 from specholo.setup import (
     ACRYLIC_INDEX,
+    DEFAULT_PRELOAD,
+    HOLDERS,
     MAX_FEED,
     MAX_HOP,
     MAX_HOP_DISTANCE,
     MAX_INDEX,
     MIN_HOP,
     MIN_SAFE_Z,
+    PRELOAD_RANGE,
     BackLight,
+    Holder,
     Light,
     Machining,
     Setup,
@@ -230,6 +234,8 @@ class DesignConfig:
     machine: str | None = None
     elevation_range: float = 15.0
     shell: float = 0.1
+    holder: str | None = None
+    preload: float | None = None
     raster: float = 0.02
     optic: str = "reflect"
     refraction: str = "exact"
@@ -314,6 +320,7 @@ class DesignConfig:
         self.setup()  # validates the physical settings
         _check_bounds(self)
         self._check_machine()
+        self._check_holder()
         self._check_ridged_machine()
 
     def _check_ridged_ranges(self) -> None:
@@ -321,6 +328,54 @@ class DesignConfig:
         if not 0.0 <= self.elevation_range < MAX_ELEVATION_RANGE:
             raise SpecholoError(f"elevation-range must be in [0, {MAX_ELEVATION_RANGE:g}) "
                                 f"degrees, got {self.elevation_range:g}")
+    def _check_holder(self) -> None:
+        """Fill in and refuse the tip's holder (a frozen dataclass: once, here).
+
+        A drag tip or scriber is held in a spring holder by default (the spring
+        sets the force, the plate may be as flat as a hobby machine holds it), a
+        ball or V-bit mill rigidly in its spindle; a laser has none. A spring
+        holder's tip does not spin, and its preload is a spring compression
+        within :data:`~specholo.setup.PRELOAD_RANGE`.
+        """
+        spring_tools = ("drag", "scriber")
+        if self.tool == "laser":
+            if self.holder is not None or self.preload is not None:
+                raise SpecholoError("a laser has no holder: leave out --holder and --preload")
+            return
+        if self.holder is None:
+            object.__setattr__(self, "holder",
+                               "spring" if self.tool in spring_tools and self.method != "ridged"
+                               else "rigid")
+        if self.holder not in HOLDERS:
+            raise SpecholoError(f"holder must be one of {', '.join(HOLDERS)}, got "
+                                f"{self.holder!r}")
+        if self.holder == "rigid":
+            if self.preload is not None:
+                raise SpecholoError("preload is a spring holder's compression: add --holder "
+                                    "spring, or leave out --preload")
+            return
+        if self.tool not in spring_tools:
+            raise SpecholoError(f"a spring holder drags a tip that does not spin: --tool "
+                                f"{self.tool} is held rigid (--holder rigid)")
+        if (self.spindle or 0.0) > 0:
+            raise SpecholoError("a spring holder's tip does not spin: set --spindle 0")
+        preload = DEFAULT_PRELOAD if self.preload is None else float(self.preload)
+        object.__setattr__(self, "preload", preload)
+        lo, hi = PRELOAD_RANGE
+        if not lo <= preload <= hi:
+            raise SpecholoError(f"preload {preload:g} mm is out of range: it must be in "
+                                f"[{lo:g}, {hi:g}] mm of spring compression")
+        if preload >= self.stock_thickness:
+            raise SpecholoError(f"preload {preload:g} mm cuts at a Z below the plate's "
+                                f"{self.stock_thickness:g} mm thickness: the safety check "
+                                "refuses it; set a smaller --preload")
+
+    def holder_setup(self) -> Holder | None:
+        """The tip's :class:`~specholo.setup.Holder` (None for a laser)."""
+        if self.holder is None:
+            return None
+        return Holder(str(self.holder), float(self.preload or DEFAULT_PRELOAD))
+
         if not self.shell > 0:
             raise SpecholoError(f"shell must be a positive number of mm, got {self.shell:g}")
         if 2.0 * self.shell >= self.stock_thickness:

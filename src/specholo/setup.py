@@ -7,7 +7,7 @@ z toward the viewer, plate at z = 0).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -370,6 +370,84 @@ class Machining:
         if self.hop_max <= 0:
             return np.zeros(lengths.shape, dtype=bool)
         return lengths <= self.hop_max
+
+
+#: How a non-spinning tip may be held: ``rigid`` (the Z the program says is
+#: the tip's) or ``spring`` (a spring-loaded drag engraver, whose spring presses
+#: the tip on the plate and gives way to its height).
+HOLDERS = ("rigid", "spring")
+#: Spring compression a spring holder cuts with by default, mm: the program cuts
+#: this far below the touch-off and the spring, not the Z, sets the force.
+#: Makers of spring-loaded diamond drag engravers have users program the
+#: engraving a few tenths of a millimetre below the touch-off, 0.010-0.020 in
+#: (0.25-0.5 mm) in the instructions of hobby-router drag bits; 0.3 mm lies in
+#: that range. What depth a preload cuts depends on the spring and the plate:
+#: test strokes on scrap set it (docs/fabrication.md, *Holders*).
+DEFAULT_PRELOAD = 0.3
+#: Lowest and highest preload, mm. Below 0.05 mm the plate's own height error
+#: over the grooves (a few hundredths, see :data:`SPRING_LIFT`) changes the
+#: compression, and so the force, by as much as the preload itself; beyond 2 mm
+#: a holder's spring (a few millimetres of travel) nears the end of its stroke,
+#: where it stops being a spring.
+PRELOAD_RANGE = (0.05, 2.0)
+#: Lowest height of a spring holder's tip between strokes, mm. A spring holder
+#: is touched off at one point and nothing measures the plate elsewhere, so
+#: unlike a rigid holder's hop over a levelled plate (:data:`MIN_HOP`), its lift
+#: must clear the plate's height error relative to Z0 anywhere on the grooves,
+#: not the change over a few mm: a blank clamped on a surfaced spoilboard lies
+#: flat to about 0.03 mm over its size, and a touch-off on a paper shim is good
+#: to about 0.02 mm (the jog step and the shim's drag). At a rigid holder's
+#: 0.03 mm hop a spring holder's tip stays on the plate wherever the plate
+#: stands a little proud, and drags across it on every hop: a scratch.
+SPRING_LIFT = 0.05
+
+
+@dataclass(frozen=True)
+class Holder:
+    """How a tip is held in the machine (mm).
+
+    A ``rigid`` holder cuts at the Z the program gives, so the plate's height
+    must be known to a fraction of the groove's depth (probed and levelled). A
+    ``spring`` holder is touched off on the plate (Z = 0 with the tip touching)
+    and cuts at Z = -``preload``: the spring, compressed by the preload, presses
+    the tip and the groove's depth follows from that force, whatever the
+    plate's height; between strokes the tip lifts at least :data:`SPRING_LIFT`
+    above the surface.
+
+    Attributes:
+        kind: one of :data:`HOLDERS`.
+        preload: a spring holder's compression while it cuts, mm.
+    """
+
+    kind: str = "rigid"
+    preload: float = DEFAULT_PRELOAD
+
+    def __post_init__(self) -> None:
+        if self.kind not in HOLDERS:
+            raise SpecholoError(f"holder must be one of {', '.join(HOLDERS)}, got {self.kind!r}")
+        p = _finite("preload", self.preload)
+        lo, hi = PRELOAD_RANGE
+        if not lo <= p <= hi:
+            raise SpecholoError(f"preload {p:g} mm is out of range: it must be in [{lo:g}, "
+                                f"{hi:g}] mm of spring compression")
+
+    @property
+    def spring(self) -> bool:
+        """True for a spring-loaded holder."""
+        return self.kind == "spring"
+
+    def lift(self, hop: float) -> float:
+        """The height of the moves between strokes over the plate, mm: the hop
+        height, raised to :data:`SPRING_LIFT` for a spring holder."""
+        return max(float(hop), SPRING_LIFT) if self.spring else float(hop)
+
+    def program(self, depth: float, machining: Machining) -> tuple[float, Machining]:
+        """What the program runs at: the depth its cuts' Z reaches (the groove's,
+        or a spring holder's preload) and the machining with the hop height at
+        :meth:`lift`. The writer and the time estimate both take it from here."""
+        if not self.spring:
+            return float(depth), machining
+        return float(self.preload), replace(machining, hop=self.lift(machining.hop))
 
 
 @dataclass(frozen=True)

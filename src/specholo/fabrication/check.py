@@ -142,6 +142,13 @@ CUTTER_KINDS = {"ball": "mill", "vbit": "mill", "drag": "drag", "scriber": "drag
                 "laser": "laser"}
 
 
+#: How a tip is held: ``rigid`` (it cuts at the program's Z) or ``spring`` (a
+#: spring-loaded holder: Z = 0 is the tip touching the plate, the cuts run at
+#: one Z below it, the preload, and the tip touches the plate wherever the
+#: holder runs below its lift height).
+HOLDER_KINDS = ("rigid", "spring")
+
+
 def tool_kind(cutter: str, spindle: float) -> str:
     """The check's kind of tool for a cutter run at a spindle speed (rpm).
 
@@ -177,6 +184,12 @@ class Limits:
         hop: lowest height above the surface of those moves, mm.
         groove_depth: the one depth below the surface (mm) of every cut moving
             in X/Y, or None for cuts at any depth down to ``max_depth``.
+        holder: a kind of :data:`HOLDER_KINDS`. A spring holder's program cuts
+            at ``groove_depth`` (its preload) and no feed move in X/Y may run
+            below ``lift`` unless it is such a cut: there the tip is still on
+            the plate, and drags across it.
+        lift: a spring holder's lowest height above the surface between
+            strokes, mm (None for a rigid holder).
     """
 
     stock: Stock
@@ -191,6 +204,8 @@ class Limits:
     hop_max: float | None = None
     hop: float = 0.0
     groove_depth: float | None = None
+    holder: str = "rigid"
+    lift: float | None = None
 
     def __post_init__(self) -> None:
         pairs = {"feed range": self.feed_range, "spindle range": self.spindle_range}
@@ -200,7 +215,8 @@ class Limits:
                 raise SpecholoError(f"{name} must be two finite numbers 0 <= low <= high, "
                                     f"got {tuple(pair)}")
             object.__setattr__(self, name.replace(" ", "_"), (lo, hi))
-        for name in ("max_depth", "safe_z", "tolerance", "hop", "hop_max", "groove_depth"):
+        for name in ("max_depth", "safe_z", "tolerance", "hop", "hop_max", "groove_depth",
+                     "lift"):
             if getattr(self, name) is None:
                 continue
             value = float(getattr(self, name))
@@ -210,6 +226,13 @@ class Limits:
         if self.tool not in TOOL_KINDS:
             raise SpecholoError(f"tool kind must be one of {', '.join(TOOL_KINDS)}, "
                                 f"got {self.tool!r}")
+        if self.holder not in HOLDER_KINDS:
+            raise SpecholoError(f"holder must be one of {', '.join(HOLDER_KINDS)}, "
+                                f"got {self.holder!r}")
+        if self.holder == "spring" and (self.laser or self.groove_depth is None
+                                        or self.lift is None or self.surface is not None):
+            raise SpecholoError("a spring holder's limits need a tip that is no laser, its "
+                                "cutting depth (groove depth) and its lift, on a flat plate")
 
     @property
     def laser(self) -> bool:
@@ -243,6 +266,8 @@ class Limits:
                 ("hop", num(self.hop, False))]
         if self.hop_max is not None:
             rest.append(("hop_max", num(self.hop_max, True)))
+        if self.holder == "spring":
+            rest += [("holder", self.holder), ("lift", num(self.lift or 0.0, False))]
         return {HEADER_KEY: " ".join(f"{k}={v}" for k, v in plate),
                 f"{HEADER_KEY} feeds": " ".join(f"{k}={v}" for k, v in rest)}
 
@@ -745,6 +770,7 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
         known = xy_known if laser else xy_known & z_known
         each(cut & ~known, lambda i: "feed move from an unknown position")
         cut &= known
+        scratch = None  # a spring holder's moves below its lift that are no cut
         if not laser:
             if lim.tool == "mill":
                 each(cut & ~on, lambda i: "cut with the spindle off")
@@ -759,9 +785,24 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
                 # below the surface, an X/Y feed move is a cut whatever it was
                 # meant to be: one at another depth than the grooves' is no groove
                 gd = lim.groove_depth
-                at = np.where(np.abs(z0 + gd) > np.abs(z1 + gd), z0, z1)
-                each(cut & moves_xy & ((np.abs(z0 + gd) > tol) | (np.abs(z1 + gd) > tol)),
-                     lambda i: f"cut in X/Y at Z {at[i]:.5f}, not at the groove depth {-gd:g}")
+                d0, d1 = _depths(m, lim.surface, cut & moves_xy)
+                at = np.where(np.abs(d0 + gd) > np.abs(d1 + gd), d0, d1)
+                off_depth = (np.abs(d0 + gd) > tol) | (np.abs(d1 + gd) > tol)
+                if lim.holder == "spring":
+                    # a spring holder's tip is on the plate wherever the holder
+                    # runs below its lift: an X/Y move there that is not a cut at
+                    # the preload drags the tip across the plate
+                    lift = float(lim.lift or 0.0)
+                    at = np.where(cut, at, low)
+                    scratch = fed & moves_xy & known & (low < lift - tol) & (off_depth | ~cut)
+                    each(scratch,
+                         lambda i: f"feed move in X/Y at Z {at[i]:.5f}: a spring holder's tip "
+                                   f"touches the plate below the lift {lift:g} (a scratch); "
+                                   f"it cuts only at Z {-gd:g}")
+                else:
+                    each(cut & moves_xy & off_depth,
+                         lambda i: f"cut in X/Y at Z {at[i]:.5f}, not at the groove depth "
+                                   f"{-gd:g}")
 
         # XY extent of each cut: a line on the plate only where below its surface
         sx, sy, ex, ey = x0.copy(), y0.copy(), x1.copy(), y1.copy()
@@ -791,7 +832,7 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
         air = None
         if not laser and lim.hop_max is not None:
             hop = fed & moves_xy & known & (above >= 0.0) & (low < safe_z - tol) & ~off_circle
-            length = _check_hops(m, each, lim, hop, above, (bx0, by0, bx1, by1))
+            length = _check_hops(m, each, lim, hop, above, (bx0, by0, bx1, by1), scratch)
             # a cut, or a rise to the safe height, ends the way through the air
             ends = cut | (z1 >= safe_z - tol)
             rows = np.flatnonzero(hop | ends)
@@ -802,13 +843,31 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
     return int(cut.sum()), deepest, air
 
 
+def _depths(m: np.ndarray, surface: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
+            rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each move's Z at its start and end (n,), (n,) of move rows m, taken above
+    the surface under them in the rows ``rows`` (n,) where there is one (a
+    levelled plate's probed surface): a cut at one depth below a surface that is
+    not flat runs at many Z."""
+    z0, z1 = m[:, _Z0], m[:, _Z1]
+    r = np.flatnonzero(rows)
+    if surface is None or not len(r):
+        return z0, z1
+    d0, d1 = z0.copy(), z1.copy()
+    d0[r] -= np.asarray(surface(m[r, _X0], m[r, _Y0]), dtype=float)
+    d1[r] -= np.asarray(surface(m[r, _X1], m[r, _Y1]), dtype=float)
+    return d0, d1
+
+
 def _check_hops(m: np.ndarray, each: Callable[[np.ndarray, Callable[[int], str]], None],
                 lim: Limits, hop: np.ndarray, above: np.ndarray,
-                bounds: tuple[np.ndarray, ...]) -> np.ndarray:
+                bounds: tuple[np.ndarray, ...], scratch: np.ndarray | None = None) -> np.ndarray:
     """Flag the hops (rows ``hop`` (n,) of the move table m: feed moves in X/Y
     between the surface and the safe height) that are, each on its own, too
     long, too low or off the stock; ``above`` (n,) is each move's least height
     over the surface, mm, ``bounds`` its XY extent (x0, y0, x1, y1), each (n,).
+    A hop too low that a spring holder's check flagged as a scratch
+    (``scratch`` (n,)) is not flagged again.
 
     Returns:
         (n,) each move's XY length along its path, mm.
@@ -821,7 +880,10 @@ def _check_hops(m: np.ndarray, each: Callable[[np.ndarray, Callable[[int], str]]
     each(hop & (length > most + tol),
          lambda i: f"feed move of {length[i]:.5f} mm in X/Y between the surface and the safe "
                    f"height {lim.safe_z:g}: longer than the longest hop {most:g} mm")
-    each(hop & (above < least - tol),
+    low = hop & (above < least - tol)
+    if scratch is not None:
+        low &= ~scratch
+    each(low,
          lambda i: f"feed move in X/Y {above[i]:.5f} above the surface: below the hop height "
                    f"{least:g}")
     s = lim.stock
@@ -1335,7 +1397,9 @@ def limits_from_header(path: str | os.PathLike[str]) -> Limits | None:
                       (spindle[0], spindle[1]), v["tool"], tolerance=float(v["tolerance"]),
                       hop=float(v["hop"]),
                       hop_max=float(v["hop_max"]) if "hop_max" in v else None,
-                      groove_depth=float(v["groove_depth"]) if "groove_depth" in v else None)
+                      groove_depth=float(v["groove_depth"]) if "groove_depth" in v else None,
+                      holder=v.get("holder", "rigid"),
+                      lift=float(v["lift"]) if "lift" in v else None)
     except (KeyError, ValueError, IndexError) as exc:
         raise SpecholoError(f"{os.fspath(path)}: its check lines are unreadable "
                             f"({type(exc).__name__}: {exc}); give the limits as options"

@@ -35,7 +35,9 @@ retract. A dot is a plunge and a retract. Where the next groove starts within
 ``Machining.hop_max`` of the last one's end, the retract goes up only to the
 hop height ``Machining.hop`` above the surface, and the move to the next start
 is a ``G1`` at the cutting feed at that height (a *hop*; a rapid never runs
-below the safe height); the plunge is the same line from there.
+below the safe height); the plunge is the same line from there. A tip in a
+spring holder (:class:`~specholo.setup.Holder`) cuts at its preload below the
+touch-off instead of the depth, and hops no lower than its lift.
 
 Coordinates are written with 5 decimals in mm (10 nm), 6 in inches (25 nm: 5
 would round to 0.25 um). Coarser rounding shows: a groove's glints follow its
@@ -71,7 +73,7 @@ from specholo._threads import concurrent_kernels_safe
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.plate import Plate
-from specholo.setup import Machining, Tool
+from specholo.setup import Holder, Machining, Tool
 from specholo.toolpaths.grooves import Grooves, Segments
 
 #: Decimals of every written coordinate and feed in mm.
@@ -694,6 +696,7 @@ def write_gcode(
     plate: Plate | None = None,
     width: float | None = None,
     drawings: Sequence[str] = FLAT_DRAWINGS,
+    holder: Holder | None = None,
 ) -> GcodeStats:
     """Write the program that cuts the grooves, atomically.
 
@@ -716,6 +719,12 @@ def write_gcode(
             its round tip).
         drawings: the drawings written with the program, which carry the plate's
             marks (:func:`plate_lines`); a flat design's SVG and DXF by default.
+        holder: how the tip is held (mill dialects): a spring holder's cuts run
+            at its preload below the touch-off and it lifts to
+            :meth:`~specholo.setup.Holder.lift` between strokes, and the header
+            says how to touch off and set the preload; a rigid one cuts at the
+            depth, as without a holder, and the header names it. None: no
+            holder line, the program as it always was.
 
     Returns:
         Line count, path count and move lengths (mm) of the program.
@@ -730,12 +739,20 @@ def write_gcode(
     mill = opt.mill
     depth = tool.depth if depth is None else float(depth)
     width = tool.width if width is None else float(width)
+    # the Z the cuts run at and the hop height, as the holder needs them
+    cut_depth = depth
+    spring = mill and holder is not None and holder.spring
+    if mill and holder is not None:
+        cut_depth, machining = holder.program(depth, machining)
     safe = machining.safe_z
     dec = opt.decimals
     scale = 10**dec * opt.per_mm  # written integers per mm
 
     def num(mm: float) -> str:
         return format_number(mm * opt.per_mm, dec)
+
+    def short(mm: float) -> str:  # a figure people read: no trailing zeros
+        return format_number(mm * opt.per_mm, dec).rstrip("0").rstrip(".") or "0"
 
     unit = "mm" if opt.units == "mm" else "in"
     comment = _comment if mill else (lambda text: _comment(text, semicolon=True))
@@ -752,8 +769,28 @@ def write_gcode(
             comment("origin: plate centre; X right, Y up, Z = 0 on the plate surface"),
             comment(f"tool: {(header or {}).get('cutter', 'ball end')}, round tip radius "
                     f"{num(tool.radius)} {unit}, groove width {num(width)} {unit}"),
-            comment(f"depth: {num(depth)} {unit}"),
         ]
+        if spring:
+            assert holder is not None
+            head += [
+                comment(f"depth: {short(depth)} {unit} expected: the spring's force at "
+                        f"{short(holder.preload)} {unit} of preload sets it, not the Z"),
+                comment(f"holder: spring-loaded; Z0 with the tip touching the plate; cuts at "
+                        f"Z{short(-cut_depth)} (the spring compressed {short(cut_depth)} {unit}), "
+                        f"lifts to Z{short(machining.hop)} or Z{short(safe)} between strokes"),
+                comment(f"touch-off: over X0 Y0, a paper shim on the plate, jog the tip down in "
+                        f"{short(0.01)} {unit} steps until the shim is pinched; G10 L20 P1 Z<the "
+                        f"shim's thickness>, remove the shim"),
+                comment(f"preload: cut test strokes on scrap with this program's Z; turn the "
+                        f"holder's spring (or change --preload) until they are {short(depth)} "
+                        f"{unit} deep"),
+            ]
+        else:
+            head.append(comment(f"depth: {num(depth)} {unit}"))
+            if holder is not None:
+                head.append(comment(f"holder: rigid; cuts at Z{short(-depth)}: the Z is the "
+                                    "tip's, so the plate's Z must be known to a fraction of "
+                                    "the depth over the grooves"))
     else:
         head += [
             comment("origin: plate centre; X right, Y up; no Z moves: focus on the plate first"),
@@ -782,7 +819,7 @@ def write_gcode(
         head.append(f"G0 Z{num(safe)}")
         tail = (["M5"] if spindle else []) + ["M2"]
         stipple_open, stipple_close = "(stipple ", ")\n"
-        start_text = f"G1 Z{num(-depth)} F{num(machining.plunge)}\n"
+        start_text = f"G1 Z{num(-cut_depth)} F{num(machining.plunge)}\n"
         end_text = f"G0 Z{num(safe)}\n"
         hop_end_text = f"G0 Z{num(machining.hop)}\n"
         dot_text = ""
@@ -883,7 +920,7 @@ def write_gcode(
 
     # every groove plunges and retracts, from and to the hop height where a hop
     # reaches or leaves it (each hop shortens one plunge and one retract)
-    vertical = n_paths * (safe + depth) - hop_count * (safe - machining.hop) if mill else 0.0
+    vertical = n_paths * (safe + cut_depth) - hop_count * (safe - machining.hop) if mill else 0.0
     return GcodeStats(
         lines=n_lines,
         paths=n_paths,
