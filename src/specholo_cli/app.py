@@ -74,10 +74,6 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
      "this far above the surface and moves over at the cutting feed, mm [0.03]."),
     ("hop-max", float, "Longest hop, mm; 0 retracts to --safe-z between all grooves [3]."),
     ("spindle", float, "Spindle speed, rpm; 0 for none [12000 for ball and vbit, else 0]."),
-    ("machine", click.Choice(list(MACHINES)),
-     "Time the design on this machine (its accelerations, rates, corners, pen lifts or laser "
-     "delays; docs/machines.md) and take its feeds, which --feed and --plunge override up to "
-     "its rates; a laser profile cuts with --tool laser [none: every axis at 250 mm/s^2, rapids at "
     ("holder", click.Choice(["rigid", "spring"]),
      "How the tip is held: spring (a spring-loaded drag engraver: touched off on the plate, "
      "it cuts --preload below it and lifts at least 0.05 mm between strokes) or rigid (cuts "
@@ -85,6 +81,10 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
      "rigid for ball and vbit]."),
     ("preload", float, "Spring holder: spring compression while cutting, mm; the spring's "
      "force sets the depth [0.3]."),
+    ("machine", click.Choice(list(MACHINES)),
+     "Time the design on this machine (its accelerations, rates, corners, pen lifts or laser "
+     "delays; docs/machines.md) and take its feeds, which --feed and --plunge override up to "
+     "its rates; a laser profile cuts with --tool laser [none: every axis at 250 mm/s^2, rapids at "
      "3000 mm/min]."),
     ("elevation-range", float, "Ridged design: heads' elevation within +- this many degrees "
      "[15]."),
