@@ -231,11 +231,11 @@ class DesignConfig:
     hop: float = 0.03
     hop_max: float = 3.0
     spindle: float | None = None
+    holder: str | None = None
+    preload: float | None = None
     machine: str | None = None
     elevation_range: float = 15.0
     shell: float = 0.1
-    holder: str | None = None
-    preload: float | None = None
     raster: float = 0.02
     optic: str = "reflect"
     refraction: str = "exact"
@@ -315,19 +315,14 @@ class DesignConfig:
         if isinstance(self.depth, (int, float)) and self.depth >= self.stock_thickness:
             raise SpecholoError(f"groove depth {self.depth:g} mm must be less than the stock "
                                 f"thickness {self.stock_thickness:g} mm")
+        self._check_holder()
         self._check_ridged_ranges()
         self._check_optic()
         self.setup()  # validates the physical settings
         _check_bounds(self)
         self._check_machine()
-        self._check_holder()
         self._check_ridged_machine()
 
-    def _check_ridged_ranges(self) -> None:
-        """Refuse ridged settings out of range."""
-        if not 0.0 <= self.elevation_range < MAX_ELEVATION_RANGE:
-            raise SpecholoError(f"elevation-range must be in [0, {MAX_ELEVATION_RANGE:g}) "
-                                f"degrees, got {self.elevation_range:g}")
     def _check_holder(self) -> None:
         """Fill in and refuse the tip's holder (a frozen dataclass: once, here).
 
@@ -376,6 +371,11 @@ class DesignConfig:
             return None
         return Holder(str(self.holder), float(self.preload or DEFAULT_PRELOAD))
 
+    def _check_ridged_ranges(self) -> None:
+        """Refuse ridged settings out of range."""
+        if not 0.0 <= self.elevation_range < MAX_ELEVATION_RANGE:
+            raise SpecholoError(f"elevation-range must be in [0, {MAX_ELEVATION_RANGE:g}) "
+                                f"degrees, got {self.elevation_range:g}")
         if not self.shell > 0:
             raise SpecholoError(f"shell must be a positive number of mm, got {self.shell:g}")
         if 2.0 * self.shell >= self.stock_thickness:
