@@ -40,6 +40,9 @@ OUTPUT_NAMES = frozenset({
     "hologram.json", "grooves.npz", "stipples.npz", "model.ply", "plate.npz", "run.json",
     # fabrication files (pipeline.FORMATS, fabrication.heightmap.RIDGED_FILES, spin's relief)
     "hologram.gcode", "hologram.svg", "hologram.dxf", "pattern.pdf", "relief.gcode",
+    # a rigid holder's probe program and levelled program (specholo probe, level):
+    # made from the design's program, they go with it
+    "probe.gcode", "hologram_leveled.gcode",
     "hologram.stl", "heightmap.png", "heightmap.tif", "heightmap.json",
     # pictures written with the design
     "preview.png", "preview.gif",

@@ -1,8 +1,9 @@
 """The ``specholo`` command: its entry point, Ctrl-C handling and one-line errors.
 
 The commands live one family to a module (:mod:`.design`, :mod:`.verification`,
-:mod:`.pictures`, :mod:`.jobs`, :mod:`.studio`), over what they share (:mod:`.app`). They parse
-options and print; the work happens in the library."""
+:mod:`.pictures`, :mod:`.jobs`, :mod:`.studio`, :mod:`.probing`), over what they
+share (:mod:`.app`). They parse options and print; the work happens in the
+library."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from specholo_cli import END_AT_ONCE, INTERRUPTED, early_sigint, exit_interrupte
 from specholo_cli import design as _design  # noqa: F401  (registers the command)
 from specholo_cli import jobs as _jobs  # noqa: F401
 from specholo_cli import pictures as _pictures  # noqa: F401
+from specholo_cli import probing as _probing  # noqa: F401
 from specholo_cli import studio as _studio  # noqa: F401
 from specholo_cli import verification as _verification  # noqa: F401
 from specholo_cli.app import _DESIGN_OPTIONS as _DESIGN_OPTIONS

@@ -161,6 +161,9 @@ _HEADER_LINES = 40
 #: The header line of a program on a curved host, whose limits no line can name
 #: (``fabrication.surface_gcode``).
 _SURFACE_LIMITS = "limits: not in this header"
+#: The header lines of a program levelled to a probed plate
+#: (``fabrication.leveling``), whose limits follow the probed surface.
+_LEVELLED = "levelled:"
 
 
 def _header_comments(gcode: Path) -> list[str]:
@@ -188,6 +191,11 @@ def _no_limits(gcode: Path) -> str:
     folder's hologram.json records (``gcode.check``), and the options check it as
     a flat plate instead."""
     head = _header_comments(gcode)
+    if any(t.startswith(_LEVELLED) for t in head):
+        return (f"{gcode} names no limits to check: it is levelled to a probed plate, and its "
+                "limits follow that plate, which no header line can name; specholo level "
+                "checked it against them when it wrote it (check the design's hologram.gcode, "
+                "or run specholo level again)")
     if not any(t.startswith(_SURFACE_LIMITS) for t in head):
         return (f"{gcode} names no limits (no check lines in its header): give "
                 "--plate-width, --plate-height and --max-depth")
