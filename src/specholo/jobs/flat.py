@@ -107,7 +107,7 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
         warnings.append(f"{d.coverage.hidden} of {d.coverage.stipples} stipples face away "
                         "from every view: if the model file is z-up (as CAD and slicer files "
                         "are), add --up z; --rotate-x and --rotate-y turn it further")
-    lines.append(next_steps(out))
+    lines.append(next_steps(out, d.config.holder))
     return Summary(lines, warnings)
 
 
@@ -165,14 +165,23 @@ def stipple_rate(per_second: float) -> str:
     return f"{rate} (Brand's paper reports about 4 a second)"
 
 
-def next_steps(out: Path) -> str:
+def next_steps(out: Path, holder: str | None = None) -> str:
     """What a maker does with a written flat-plate folder, in one line: look,
-    check by simulation, then cut or scribe what the folder holds."""
+    check by simulation, then cut or scribe what the folder holds. A rigid
+    holder's plate is probed and its program levelled first (``holder``: the
+    design's, None for a laser)."""
     steps = [f"open {out / 'preview.png'}",
              f"`specholo verify {out}` simulates both eyes (`--cut`: the plate as cut)"]
     if (out / "hologram.gcode").is_file():
-        steps.append(f"cut {out / 'hologram.gcode'} (its header names the plate, the zero and "
-                     "the limits `specholo check` reads)")
+        if holder == "rigid":
+            steps.append(f"held rigid, its depth needs the plate's Z to 0.005 mm: `specholo "
+                         f"probe {out}`, run probe.gcode, `specholo level {out} LOG`, cut "
+                         f"{out / 'hologram_leveled.gcode'}")
+        else:
+            how = ("; touch the spring holder off on the plate as it says" if holder == "spring"
+                   else "")
+            steps.append(f"cut {out / 'hologram.gcode'} (its header names the plate, the zero "
+                         f"and the limits `specholo check` reads{how})")
     if (out / "pattern.pdf").is_file():
         steps.append(f"print {out / 'pattern.pdf'} at 100% to scribe by hand")
     return "next: " + "; ".join(steps)
