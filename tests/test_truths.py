@@ -230,3 +230,20 @@ def test_a_model_facing_the_floor_gets_a_hint(tmp_path: Path,
     assert code == 0 and "--up z" not in out + err
     after = re.search(r"(\d+) of 300 stipples are hidden", out + err)
     assert after is not None and int(after.group(1)) < int(hidden.group(1)) - 60
+
+
+def test_the_band_is_stated_as_the_eye_sees_it(fitted: tuple[Path, str]):
+    """The stripes' band in arcminutes at the viewing distance, beside how far
+    apart neighbouring stipples look: the vertical error budget in the eye's terms."""
+    import math
+
+    out, summary = fitted
+    info = json.loads((out / "hologram.json").read_text())
+    band = info["settings"]["band"] or 0.2
+    distance = info["settings"]["view_distance"]
+    m = re.search(r"stripes: band ([\d.]+) mm, .* ([\d.]+) arcmin seen from ([\d.]+) mm, "
+                  r"where neighbouring stipples look ([\d.]+) arcmin apart", summary)
+    assert m is not None
+    assert float(m.group(1)) == pytest.approx(band)
+    assert float(m.group(2)) == pytest.approx(math.degrees(band / distance) * 60, abs=0.05)
+    assert float(m.group(4)) > float(m.group(2))

@@ -40,6 +40,8 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
     plate = getattr(written, "plate", None)
     if plate is not None:
         lines.append(plate_line(plate, d.config))
+    if d.config.method == "striped":
+        lines.append(band_line(d))
     if d.placement and "fallback" in d.placement:
         lines.append(f"placement: {d.placement['fallback']}; stripes placed by phase instead")
     if d.views is not None:
@@ -115,6 +117,38 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
 #: whether the model lies on its side (a model facing the viewer hides its back,
 #: about a third to a half).
 HIDDEN_HINT = 0.6
+
+
+def band_line(d: Any) -> str:
+    """The stripes' band as the eye sees it: each glint may sit up to a band off
+    its place vertically, against how far apart neighbouring stipples look."""
+    from specholo.settings import BAND
+
+    band = float(d.config.band or BAND)
+    distance = d.config.setup().viewer.distance
+    arcmin = math.degrees(band / distance) * 60.0
+    line = (f"stripes: band {band:g} mm, so each glint sits within about a band of its "
+            f"place vertically, {arcmin:.1f} arcmin seen from {distance:g} mm")
+    spacing = stipple_spacing(d.points, distance)
+    if spacing is not None:
+        line += (f", where neighbouring stipples look {spacing:.1f} arcmin apart (a wider "
+                 "--band cuts fewer, longer stripes)")
+    return line
+
+
+def stipple_spacing(points: Any, distance: float) -> float | None:
+    """The median angle between a stipple and its nearest neighbour, seen from
+    the viewing distance straight on, arcmin (None for fewer than two)."""
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    p = np.asarray(points, dtype=float)
+    if len(p) < 2:
+        return None
+    # Seen from the eyes, a point d behind the plate is (D + d) away.
+    gap, _ = cKDTree(p).query(p, k=2)
+    far = distance - p[:, 2]
+    return float(np.median(np.degrees(gap[:, 1] / far)) * 60.0)
 
 
 def plate_line(plate: Any, config: Any) -> str:
