@@ -190,6 +190,9 @@ class Limits:
             the plate, and drags across it.
         lift: a spring holder's lowest height above the surface between
             strokes, mm (None for a rigid holder).
+        depths: further depths (mm) a cut in X/Y may run at besides
+            ``groove_depth``: a test coupon's rungs, each at its own depth or
+            preload.
     """
 
     stock: Stock
@@ -206,6 +209,7 @@ class Limits:
     groove_depth: float | None = None
     holder: str = "rigid"
     lift: float | None = None
+    depths: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         pairs = {"feed range": self.feed_range, "spindle range": self.spindle_range}
@@ -229,6 +233,11 @@ class Limits:
         if self.holder not in HOLDER_KINDS:
             raise SpecholoError(f"holder must be one of {', '.join(HOLDER_KINDS)}, "
                                 f"got {self.holder!r}")
+        object.__setattr__(self, "depths", tuple(float(d) for d in self.depths))
+        if any(not (math.isfinite(d) and d >= 0) for d in self.depths) or \
+                (self.depths and self.groove_depth is None):
+            raise SpecholoError(f"further depths need a groove depth and must be finite "
+                                f"numbers >= 0, got {self.depths}")
         if self.holder == "spring" and (self.laser or self.groove_depth is None
                                         or self.lift is None or self.surface is not None):
             raise SpecholoError("a spring holder's limits need a tip that is no laser, its "
@@ -259,6 +268,8 @@ class Limits:
                  ("max_depth", num(self.max_depth, True)), ("safe_z", num(self.safe_z, False))]
         if self.groove_depth is not None:
             plate.append(("groove_depth", repr(float(self.groove_depth))))
+        if self.depths:
+            plate.append(("depths", ",".join(repr(d) for d in self.depths)))
         rest = [("feed", f"{num(self.feed_range[0], False)},{num(self.feed_range[1], True)}"),
                 ("spindle", f"{num(self.spindle_range[0], False)},"
                             f"{num(self.spindle_range[1], True)}"),
@@ -788,6 +799,8 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
                 d0, d1 = _depths(m, lim.surface, cut & moves_xy)
                 at = np.where(np.abs(d0 + gd) > np.abs(d1 + gd), d0, d1)
                 off_depth = (np.abs(d0 + gd) > tol) | (np.abs(d1 + gd) > tol)
+                for other in lim.depths:  # a move at one of them all along is a groove
+                    off_depth &= (np.abs(d0 + other) > tol) | (np.abs(d1 + other) > tol)
                 if lim.holder == "spring":
                     # a spring holder's tip is on the plate wherever the holder
                     # runs below its lift: an X/Y move there that is not a cut at
@@ -798,11 +811,11 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
                     each(scratch,
                          lambda i: f"feed move in X/Y at Z {at[i]:.5f}: a spring holder's tip "
                                    f"touches the plate below the lift {lift:g} (a scratch); "
-                                   f"it cuts only at Z {-gd:g}")
+                                   f"it cuts only at Z {_levels(gd, lim.depths)}")
                 else:
                     each(cut & moves_xy & off_depth,
                          lambda i: f"cut in X/Y at Z {at[i]:.5f}, not at the groove depth "
-                                   f"{-gd:g}")
+                                   f"{_levels(gd, lim.depths)}")
 
         # XY extent of each cut: a line on the plate only where below its surface
         sx, sy, ex, ey = x0.copy(), y0.copy(), x1.copy(), y1.copy()
@@ -841,6 +854,11 @@ def _check_moves(m: np.ndarray, flag: Callable[[int, str], None], lim: Limits,
         if not laser and cut.any():
             deepest = max(deepest, -float(np.nanmin(np.where(cut, above, np.inf))))
     return int(cut.sum()), deepest, air
+
+
+def _levels(depth: float, others: tuple[float, ...]) -> str:
+    """The Z (or Zs) a job's cuts run at, as a report names them."""
+    return " or ".join(f"{-d:g}" for d in sorted({depth, *others}))
 
 
 def _depths(m: np.ndarray, surface: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
@@ -1289,7 +1307,10 @@ def check_limits(path: str | os.PathLike[str], limits: Limits,
     def flag(number: int, what: str) -> None:
         found.append((number, len(found), what))
 
-    floor = -min(limits.max_depth, limits.stock.thickness)
+    # a spring holder's tip stays on the plate, however far below it the holder
+    # runs: its Z is bounded by the preload alone, not by the plate's thickness
+    floor = -(limits.max_depth if limits.holder == "spring"
+              else min(limits.max_depth, limits.stock.thickness))
     report = CheckReport(os.fspath(path))
 
     def check_part(moves: np.ndarray) -> _Part:
@@ -1399,7 +1420,9 @@ def limits_from_header(path: str | os.PathLike[str]) -> Limits | None:
                       hop_max=float(v["hop_max"]) if "hop_max" in v else None,
                       groove_depth=float(v["groove_depth"]) if "groove_depth" in v else None,
                       holder=v.get("holder", "rigid"),
-                      lift=float(v["lift"]) if "lift" in v else None)
+                      lift=float(v["lift"]) if "lift" in v else None,
+                      depths=tuple(float(d) for d in v["depths"].split(",")) if "depths" in v
+                      else ())
     except (KeyError, ValueError, IndexError) as exc:
         raise SpecholoError(f"{os.fspath(path)}: its check lines are unreadable "
                             f"({type(exc).__name__}: {exc}); give the limits as options"

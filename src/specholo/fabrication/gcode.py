@@ -697,6 +697,7 @@ def write_gcode(
     width: float | None = None,
     drawings: Sequence[str] = FLAT_DRAWINGS,
     holder: Holder | None = None,
+    cut_depths: np.ndarray | None = None,
 ) -> GcodeStats:
     """Write the program that cuts the grooves, atomically.
 
@@ -725,6 +726,10 @@ def write_gcode(
             says how to touch off and set the preload; a rigid one cuts at the
             depth, as without a holder, and the header names it. None: no
             holder line, the program as it always was.
+        cut_depths: (n,) the depth below the surface each path plunges to and
+            cuts at, mm, where the paths differ (a test coupon's rungs, each at
+            its own depth or preload; mill dialects): it replaces the depth's
+            or the holder's Z, and the header gives their range.
 
     Returns:
         Line count, path count and move lengths (mm) of the program.
@@ -744,6 +749,14 @@ def write_gcode(
     spring = mill and holder is not None and holder.spring
     if mill and holder is not None:
         cut_depth, machining = holder.program(depth, machining)
+    # each path's plunge, where they differ: one of a few Z levels per path
+    levels, level_of = np.array([cut_depth]), np.zeros(n_paths, dtype=np.int64)
+    if mill and cut_depths is not None:
+        given = np.asarray(cut_depths, dtype=float).reshape(-1)
+        if len(given) != n_paths or not (np.isfinite(given).all() and (given > 0).all()):
+            raise SpecholoError(f"cut depths must be {n_paths} positive numbers, one a path")
+        levels, level_of = np.unique(given, return_inverse=True)
+        cut_depth = float(levels[0]) if len(levels) == 1 else cut_depth
     safe = machining.safe_z
     dec = opt.decimals
     scale = 10**dec * opt.per_mm  # written integers per mm
@@ -770,7 +783,10 @@ def write_gcode(
             comment(f"tool: {(header or {}).get('cutter', 'ball end')}, round tip radius "
                     f"{num(tool.radius)} {unit}, groove width {num(width)} {unit}"),
         ]
-        if spring:
+        if len(levels) > 1:  # the caller's header says what each path's Z is for
+            head.append(comment(f"depth: by groove, Z{short(-levels[0])} to "
+                                f"Z{short(-levels[-1])} (see below)"))
+        elif spring:
             assert holder is not None
             head += [
                 comment(f"depth: {short(depth)} {unit} expected: the spring's force at "
@@ -820,6 +836,7 @@ def write_gcode(
         tail = (["M5"] if spindle else []) + ["M2"]
         stipple_open, stipple_close = "(stipple ", ")\n"
         start_text = f"G1 Z{num(-cut_depth)} F{num(machining.plunge)}\n"
+        start_texts = [f"G1 Z{num(-d)} F{num(machining.plunge)}\n" for d in levels]
         end_text = f"G0 Z{num(safe)}\n"
         hop_end_text = f"G0 Z{num(machining.hop)}\n"
         dot_text = ""
@@ -829,6 +846,7 @@ def write_gcode(
         tail = []  # each groove ends with M5; Marlin has no program end
         stipple_open, stipple_close = "; stipple ", "\n"
         start_text = f"{opt.laser_on} S{_short_number(opt.laser_power)}\n"
+        start_texts = [start_text]
         end_text = "M5\n"
         hop_end_text = ""  # a laser has no Z: it travels by rapids with the beam off
         # Marlin's G4 takes P in milliseconds
@@ -891,7 +909,11 @@ def write_gcode(
             if rapid_text:
                 t.text(rapid_text, f)
             t.text("\n")
-            t.text(start_text, f)
+            if len(levels) > 1:  # the plunge of each path to its own Z
+                level = np.repeat(level_of[lo:hi] + 1, np.diff(g.offsets))[s]
+                t.choice(["", *start_texts], np.where(f, level, 0))
+            else:
+                t.text(start_text, f)
             if dot_text:
                 t.text(dot_text, f & rows.last[s])
             t.text(end_text, rows.last[s] & ~low_row[s])
@@ -920,7 +942,8 @@ def write_gcode(
 
     # every groove plunges and retracts, from and to the hop height where a hop
     # reaches or leaves it (each hop shortens one plunge and one retract)
-    vertical = n_paths * (safe + cut_depth) - hop_count * (safe - machining.hop) if mill else 0.0
+    plunged = float(levels[level_of].sum()) if len(levels) > 1 else n_paths * cut_depth
+    vertical = n_paths * safe + plunged - hop_count * (safe - machining.hop) if mill else 0.0
     return GcodeStats(
         lines=n_lines,
         paths=n_paths,
