@@ -232,8 +232,13 @@ def test_designed_gcode_runs_in_linuxcnc(designed: Path):
     # which goes on past the tip's sphere, where the round model stops).
     from specholo.setup import Tool
 
-    cut = Tool(setup.tool.radius, loaded.config.depth_mm)
-    check_canon(canon, loaded.grooves, cut, setup.machining)
+    # The drag tip's spring holder cuts at its preload and hops at its lift
+    # (Holder.program); check_canon reads only the tool's depth.
+    holder = loaded.config.holder_setup()
+    assert holder is not None and holder.spring
+    depth, machining = holder.program(loaded.config.depth_mm, setup.machining)
+    cut = Tool(max(setup.tool.radius, depth), depth)
+    check_canon(canon, loaded.grooves, cut, machining)
 
 
 def test_spacing_option(tmp_path: Path, capsys):

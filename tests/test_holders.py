@@ -214,12 +214,13 @@ def test_holder_settings_and_their_refusals(tmp_path: Path,
     assert defaults == {"drag": "spring", "scriber": "spring", "ball": "rigid",
                         "vbit": "rigid", "laser": None}
     assert DesignConfig().preload == 0.3 and DesignConfig(tool="ball").preload is None
+    assert DesignConfig(spindle=1000.0).holder == "rigid"  # the spindle holds what it turns
     for values, words in (({"tool": "ball", "holder": "spring"}, "held rigid"),
                           ({"holder": "rigid", "preload": 0.2}, "add --holder spring"),
                           ({"preload": 0.01}, "preload 0.01 mm is out of range"),
                           ({"preload": 3.0}, "preload 3 mm is out of range"),
                           ({"tool": "laser", "holder": "rigid"}, "a laser has no holder"),
-                          ({"spindle": 1000.0}, "does not spin"),
+                          ({"holder": "spring", "spindle": 1000.0}, "does not spin"),
                           ({"holder": "floating"}, "holder must be one of rigid, spring")):
         with pytest.raises(SpecholoError, match=words) as info:
             DesignConfig.from_dict(values)

@@ -328,9 +328,10 @@ class DesignConfig:
 
         A drag tip or scriber is held in a spring holder by default (the spring
         sets the force, the plate may be as flat as a hobby machine holds it), a
-        ball or V-bit mill rigidly in its spindle; a laser has none. A spring
-        holder's tip does not spin, and its preload is a spring compression
-        within :data:`~specholo.setup.PRELOAD_RANGE`.
+        ball or V-bit mill, or any tip the spindle turns, rigidly in its
+        spindle; a laser has none. A spring holder's tip does not spin, and its
+        preload is a spring compression within
+        :data:`~specholo.setup.PRELOAD_RANGE`.
         """
         spring_tools = ("drag", "scriber")
         if self.tool == "laser":
@@ -338,9 +339,11 @@ class DesignConfig:
                 raise SpecholoError("a laser has no holder: leave out --holder and --preload")
             return
         if self.holder is None:
+            # a tip the spindle turns is held by the spindle, rigidly
+            spun = (self.spindle or 0.0) > 0
             object.__setattr__(self, "holder",
-                               "spring" if self.tool in spring_tools and self.method != "ridged"
-                               else "rigid")
+                               "spring" if self.tool in spring_tools and not spun
+                               and self.method != "ridged" else "rigid")
         if self.holder not in HOLDERS:
             raise SpecholoError(f"holder must be one of {', '.join(HOLDERS)}, got "
                                 f"{self.holder!r}")
@@ -360,10 +363,6 @@ class DesignConfig:
         if not lo <= preload <= hi:
             raise SpecholoError(f"preload {preload:g} mm is out of range: it must be in "
                                 f"[{lo:g}, {hi:g}] mm of spring compression")
-        if preload >= self.stock_thickness:
-            raise SpecholoError(f"preload {preload:g} mm cuts at a Z below the plate's "
-                                f"{self.stock_thickness:g} mm thickness: the safety check "
-                                "refuses it; set a smaller --preload")
 
     def holder_setup(self) -> Holder | None:
         """The tip's :class:`~specholo.setup.Holder` (None for a laser)."""

@@ -77,8 +77,8 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("holder", click.Choice(["rigid", "spring"]),
      "How the tip is held: spring (a spring-loaded drag engraver: touched off on the plate, "
      "it cuts --preload below it and lifts at least 0.05 mm between strokes) or rigid (cuts "
-     "at the depth: probe the plate, specholo probe and level) [spring for drag and scriber, "
-     "rigid for ball and vbit]."),
+     "at the depth: probe the plate, specholo probe and level) [spring for a drag tip or "
+     "scriber the spindle does not turn, else rigid]."),
     ("preload", float, "Spring holder: spring compression while cutting, mm; the spring's "
      "force sets the depth [0.3]."),
     ("machine", click.Choice(list(MACHINES)),

@@ -108,7 +108,8 @@ class ProgramInfo:
     Attributes:
         dialect: ``grbl`` or ``linuxcnc`` (from its header).
         units: ``mm`` or ``inch`` (its G20/G21).
-        cuts: (2, 2) corners of its cuts' X/Y extent (moves below the surface), mm.
+        cuts: (2, 2) corners of its cuts' X/Y extent (moves below the surface,
+            plunges into it included), mm.
     """
 
     dialect: str
@@ -246,9 +247,11 @@ def read_program(path: str | os.PathLike[str]) -> ProgramInfo:
         if move is None or move.kind == 0:
             continue
         (x0, y0, z0), (x1, y1, z1) = move.start, move.end
-        if (x0, y0) == (x1, y1) or not min(z0, z1) < 0.0:
+        if not min(z0, z1) < 0.0 or math.isnan(x1) or math.isnan(y1):
             continue
+        # a cut, or a plunge into the plate (a dot is no more)
         ext = _arc_extent(move) if move.centre is not None else \
+            (x1, y1, x1, y1) if math.isnan(x0) or (x0, y0) == (x1, y1) else \
             (min(x0, x1), min(y0, y1), max(x0, x1), max(y0, y1))
         bounds = [min(bounds[0], ext[0]), min(bounds[1], ext[1]),
                   max(bounds[2], ext[2]), max(bounds[3], ext[3])]
