@@ -18,6 +18,10 @@ from specholo._threads import chunked
 
 #: Screen tolerance: an end within this fraction of |h| of a root is kept.
 SCREEN = 0.01
+#: h . t within this fraction of |h| of 0 at an arc's end is a root on its
+#: vertex (the rounding of h . t is ~1e-16 |h|; a root 1e-12 along an arc is
+#: a picometre from its end).
+ON_VERTEX = 1e-12
 #: Fixed-point steps placing the glint on the groove wall (see wall_glint).
 WALL_STEPS = 3
 #: Joins turning less than this (radians) are smooth: a tangent-continuous join
@@ -150,8 +154,12 @@ def _arc_glints(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius
         fa = hx * tx + hy * ty
         _, _, _, hx, hy, hz = _wall(qx, qy, tool_radius, cz, eye, light, point)
         fb = hx * rx + hy * ry
-        # A root exactly on a shared vertex belongs to the arc that starts there.
-        if not (fa == 0.0 or fa * fb < 0.0):
+        # A root on a shared vertex belongs to the arc that starts there. The two
+        # arcs work h . t out there each their own way, a rounding apart: an
+        # exact zero could be a hair off it with opposite signs, and both would
+        # let the root go (a symmetric groove seen straight on did).
+        near = ON_VERTEX * math.sqrt(hx * hx + hy * hy + hz * hz)
+        if abs(fb) <= near < abs(fa) or not (abs(fa) <= near or fa * fb < 0.0):
             continue
         a, b, side, u = 0.0, 1.0, 0.0, 0.0
         for _ in range(iterations):
