@@ -37,6 +37,8 @@ COMMANDS: dict[str, tuple[list[str], list[str]]] = {
     "steady": ([str(BUNNY), "--out", "{out}", "--stipples", "12", "--step", "2"],
                ["hologram.gcode", "verify.json", "preview.png"]),
     "studio": (["--help"], ["127.0.0.1"]),
+    "coupon": (["--out", "{out}", "--rungs", "3", "--stipples", "3"],
+               ["coupon.json", "sheet.pdf", "hologram.gcode", "hologram.svg"]),
 }
 
 COMPOSITION = f"""

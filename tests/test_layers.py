@@ -30,7 +30,7 @@ LAYERS: list[set[str]] = [
     {"specholo.flat"},
     {"specholo.pipeline"},
     {"specholo.density", "specholo.ridged", "specholo.compose", "specholo.spin",
-     "specholo.steady", "specholo._precompile"},
+     "specholo.steady", "specholo.coupon", "specholo._precompile"},
     {"specholo.jobs"},
     {"specholo.studio"},
     {"specholo_cli"},

@@ -240,6 +240,11 @@ def _check_inputs(out: str | os.PathLike[str], target: Path,
                                 "folder")
 
 
+#: The files that make a folder specholo's: every design's hologram.json, and a
+#: test coupon's coupon.json (a coupon has no design's hologram.json).
+FOLDER_MARKERS = frozenset({"hologram.json", "coupon.json"})
+
+
 def _check_entries(out: str | os.PathLike[str], target: Path) -> None:
     """Refuse a folder that is not specholo's yet holds specholo's file names,
     and an entry with such a name that is not a regular file."""
@@ -252,7 +257,7 @@ def _check_entries(out: str | os.PathLike[str], target: Path) -> None:
                                     "output folder")
     except OSError as exc:
         raise SpecholoError(f"cannot read output folder {out}: {exc.strerror or exc}") from exc
-    if names and "hologram.json" not in names:
+    if names and not FOLDER_MARKERS.intersection(names):
         raise SpecholoError(f"{out} is not a specholo folder (no hologram.json) but holds "
                             f"{names[0]}: choose another output folder")
 

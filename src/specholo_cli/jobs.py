@@ -1,4 +1,4 @@
-"""The other jobs' commands: ``compose``, ``spin``, ``steady``."""
+"""The other jobs' commands: ``compose``, ``spin``, ``steady`` and ``coupon``."""
 
 from __future__ import annotations
 
@@ -9,6 +9,8 @@ import click
 
 from specholo.jobs.base import WriteOptions
 from specholo_cli.app import (
+    _DESIGN_OPTIONS,
+    _command_line,
     _Folder,
     _plate_options,
     _pose_options,
@@ -143,6 +145,60 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
         "light_range": light_range, "shape": shape, "tool_radius": tool_radius,
         "depth": depth, "plate_width": plate_width, "plate_height": plate_height, "fit": fit,
         "stock_thickness": stock_thickness, **pose}, out, WriteOptions(step_deg=step))
+
+
+#: ``specholo design``'s options a coupon takes as they are: the long job's
+#: light, views, tool, program and machine.
+_COUPON_DESIGN = ("light-elevation", "light-distance", "view-distance", "view-range",
+                  "eye-height", "ipd", "band", "placement", "tool", "tool-radius",
+                  "tool-angle", "tip-flat", "dialect", "units", "stock-thickness", "feed",
+                  "plunge", "safe-z", "hop", "hop-max", "spindle", "machine")
+
+
+def _coupon_options(fn: Any) -> Any:
+    for name, kind, text in reversed([r for r in _DESIGN_OPTIONS if r[0] in _COUPON_DESIGN]):
+        fn = click.option(f"--{name}", type=kind, default=None, help=text)(fn)
+    return fn
+
+
+@cli.command()
+@click.option("--out", type=_Folder(path_type=Path), required=True,
+              help="Output folder (written atomically).")
+@click.option("--holder", type=click.Choice(["rigid", "spring"]), default=None,
+              help="How the tip is held, as for design: spring rungs ladder the preload, "
+                   "rigid rungs the depth [spring for drag and scriber, rigid for ball and "
+                   "vbit].")
+@click.option("--depths", default=None,
+              help="Rigid holder: every rung's depth, mm, comma-separated [--rungs of them "
+                   "--step apart about --depth].")
+@click.option("--preloads", default=None,
+              help="Spring holder: every rung's preload, mm, comma-separated [--rungs of "
+                   "them --step apart about --preload].")
+@click.option("--rungs", type=int, default=None, help="Rungs on the card, 2 to 9 [5].")
+@click.option("--step", type=float, default=None,
+              help="Between two rungs' settings, mm [0.002 of depth, 0.1 of preload].")
+@click.option("--depth", type=float, default=None,
+              help="Rigid: the ladder's middle depth; spring: the depth the grooves are "
+                   "expected to have, mm [what design chooses for these views].")
+@click.option("--preload", type=float, default=None,
+              help="Spring holder: the ladder's middle preload, mm [0.3].")
+@click.option("--stipples", type=int, default=None,
+              help="Stipples a rung, 3 to 5, each its own window of the view range [5].")
+@click.option("--window", type=float, default=None,
+              help="Each stipple's window of eye azimuths, degrees [10].")
+@click.option("--behind", type=float, default=None,
+              help="How far the target points lie behind the card, mm [10].")
+@_coupon_options
+def coupon(out: Path, **options: Any) -> None:
+    """Design a test coupon: a card of at most 60 x 40 mm cut in at most 15 minutes,
+    rungs side by side at a ladder of depths (rigid holder) or preloads (spring
+    holder), each a few stipples of a simple target needing no model; its sheet
+    (sheet.pdf) says from where each glint must show and where, so the setting
+    for the long job can be chosen before it is cut."""
+    from specholo.jobs.coupon import CouponJob
+
+    values = {k: v for k, v in options.items() if v is not None}
+    _run(CouponJob(), [], values, out, WriteOptions(command=_command_line()))
 
 
 def _run(job: Any, inputs: list[Path], values: dict[str, Any], out: Path,

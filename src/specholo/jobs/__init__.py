@@ -13,6 +13,7 @@ from pathlib import Path
 from specholo.folders import register_outputs
 from specholo.jobs.base import Job, Table, Verification, VerifyOptions, publish_verification
 from specholo.jobs.composition import CompositionJob
+from specholo.jobs.coupon import CouponJob
 from specholo.jobs.flat import FlatJob
 from specholo.jobs.ridged import RidgedJob
 from specholo.jobs.spin import SpinJob
@@ -20,7 +21,8 @@ from specholo.jobs.steady import SteadyJob
 
 #: The kinds of folder, in the order they are told apart: the first whose
 #: :meth:`~.base.Job.holds` is true owns the folder; a flat design is the rest.
-JOBS: tuple[Job, ...] = (SpinJob(), SteadyJob(), CompositionJob(), RidgedJob(), FlatJob())
+JOBS: tuple[Job, ...] = (CouponJob(), SpinJob(), SteadyJob(), CompositionJob(), RidgedJob(),
+                         FlatJob())
 # Every kind's files are specholo's: a design of any kind replaces them all.
 register_outputs(name for job in JOBS for name in job.files)
 
