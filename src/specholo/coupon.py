@@ -654,9 +654,10 @@ def near_handover(track: np.ndarray, azimuth: float) -> bool:
 
 def sheet_positions(track: np.ndarray, azimuth: float) -> np.ndarray:
     """Where the sheet says a glint is seen from an eye azimuth (degrees): on
-    each stroke of the track whose rows reach to within half a step of it,
-    linearly between its two rows about it (or beyond its last two). Where one
-    stroke hands over to the next between two rows, both places are given.
+    each stroke of the track whose rows reach to within a step of it, linearly
+    between its two rows about it (or beyond its last two). Between the last
+    row of one stroke and the first of the next the hand-over may come
+    anywhere: both places are given.
 
     Returns:
         (k, 2) plate positions, mm (none where the track has no stroke there).
@@ -665,8 +666,8 @@ def sheet_positions(track: np.ndarray, azimuth: float) -> np.ndarray:
     for stroke in np.unique(track[:, 3]):
         rows = track[track[:, 3] == stroke]
         rows = rows[np.argsort(rows[:, 0], kind="stable")]
-        half = 0.5 * TRACK_STEP + 1e-9
-        if not rows[0, 0] - half <= azimuth <= rows[-1, 0] + half:
+        reach = TRACK_STEP + 1e-9
+        if not rows[0, 0] - reach <= azimuth <= rows[-1, 0] + reach:
             continue
         if len(rows) == 1:
             out.append(rows[0, 1:3])
@@ -909,7 +910,7 @@ def coupon_json(coupon: Coupon) -> dict[str, Any]:
         "position_rule": (
             "a track's rows are azimuth (deg), glint x, y (mm) and the stroke showing it; "
             "from an azimuth between two rows the glint is on each stroke whose rows reach to "
-            "within half a step of it, linearly between its two rows about it (or beyond its "
+            "within a step of it, linearly between its two rows about it (or beyond its "
             "last two); it shows from shows_deg[0] to shows_deg[1] and from nowhere outside "
             "dark_beyond_deg"),
         "rungs": rungs,
