@@ -169,7 +169,9 @@ def test_a_design_whose_stipples_are_mostly_hidden_warns(
     grooved = stats["stipples_with_grooves"]
     assert code == 0 and 0 < grooved < 100, (code, err, stats)
     assert err == [f"warning: {200 - grooved} of 200 stipples are hidden from every view and "
-                   "have no groove (the model hides them or they face away from every eye)"]
+                   "have no groove (the model hides them or they face away from every eye); "
+                   "if the model file is z-up (as CAD and slicer files are), add --up z "
+                   "(--rotate-x and --rotate-y turn it further)"]
     assert stats["hidden_stipples"] == 200 - grooved
 
 

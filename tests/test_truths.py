@@ -222,7 +222,7 @@ def test_a_model_facing_the_floor_gets_a_hint(tmp_path: Path,
     code, out, err = run(["design", path, "--out", tmp_path / "a", "--stipples", "300",
                           "--formats", "gcode"], capsys)
     assert code == 0, err
-    hidden = re.search(r"(\d+) of 300 stipples face away from every view", out + err)
+    hidden = re.search(r"(\d+) of 300 stipples are hidden from every view", out + err)
     assert hidden is not None and int(hidden.group(1)) > 180
     assert "add --up z" in out + err
     code, out, err = run(["design", path, "--up", "z", "--out", tmp_path / "b",

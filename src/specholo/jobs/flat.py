@@ -97,18 +97,18 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
         warnings.append(f"{len(d.dropped)} stipples could not be designed ("
                         + ", ".join(f"{n}: {r}" for r, n in sorted(why.items())) + ")")
     if d.coverage is not None and d.coverage.mostly_ungrooved:
-        warnings.append(d.coverage.describe())
+        line = d.coverage.describe()
+        if d.config.up == "y" and not getattr(d, "up_hint", "") and \
+                d.coverage.hidden > HIDDEN_HINT * d.coverage.stipples:
+            # A z-up file read y-up turns its front (-y in CAD) to the floor.
+            line += ("; if the model file is z-up (as CAD and slicer files are), add --up z "
+                     "(--rotate-x and --rotate-y turn it further)")
+        warnings.append(line)
     elif d.coverage is not None:
         lines.append(f"hidden: {d.coverage.hidden} of {d.coverage.stipples} stipples are "
                      "hidden from every view (no groove)")
     if getattr(d, "up_hint", ""):
         warnings.append(d.up_hint)
-    elif d.coverage is not None and d.config.up == "y" and \
-            d.coverage.hidden > HIDDEN_HINT * d.coverage.stipples:
-        # A z-up file read y-up turns its front (-y in CAD) to the floor.
-        warnings.append(f"{d.coverage.hidden} of {d.coverage.stipples} stipples face away "
-                        "from every view: if the model file is z-up (as CAD and slicer files "
-                        "are), add --up z; --rotate-x and --rotate-y turn it further")
     lines.append(next_steps(out, d.config.holder))
     return Summary(lines, warnings)
 
