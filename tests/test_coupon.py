@@ -236,8 +236,8 @@ def sheet_places(track: np.ndarray, azimuth: float, step: float) -> list[np.ndar
 
 
 def handing_over(track: np.ndarray, azimuth: float, step: float) -> bool:
-    """Whether two strokes meet within a step of the azimuth."""
-    near = track[np.abs(track[:, 0] - azimuth) <= step + 1e-9]
+    """Whether two strokes meet within two steps of the azimuth."""
+    near = track[np.abs(track[:, 0] - azimuth) <= 2 * step + 1e-9]
     return len(np.unique(near[:, 3])) > 1
 
 
@@ -276,7 +276,7 @@ def test_the_glints_show_from_where_the_sheet_says(card: Path) -> None:
                 places = sheet_places(track, float(azimuth), step)
                 assert places, (s["id"], azimuth)
                 if not len(mine):
-                    # an eye a few thousandths of a degree from a hand-over
+                    # an eye a few hundredths of a degree from a hand-over
                     # between two strokes may find neither's end
                     assert handing_over(track, float(azimuth), step), (s["id"], azimuth)
                     gaps += 1

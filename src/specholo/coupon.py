@@ -77,7 +77,7 @@ BEHIND = (1.0, 40.0, 10.0)
 #: (five rungs span the 0.25-0.5 mm drag bits' makers give, around 0.3).
 LADDER_STEP = {"rigid": 0.002, "spring": 0.1}
 #: Step between the rows of a glint's track, degrees.
-TRACK_STEP = 0.25
+TRACK_STEP = 0.1
 #: Beyond its window by this much, degrees, a glint must be dark (the groove
 #: ends where the window does; its end shows a few hundredths of a degree on).
 DARK_MARGIN = 0.5
@@ -193,10 +193,15 @@ class CouponConfig:
         if wrong in own:
             raise SpecholoError(f"a {design.holder} holder's ladder is of {right}: use "
                                 f"--{right}, or --holder {'spring' if rigid else 'rigid'}")
-        ladder = own.get(right)
-        # the depth the design would choose for the coupon's views: a rigid
-        # ladder's middle, the depth a spring holder's grooves are expected to have
-        probe = cls(design, (1.0, 2.0), stipples, window, behind)
+        given_ladder = own.get(right)
+        if given_ladder is not None and ("step" in own or "rungs" in own):
+            raise SpecholoError(f"--{right} lists every rung: leave out --rungs and --step")
+        ladder = None if given_ladder is None else _numbers(given_ladder, right)
+        # the card as it will be (its rungs place the points, which set the
+        # tilts), to find the depth the design would choose for its views: a
+        # rigid ladder's middle, the depth a spring holder's grooves are expected to have
+        count = rungs if ladder is None else len(ladder)
+        probe = cls(design, tuple(float(k + 1) for k in range(count)), stipples, window, behind)
         probe.check_geometry()
         if design.depth is None:
             design = dataclasses.replace(design, depth=_auto_depth(probe))
@@ -205,9 +210,7 @@ class CouponConfig:
             if not step > 0:
                 raise SpecholoError(f"step must be a positive number of mm, got {step:g}")
             ladder = _ladder(design, rungs, step, _least_depth(probe) if rigid else 0.0)
-        elif "step" in own or "rungs" in own:
-            raise SpecholoError(f"--{right} lists every rung: leave out --rungs and --step")
-        config = cls(design, tuple(_numbers(ladder, right)), stipples, window, behind)
+        config = cls(design, tuple(ladder), stipples, window, behind)
         config.check()
         return config
 
@@ -643,12 +646,13 @@ def shows(track: np.ndarray) -> tuple[float, float] | None:
 
 
 def near_handover(track: np.ndarray, azimuth: float) -> bool:
-    """Whether one stroke of a track hands over to the next within a step of
+    """Whether one stroke of a track hands over to the next within two steps of
     an azimuth (degrees). The two meet end to end as designed; as written to
-    the program (coordinates to 10 nm), the glint near a stroke's end moves by
-    a few micrometres along it, so an eye within a few thousandths of a degree
-    of the hand-over may find its glint on neither."""
-    near = track[np.abs(track[:, 0] - azimuth) <= TRACK_STEP + 1e-9]
+    the program (coordinates to 10 nm, arc ends turned by up to 2e-4 rad), the
+    glint near a stroke's end moves a few micrometres along it, so an eye
+    within a few hundredths of a degree of the hand-over may find its glint on
+    neither (at 600 mm a pupil is 0.3 degrees wide)."""
+    near = track[np.abs(track[:, 0] - azimuth) <= 2.0 * TRACK_STEP + 1e-9]
     return len(np.unique(near[:, 3])) > 1
 
 

@@ -60,7 +60,7 @@ def check_line(checks: list[Any]) -> str:
     outside = sum(k.outside for k in checks)
     stray = sum(k.stray for k in checks)
     worst = max((k.worst_mm for k in checks), default=0.0)
-    gaps = (f" ({handover} more, within a few thousandths of a degree of a hand-over between "
+    gaps = (f" ({handover} more, within a few hundredths of a degree of a hand-over between "
             "two strokes, found none, as the sheet allows)" if handover else "")
     worst_text = "-" if not math.isfinite(worst) else f"{worst:.3f}"
     return (f"simulated: {found} of {inside} eyes inside the sheet's windows found their glint "
