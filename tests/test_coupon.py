@@ -340,6 +340,8 @@ def test_verify_reads_the_folder_as_a_coupon(card: Path, tmp_path: Path,
     assert (folder / "sheet.pdf").read_bytes().startswith(b"%PDF")
     assert main(["report", str(folder)]) == 1  # its report is its sheet
     assert "sheet.pdf" in capsys.readouterr().err
+    assert main(["verify", str(folder), "--cut"]) == 1
+    assert "are for flat-plate designs" in capsys.readouterr().err
 
 
 def test_a_rigid_card_is_probed_as_a_design_is(card: Path, tmp_path: Path) -> None:

@@ -139,8 +139,9 @@ class CouponJob:
         if options.cut:
             from specholo.errors import SpecholoError
 
-            raise SpecholoError("a test coupon is verified on its grooves against its sheet; "
-                                "--cut is for flat-plate designs")
+            raise SpecholoError(f"{self.title} is verified on {self.verified_on} (with "
+                                "--from-gcode, as its program cuts them): --cut and its "
+                                "methods are for flat-plate designs")
         loaded = load_coupon(folder, from_gcode=options.from_gcode)
         status("looking from where the sheet says...")
         step = min(options.step_deg, 1.0)
