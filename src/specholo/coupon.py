@@ -72,9 +72,11 @@ MIN_GAP = 2.0
 #: the ends of a +-45 degree range, which fits a 10 mm column.
 BEHIND = (1.0, 40.0, 10.0)
 #: Steps of the ladder when none is given, mm: a rigid holder's depth by two
-#: fifths of the depth allowance (five rungs span 0.008 mm, about the plate
-#: error a levelled plate keeps within), a spring holder's preload by 0.1 mm
-#: (five rungs span the 0.25-0.5 mm drag bits' makers give, around 0.3).
+#: fifths of the depth allowance (five rungs span 0.008 mm about the depth the
+#: design chooses, the lowest still above the shallowest its windows need: a
+#: plate a few micrometres off its Z shifts which rung passes), a spring
+#: holder's preload by 0.1 mm (five rungs span 0.1-0.5 mm about the default
+#: 0.3, the 0.25-0.5 mm that drag bits' makers give and a little less).
 LADDER_STEP = {"rigid": 0.002, "spring": 0.1}
 #: Step between the rows of a glint's track, degrees.
 TRACK_STEP = 0.1
@@ -93,9 +95,6 @@ LABEL_DROP = 5.0
 ROWS = {3: (13.0, 3.0, -7.0), 4: (13.0, 6.0, -3.0, -9.0), 5: (13.0, 8.0, 3.0, -2.0, -7.0)}
 #: Letters naming a rung's stipples from the top.
 LETTERS = "abcde"
-#: Files a coupon folder holds.
-FILES = frozenset({"coupon.json", "sheet.pdf", "hologram.gcode", "hologram.svg",
-                   "grooves.npz", "run.json"})
 #: The options of the coupon itself (the rest are ``specholo design``'s).
 OWN_OPTIONS = ("rungs", "depths", "preloads", "step", "stipples", "window", "behind")
 
@@ -478,7 +477,8 @@ class Coupon:
         rungs: the rungs.
         tracks: stipple id -> its track: rows (k, 4) of eye azimuth (degrees),
             glint x and y (mm) and the path (stroke) that shows it.
-        machining: the machining estimate (seconds by part, the machine).
+        machining: the machining estimate, as a design's hologram.json holds it
+            (hours by part, the machine).
         timings: seconds per stage.
     """
 

@@ -99,10 +99,13 @@ def _texts(info: dict[str, Any]) -> list[tuple[str, str]]:
     far = rungs[0]["stipples"][0]
     ladder = ", ".join(f"{v:g}" for v in settings["ladder_mm"])
     tool = info["tool"]
-    look = (f"{_light_words(viewing)} Eye: one eye, the other closed, level with the card's "
-            f"centre and {distance:.0f} mm from it. An azimuth is the eye's angle to the right "
-            "of straight in front (negative: to the left), about the card's vertical centre "
-            f"line: at {far['shows_deg'][0]:g} deg the eye stands {abs(far['eye_from_mm'][0]):.0f}"
+    height = float(viewing["eye_height_mm"])
+    level = ("level with the card's centre" if height == 0 else
+             f"{abs(height):g} mm {'above' if height > 0 else 'below'} the card's centre")
+    look = (f"{_light_words(viewing)} Eye: one eye, the other closed, {level} and "
+            f"{distance:.0f} mm from the card's vertical centre line. An azimuth is the eye's "
+            "angle about that line, to the right of straight in front (negative: to the "
+            f"left): at {far['shows_deg'][0]:g} deg the eye stands {abs(far['eye_from_mm'][0]):.0f}"
             f" mm to the {'left' if far['eye_from_mm'][0] < 0 else 'right'} and "
             f"{far['eye_from_mm'][1]:.0f} mm out. Move the eye along that arc from left to "
             f"right: in every rung the glints a to {last} light up one after another, each only "
