@@ -153,6 +153,23 @@ def test_the_check_passes_it_with_no_options_and_refuses_another_depth(
     assert "not at the groove depth" in out or "a scratch" in out
 
 
+def test_an_inch_linuxcnc_card_cuts_each_rung_at_its_z(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "inch"
+    assert main(["coupon", "--out", str(out), "--dialect", "linuxcnc", "--units", "inch",
+                 "--holder", "rigid", "--depths", "0.008,0.012", "--stipples", "3"]) == 0
+    program = out / "hologram.gcode"
+    assert main(["check", str(program)]) == 0
+    assert "0 violation(s)" in capsys.readouterr().out
+    of = rung_of_stipples(info_of(out))
+    cuts = program_cuts(program)
+    assert cuts and {round(-z * 25.4, 4) for _, _, _, z in cuts} == {0.008, 0.012}
+    for stipple, _, _, z in cuts:
+        assert -z * 25.4 == pytest.approx(setting(of[stipple]), abs=2e-5)  # 6 decimals in inch
+    if Path("/usr/bin/rs274").exists():
+        assert any(name == "ARC_FEED" for name, _ in run_rs274(program))
+
+
 def test_the_card_is_small_and_named_in_its_header(card: Path) -> None:
     info = info_of(card)
     (x0, y0), (x1, y1) = info["card"]["plate_mm"]

@@ -766,20 +766,28 @@ def program_header(coupon: Coupon) -> dict[str, str]:
             "coupon": f"{config.rungs} rungs of {config.stipples} stipples, each rung at its "
                       f"own {name}; sheet.pdf says from where each glint shows"}
     pitch = float(lay.rung_x[1] - lay.rung_x[0])
+    # coordinates in the program's units, as the writer's own lines give them;
+    # the settings in mm, as the options take them
+    per, decimals = (1.0, 5) if design.units == "mm" else (1.0 / 25.4, 6)
+
+    def at(mm: float) -> str:  # to the program's grid, no trailing zeros
+        return f"{mm * per:.{decimals}f}".rstrip("0").rstrip(".") or "0"
+
     for rung in coupon.rungs:
         x = lay.rung_x[rung.index]
         head[f"rung {rung.index + 1}"] = (
-            f"X{x - 0.5 * pitch:.1f}..{x + 0.5 * pitch:.1f}: {name} {rung.setting:g} mm, cuts at "
-            f"Z{-rung.cut_depth:g}, {rung.index + 1} label dot{'s' if rung.index else ''} below")
+            f"X{at(x - 0.5 * pitch)}..{at(x + 0.5 * pitch)}: {name} {rung.setting:g} mm, cuts "
+            f"at Z{at(-rung.cut_depth)}, {rung.index + 1} label dot"
+            f"{'s' if rung.index else ''} below")
     if config.holder == "spring":
         head["holder"] = (f"spring-loaded; Z0 with the tip touching the plate; each rung cuts "
-                          f"at its preload below it, lifts to Z{m.hop:g} or Z{m.safe_z:g} "
+                          f"at its preload below it, lifts to Z{at(m.hop)} or Z{at(m.safe_z)} "
                           "between strokes")
-        head["touch-off"] = ("over X0 Y0, a paper shim on the plate, jog the tip down in 0.01 "
-                             "mm steps until the shim is pinched; G10 L20 P1 Z<the shim's "
-                             "thickness>, remove the shim")
-        head["expected depth"] = (f"{design.depth_mm:g} mm at the right preload; the rung whose "
-                         "glints all show crisply names it")
+        head["touch-off"] = (f"over X0 Y0, a paper shim on the plate, jog the tip down in "
+                             f"{at(0.01)} {design.units} steps until the shim is pinched; G10 L20 "
+                             "P1 Z<the shim's thickness>, remove the shim")
+        head["expected depth"] = (f"{design.depth_mm:g} mm at the right preload; the rung "
+                                  "whose glints all show crisply names it")
     else:
         head["holder"] = ("rigid; each rung cuts at its depth below Z0: the plate's Z must be "
                           "known over the card to a fraction of the ladder's step "
