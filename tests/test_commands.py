@@ -37,6 +37,10 @@ COMMANDS: dict[str, tuple[list[str], list[str]]] = {
     "steady": ([str(BUNNY), "--out", "{out}", "--stipples", "12", "--step", "2"],
                ["hologram.gcode", "verify.json", "preview.png"]),
     "studio": (["--help"], ["127.0.0.1"]),
+    # probe and level need a rigid holder's design and a probe log: run end to
+    # end in tests/test_holders.py; here their help.
+    "probe": (["--help"], ["G38.2 grid"]),
+    "level": (["--help"], ["probed under it"]),
     "coupon": (["--out", "{out}", "--rungs", "3", "--stipples", "3"],
                ["coupon.json", "sheet.pdf", "hologram.gcode", "hologram.svg"]),
 }

@@ -109,7 +109,7 @@ def _moves_xy(m: dict) -> bool:
     return not math.isnan(x0) and (abs(x1 - x0) > 1e-9 or abs(y1 - y0) > 1e-9)
 
 
-def _along(m: dict, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _point_along(m: dict, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points (x, y, z) at fractions ts along a move as a machine runs it: Z
     linear along a line, linear in the angle along a helix."""
     (x0, y0, z0), (x1, y1, z1) = m["start"], m["end"]
@@ -364,7 +364,7 @@ def _check_levelled(lines: list[str], depth: float, hop: float, height,
         if not _moves_xy(m) or m["kind"] == 0:
             continue
         ts = np.linspace(0.0, 1.0, 9)
-        x, y, z = _along(m, ts)
+        x, y, z = _point_along(m, ts)
         above = z - height(x, y)
         level = -depth if abs(above[0] + depth) < abs(above[0] - hop) else hop
         assert np.abs(above - level).max() <= FOLLOW + WRITTEN, (lines[m["line"]], above)

@@ -60,7 +60,7 @@ def test_every_file_states_the_groove_as_cut(fitted: tuple[Path, str]):
     head = _header(out / "hologram.gcode")
     got = float(re.search(r"groove width ([\d.]+) mm", head).group(1))  # type: ignore[union-attr]
     assert got == pytest.approx(width, abs=1e-5)
-    assert float(re.search(r"\(depth: ([\d.]+) mm\)", head).group(1)) == pytest.approx(  # type: ignore[union-attr]
+    assert float(re.search(r"\(depth: ([\d.]+) mm", head).group(1)) == pytest.approx(  # type: ignore[union-attr]
         depth, abs=1e-5)
     svg = (out / "hologram.svg").read_text()
     layer = re.search(r'inkscape:label="\d+ (GROOVES_D([\d.]+)_R[\d.]+)"', svg)

@@ -453,7 +453,7 @@ class ProbeMap:
         return bool(self.xs[0] - t <= area[0, 0] and area[1, 0] <= self.xs[-1] + t
                     and self.ys[0] - t <= area[0, 1] and area[1, 1] <= self.ys[-1] + t)
 
-    def _cell(self, x: float, y: float) -> tuple[int, int, float, float]:
+    def _locate(self, x: float, y: float) -> tuple[int, int, float, float]:
         """The cell (i, j) under x, y and the point's place u, v in it (clamped)."""
         xs, ys = self._xs, self._ys
         i = min(max(bisect.bisect_right(xs, x) - 1, 0), len(xs) - 2)
@@ -464,7 +464,7 @@ class ProbeMap:
 
     def height(self, x: float, y: float) -> float:
         """The plate's height under x, y, mm."""
-        i, j, u, v = self._cell(x, y)
+        i, j, u, v = self._locate(x, y)
         z = self._z
         return ((z[j][i] * (1.0 - u) + z[j][i + 1] * u) * (1.0 - v)
                 + (z[j + 1][i] * (1.0 - u) + z[j + 1][i + 1] * u) * v)
@@ -472,7 +472,7 @@ class ProbeMap:
     def bend(self, x: float, y: float) -> tuple[float, float, float, float, float]:
         """The cell under x, y as h = h00 + a u + b v + d u v: its corner height
         h00 and a, b, d (mm), and its width and height (mm)."""
-        i, j, _, _ = self._cell(x, y)
+        i, j, _, _ = self._locate(x, y)
         z = self._z
         h00, h10, h01, h11 = z[j][i], z[j][i + 1], z[j + 1][i], z[j + 1][i + 1]
         return (h10 - h00, h01 - h00, h11 - h10 - h01 + h00,
@@ -706,7 +706,7 @@ def _pieces_arc(pmap: ProbeMap, centre: tuple[float, float], a0: float, sweep: f
     return out
 
 
-def _along(move: _Move, arc: tuple[float, float, float, float] | None,
+def _point_along(move: _Move, arc: tuple[float, float, float, float] | None,
            t: float) -> tuple[float, float]:
     """The X/Y a fraction t along a move (of its sweep for an arc, whose
     radius runs from its start's to its end's: the written ends are exact)."""
@@ -782,7 +782,7 @@ def _levelled_lines(path: Path, pmap: ProbeMap, dec: int, per_mm: float,
         start = (x0, y0)
         pieces = []
         for k, t in enumerate(ts):
-            x, y = _along(move, arc, t)
+            x, y = _point_along(move, arc, t)
             z = z0n + t * (z1 - z0n) + pmap.height(x, y)
             words = f"G{move.kind} X{num(x)} Y{num(y)} Z{num(z)}"
             if move.centre is not None:
