@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import atexit
 import os
 import shutil
 import tempfile
@@ -18,8 +19,11 @@ from specholo.toolpaths.grooves import Grooves
 GOLDEN = Path(__file__).resolve().parent / "golden"
 
 # Models read by the tests are kept in a cache of the test run's own, not the
-# user's (subprocesses inherit it).
-os.environ.setdefault("SPECHOLO_CACHE_DIR", tempfile.mkdtemp(prefix="specholo-test-cache-"))
+# user's (subprocesses inherit it), removed when the run ends: every run made one.
+if "SPECHOLO_CACHE_DIR" not in os.environ:
+    _CACHE = tempfile.mkdtemp(prefix="specholo-test-cache-")
+    os.environ["SPECHOLO_CACHE_DIR"] = _CACHE
+    atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
