@@ -429,7 +429,7 @@ def describe_machining(machining: dict[str, Any], feed: float) -> str:
     machine = machining.get("machine")
     gantry = not isinstance(machine, dict) or machine.get("kind") in ("router", "mill")
     parts = [(what, 3600.0 * machining.get(key, 0.0)) for what, key in (
-        ("cutting", "cutting_hours"), ("hopping between grooves", "hop_hours"),
+        ("cutting", "cutting_hours"), ("moving between grooves just above the plate", "hop_hours"),
         ("plunging", "plunge_hours"),
         ("rapids and retracts" if gantry else "travel between strokes", "rapid_hours"),
         ("lifting and lowering the pen", "lift_hours"),
