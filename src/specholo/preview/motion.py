@@ -69,14 +69,20 @@ def _render_all(loaded: Any, cameras: Sequence[Camera], lights: Sequence[Light],
         return render_still(loaded.grooves, setup, cameras[k], light=lights[k], engraved=eng,
                             plate=getattr(loaded, "plate", None), **still)
 
+    return draw_frames(one, total, workers, progress)
+
+
+def draw_frames(one: Callable[[int], np.ndarray], count: int, workers: int,
+                progress: Progress | None) -> list[np.ndarray]:
+    """Frames 0 .. count - 1, each drawn by ``one``, on a few threads, in order."""
     frames: list[np.ndarray] = []
     # numpy releases the GIL in its loops, so a few threads render frames side by side.
     pool = ThreadPoolExecutor(max_workers=max(1, workers))
     try:
-        for done, frame in enumerate(pool.map(one, range(total)), start=1):
+        for done, frame in enumerate(pool.map(one, range(count)), start=1):
             frames.append(frame)
             if progress is not None:
-                progress(done, total)
+                progress(done, count)
     finally:
         # On Ctrl-C (or any error) the frames not started yet are dropped, not
         # rendered first: only the few in progress are waited for.

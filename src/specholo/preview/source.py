@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -379,7 +378,7 @@ def frames(source: PictureSource, count: int, size: tuple[int, int] = (512, 512)
     Raises:
         SpecholoError: the design does not move that way.
     """
-    from specholo.preview.motion import _check_frames, sweep
+    from specholo.preview.motion import _check_frames, draw_frames, sweep
 
     _check_frames(count)
     m = source.motion
@@ -415,18 +414,7 @@ def frames(source: PictureSource, count: int, size: tuple[int, int] = (512, 512)
     def one(k: int) -> np.ndarray:
         return still(sources[k], cams[k], states[k], roughness, grooves, ghost)
 
-    done: list[np.ndarray] = []
-    # numpy releases the GIL in its loops, so a few threads draw frames side by side.
-    pool = ThreadPoolExecutor(max_workers=max(1, workers or os.cpu_count() or 1))
-    try:
-        for n, frame in enumerate(pool.map(one, range(count)), start=1):
-            done.append(frame)
-            if progress is not None:
-                progress(n, count)
-    finally:
-        # On Ctrl-C (or any error) the frames not started yet are dropped.
-        pool.shutdown(wait=True, cancel_futures=True)
-    return done
+    return draw_frames(one, count, workers or os.cpu_count() or 1, progress)
 
 
 def views(source: PictureSource, step: float, progress: Progress | None = None) -> Any:
