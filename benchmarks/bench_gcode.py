@@ -25,8 +25,9 @@ MODEL = ROOT / "examples" / "bunny.obj"
 
 
 def run_one(n: int, dialect: str) -> dict[str, float]:
-    from specholo.fabrication.gcode import GcodeOptions, write_gcode
+    from specholo.fabrication.gcode import write_gcode
     from specholo.fabrication.order import order_paths
+    from specholo.fabrication.program import GcodeOptions
     from specholo.fabrication.timing import estimate_time
     from specholo.pipeline import DesignConfig, design
 

@@ -141,7 +141,8 @@ def _stage(stage: str, folder: Path) -> dict[str, float]:
         with tempfile.TemporaryDirectory(dir=folder) as tmp:
             out = Path(tmp)
             if stage == "gcode":
-                from specholo.fabrication.gcode import GcodeOptions, write_gcode
+                from specholo.fabrication.gcode import write_gcode
+                from specholo.fabrication.program import GcodeOptions
 
                 _, row["gcode_s"] = _timed(lambda: write_gcode(
                     out / "h.gcode", grooves, setup.tool, setup.machining,

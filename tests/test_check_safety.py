@@ -591,7 +591,7 @@ def test_inch_designs_pass_their_check(tmp_path: Path, capsys: pytest.CaptureFix
 @needs_rs274
 def test_inch_designs_run_in_linuxcnc(tmp_path: Path, capsys: pytest.CaptureFixture[str]
                                       ) -> None:
-    from specholo.fabrication.gcode import GcodeOptions
+    from specholo.fabrication.program import GcodeOptions
     from specholo.pipeline import load_design
 
     # a rigid holder's program (a spring holder's is read by rs274 in test_holders.py)

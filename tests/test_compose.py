@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -180,7 +181,7 @@ def test_four_axis_gcode_parses_in_linuxcnc(tmp_path: Path) -> None:
     path = tmp_path / "cup.ngc"
     path.write_text(prog.text)
     run = subprocess.run(["rs274", "-g", str(path)], capture_output=True, text=True,
-                         timeout=120, input="")
+                         timeout=120, input="", env={**os.environ, "HOME": str(tmp_path)})
     assert run.returncode == 0, run.stdout[-500:] + run.stderr[-500:]
     feeds = [ln for ln in run.stdout.splitlines() if "STRAIGHT_FEED" in ln]
     assert len(feeds) > 50

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import locale
 import math
+import os
 import re
 import subprocess
 from pathlib import Path
@@ -21,14 +22,9 @@ from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.gcode import (
-    DIALECTS,
-    MAX_ARC_OFFSET_MM,
-    SCALE,
-    GcodeOptions,
     GcodeStats,
     TextRows,
     chunk_bounds,
-    format_number,
     is_straight,
     path_chunks,
     split_wide_arcs,
@@ -36,6 +32,13 @@ from specholo.fabrication.gcode import (
     write_gcode,
 )
 from specholo.fabrication.gcode_reader import read_gcode
+from specholo.fabrication.program import (
+    DIALECTS,
+    MAX_ARC_OFFSET_MM,
+    SCALE,
+    GcodeOptions,
+    format_number,
+)
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -50,15 +53,20 @@ TOL = 1e-3  # rs274 prints 4 decimals
 
 def run_rs274(ngc: Path) -> list[tuple[str, str]]:
     """Interpret a program with rs274; fail on any error, return its canonical commands."""
+    # rs274 truncates and maps $HOME/.tool.mmap at start: two at once under one
+    # HOME die of SIGBUS, so each runs with the program's own folder as HOME
     proc = subprocess.run([str(RS274), "-g", str(ngc)], capture_output=True, text=True,
-                          cwd=ngc.parent, stdin=subprocess.DEVNULL, timeout=600, check=False)
+                          cwd=ngc.parent, stdin=subprocess.DEVNULL, timeout=600, check=False,
+                          env={**os.environ, "HOME": str(ngc.parent)})
     # rs274 exits 0 even on errors: it prints them instead of canonical commands
     # (this version on stderr, others on stdout), so both streams are checked
     bad = [line for line in proc.stdout.splitlines() if not _CANON.match(line)]
     bad += [line for line in proc.stderr.splitlines() if line.strip() not in ("", "executing")]
     assert not bad, "rs274 rejected the program:\n" + "\n".join(bad[:10])
     canon = [(m.group(1), m.group(2)) for m in map(_CANON.match, proc.stdout.splitlines()) if m]
-    assert any(name == "PROGRAM_END" for name, _ in canon), "rs274 stopped before M2"
+    assert any(name == "PROGRAM_END" for name, _ in canon), (
+        f"rs274 stopped before M2 (exit {proc.returncode}):\n"
+        + "\n".join(proc.stdout.splitlines()[-3:]))
     return canon
 
 

@@ -33,13 +33,14 @@ from specholo.fabrication.check import (
     check_program,
     limits_from_header,
 )
-from specholo.fabrication.gcode import GcodeOptions, drawn_extent, write_gcode
+from specholo.fabrication.gcode import drawn_extent, write_gcode
 from specholo.fabrication.leveling import (
     FOLLOW,
     level_program,
     leveled_limits,
     read_probe_log,
 )
+from specholo.fabrication.program import GcodeOptions
 from specholo.fabrication.timing import estimate_time, trapezoid_time
 from specholo.pipeline import DesignConfig
 from specholo.setup import SPRING_LIFT, Holder, Machining, Tool

@@ -12,7 +12,6 @@ from matplotlib.patches import PathPatch
 from matplotlib.text import Text
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.gcode import format_number
 from specholo.fabrication.pattern import (
     PAPERS,
     PT_PER_MM,
@@ -23,6 +22,7 @@ from specholo.fabrication.pattern import (
     tile_name,
     write_pattern,
 )
+from specholo.fabrication.program import format_number
 from specholo.setup import Setup
 from specholo.toolpaths.classic import design_classic
 from specholo.toolpaths.common import make_runs

@@ -17,7 +17,7 @@ from test_gcode import check_canon, needs_rs274, run_rs274
 from specholo.errors import SpecholoError
 from specholo.fabrication.check import limits_from_header
 from specholo.fabrication.dxf import write_dxf
-from specholo.fabrication.gcode import GcodeOptions, write_gcode
+from specholo.fabrication.gcode import write_gcode
 from specholo.fabrication.plate import (
     MARK_ARM,
     MARK_INSET,
@@ -26,6 +26,7 @@ from specholo.fabrication.plate import (
     Plate,
     fit_plate,
 )
+from specholo.fabrication.program import GcodeOptions
 from specholo.fabrication.svg import (
     LAYER_COLOURS,
     PLATE_COLOUR,

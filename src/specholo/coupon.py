@@ -692,7 +692,7 @@ def machining_estimate(coupon: Coupon) -> dict[str, Any]:
     the paths before its first, both at its own Z: the card's estimate is
     exact, the move from one rung onto the next included.
     """
-    from specholo.fabrication.gcode import GcodeOptions
+    from specholo.fabrication.program import GcodeOptions
     from specholo.fabrication.timing import estimate_time
 
     design = coupon.config.design
@@ -809,7 +809,8 @@ def write_coupon(coupon: Coupon, out: str | os.PathLike[str],
     import json
 
     from specholo.fabrication.atomic import atomic_open
-    from specholo.fabrication.gcode import GcodeOptions, write_gcode
+    from specholo.fabrication.gcode import write_gcode
+    from specholo.fabrication.program import GcodeOptions
     from specholo.fabrication.sheet import write_sheet
     from specholo.fabrication.svg import write_svg
     from specholo.staging import run_record, stage_design

@@ -148,7 +148,7 @@ def design_limits(d: Design) -> Any:
     lift (there the tip drags on the plate). In mm whatever the program's
     units: the check reads a G20 program in mm."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
-    from specholo.fabrication.gcode import GcodeOptions
+    from specholo.fabrication.program import GcodeOptions
 
     m = d.config.setup().machining
     width = d.config.cutter().section(d.config.depth_mm).width
@@ -283,8 +283,9 @@ def write_design(d: Design, out: str | os.PathLike[str],
     Returns:
         Seconds spent per output, and the machining estimate.
     """
-    from specholo.fabrication.gcode import GcodeOptions, check_grooves, write_gcode
+    from specholo.fabrication.gcode import check_grooves, write_gcode
     from specholo.fabrication.order import order_paths
+    from specholo.fabrication.program import GcodeOptions
     from specholo.fabrication.svg import write_svg
     from specholo.fabrication.timing import estimate_time
     from specholo.folders import check_out

@@ -61,12 +61,12 @@ from specholo.fabrication.gcode import (
     TextRows,
     check_grooves,
     drawn_extent,
-    format_number,
     in_order,
     is_straight,
     path_chunks,
 )
 from specholo.fabrication.plate import Plate
+from specholo.fabrication.program import format_number
 from specholo.fabrication.svg import (
     PLATE_COLOUR,
     PLATE_LAYER_NAME,

@@ -64,7 +64,7 @@ from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Literal, TypeVar
+from typing import TypeVar
 
 import numpy as np
 
@@ -73,16 +73,17 @@ from specholo._threads import concurrent_kernels_safe
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.plate import Plate
+from specholo.fabrication.program import (
+    FLAT_DRAWINGS,
+    MAX_ARC_OFFSET_MM,
+    SCALE,
+    Emitter,
+    GcodeOptions,
+    short_number,
+)
 from specholo.setup import Holder, Machining, Tool
 from specholo.toolpaths.grooves import Grooves, Segments
 
-#: Decimals of every written coordinate and feed in mm.
-DECIMALS = 5
-#: Written coordinates are integers in units of 1 / SCALE mm.
-SCALE = 10**DECIMALS
-#: Decimals of coordinates and feeds written in inches (a grid as fine as in mm).
-INCH_DECIMALS = 6
-MM_PER_INCH = 25.4
 #: Arcs are written as straight lines when they bulge less than this from their
 #: chord (mm) *and* turn less than ``STRAIGHT_TURN_RAD``: glints follow the
 #: tangent, so a long flat arc of a design must stay an arc.
@@ -93,97 +94,13 @@ STRAIGHT_TURN_RAD = 1e-5
 #: radii under 1.27 um as zero, and the rounded centre of a tinier arc could
 #: turn it into a near-full circle.
 MIN_ARC_RADIUS_MM = 5e-3
-#: Largest I or J (mm) written for single-precision firmware (GRBL, Marlin): a
-#: float keeps ~6e-5 mm at 1000 mm, and GRBL reads 8 significant digits, so
-#: with 5 decimals every digit of a smaller offset is read.
-MAX_ARC_OFFSET_MM = 1000.0
 #: Largest sagitta of a chord that replaces (part of) a wide arc, mm: half the
 #: grid, so the chords and the arc round to the same written points.
 CHORD_SAGITTA_MM = 0.5 / SCALE
 
-Dialect = Literal["grbl", "linuxcnc", "marlin"]
-Units = Literal["mm", "inch"]
-DIALECTS: tuple[str, ...] = ("grbl", "linuxcnc", "marlin")
-#: Dialects that drive a spindle and plunge in Z.
-MILL_DIALECTS: tuple[str, ...] = ("grbl", "linuxcnc")
-
 _CHUNK_ROWS = 1 << 16
 _MAX_COORD_MM = 1e9
 _MAX_CHORDS = 10**8
-_DIALECT_NAMES = {"grbl": "GRBL 1.1", "linuxcnc": "LinuxCNC RS274/NGC",
-                  "marlin": "Marlin, laser"}
-
-
-@dataclass(frozen=True)
-class GcodeOptions:
-    """How a program is written for a machine (feeds, heights and spindle are in
-    :class:`~specholo.setup.Machining`).
-
-    Attributes:
-        dialect: ``"grbl"`` (GRBL 1.1), ``"linuxcnc"`` or ``"marlin"`` (laser).
-        units: ``"mm"`` or ``"inch"``; every coordinate and feed is converted.
-        dwell: seconds to wait after starting the spindle (mill dialects; 0 for none).
-        header_lines: G-code lines written as they are after the modal setup line
-            (e.g. a work offset ``G54`` or coolant ``M8``).
-        laser_power: ``S`` value while the laser cuts (marlin), in the firmware's
-            power unit (0-255 by default).
-        laser_on: ``"M3"`` (constant power) or ``"M4"`` (power scaled with speed in
-            Marlin's dynamic laser mode).
-        dot_time: seconds the laser fires for a dot (marlin).
-        rapid_feed: travel feed of Marlin's ``G0``, mm/min (without G0_FEEDRATE
-            Marlin moves ``G0`` at the last ``F``).
-    """
-
-    dialect: Dialect = "grbl"
-    units: Units = "mm"
-    dwell: float = 2.0
-    header_lines: tuple[str, ...] = ()
-    laser_power: float = 255.0
-    laser_on: Literal["M3", "M4"] = "M3"
-    dot_time: float = 0.1
-    rapid_feed: float = 3000.0
-
-    def __post_init__(self) -> None:
-        if self.dialect not in DIALECTS:
-            raise SpecholoError(f"G-code dialect must be one of {', '.join(DIALECTS)}, "
-                                f"got {self.dialect!r}")
-        if self.units not in ("mm", "inch"):
-            raise SpecholoError(f"G-code units must be mm or inch, got {self.units!r}")
-        if self.laser_on not in ("M3", "M4"):
-            raise SpecholoError(f"laser on must be M3 or M4, got {self.laser_on!r}")
-        for name in ("dwell", "dot_time", "laser_power", "rapid_feed"):
-            v = float(getattr(self, name))
-            zero_ok = name in ("dwell", "dot_time")
-            if not math.isfinite(v) or v < 0 or (v == 0 and not zero_ok):
-                need = ">= 0" if zero_ok else "> 0"
-                raise SpecholoError(f"{name.replace('_', ' ')} must be a finite number {need}, "
-                                    f"got {v:g}")
-        object.__setattr__(self, "header_lines", tuple(self.header_lines))
-        for line in self.header_lines:
-            if not isinstance(line, str) or not line.strip() or \
-                    any(not 32 <= ord(c) < 127 for c in line) or len(line) > 200:
-                raise SpecholoError(f"header line must be one line of printable ASCII, "
-                                    f"got {line!r}")
-
-    @property
-    def mill(self) -> bool:
-        """True for the dialects that plunge a spinning cutter."""
-        return self.dialect in MILL_DIALECTS
-
-    @property
-    def decimals(self) -> int:
-        """Decimals of written coordinates and feeds."""
-        return DECIMALS if self.units == "mm" else INCH_DECIMALS
-
-    @property
-    def per_mm(self) -> float:
-        """Written units per mm."""
-        return 1.0 if self.units == "mm" else 1.0 / MM_PER_INCH
-
-    @property
-    def max_arc_offset(self) -> float:
-        """Largest I/J written, mm (infinite for LinuxCNC, which computes in doubles)."""
-        return math.inf if self.dialect == "linuxcnc" else MAX_ARC_OFFSET_MM
 
 
 @dataclass(frozen=True)
@@ -234,18 +151,6 @@ def is_straight(segments: Segments) -> np.ndarray:
         radius = chord * (1.0 + b * b) / (4.0 * b)
     flat = (sagitta < STRAIGHT_SAGITTA_MM) & (2.0 * np.arctan(b) < STRAIGHT_TURN_RAD)
     return flat | ~(radius >= MIN_ARC_RADIUS_MM)
-
-
-def format_number(value: float, decimals: int = DECIMALS) -> str:
-    """Fixed-point text of a number, '.' as decimal point whatever the locale.
-
-    Rounds half to even like the vectorised writer, and never gives ``-0.0000``.
-    """
-    scale = 10**decimals
-    q = round(float(value) * scale)
-    sign = "-" if q < 0 else ""
-    whole, frac = divmod(abs(q), scale)
-    return f"{sign}{whole}.{frac:0{decimals}d}" if decimals else f"{sign}{whole}"
 
 
 class TextRows:
@@ -416,15 +321,6 @@ def _write_rows(n: int, ops: np.ndarray, pool: np.ndarray, options: np.ndarray, 
     return pos
 
 
-def _comment(text: str, semicolon: bool = False) -> str:
-    # G-code comments cannot nest parentheses or span lines, and LinuxCNC reads
-    # lines of at most 255 characters.
-    clean = "".join(c if 32 <= ord(c) < 127 else "?" for c in text)[:200]
-    if semicolon:
-        return f"; {clean}"
-    return "(" + clean.replace("(", "[").replace(")", "]") + ")"
-
-
 def drawn_extent(grooves: Grooves) -> np.ndarray:
     """(2, 2) corners of the grooves' centrelines as the exporters write them:
     :meth:`~specholo.toolpaths.grooves.Grooves.extent` with the arcs they write
@@ -441,64 +337,6 @@ def drawn_extent(grooves: Grooves) -> np.ndarray:
     bulges = np.array(grooves.bulges, dtype=float)
     bulges[first[flat]] = 0.0
     return Grooves(grooves.vertices, bulges, grooves.offsets, grooves.stipple).extent()
-
-
-#: The drawings a flat design writes beside its program, which carry the plate's marks.
-FLAT_DRAWINGS = ("SVG", "DXF")
-
-
-def plate_lines(plate: Plate, options: GcodeOptions,
-                drawings: Sequence[str] = FLAT_DRAWINGS) -> list[str]:
-    """The header's plate block, comment texts in the program's units: the plate's
-    size, corners and thickness, the registration marks, and how to set the
-    origin. The words it quotes (``G10 L20``, ``G92``) set the origin of the
-    dialect's machine where the tool stands; nothing here moves it.
-
-    ``drawings`` names the drawings written with the program ("SVG", "DXF"),
-    whose PLATE layer holds the marks: the header names only those, so that a
-    maker looks for no file the design did not write."""
-    unit = "mm" if options.units == "mm" else "in"
-
-    def num(mm: float) -> str:
-        text = format_number(mm * options.per_mm, options.decimals).rstrip("0").rstrip(".")
-        return "0" if text in ("", "-0") else text
-
-    def xy(p: np.ndarray) -> str:
-        return f"X{num(p[0])} Y{num(p[1])}"
-
-    thick = f", {num(plate.thickness)} {unit} thick" if plate.thickness is not None else ""
-    corners = plate.corners()
-    marks = plate.marks()
-    lower_left = xy(corners[0])
-    if options.mill:
-        zero = (f"X0 Y0 on the origin mark at the plate centre, or G10 L20 P1 {lower_left} "
-                "with the tool on the lower-left corner; Z0 on the top surface")
-    else:
-        zero = (f"G92 X0 Y0 with the beam on the origin mark at the plate centre, or "
-                f"G92 {lower_left} on the lower-left corner; focus on the top surface")
-    return [
-        f"plate: {num(plate.width)} x {num(plate.height)} {unit}{thick}, "
-        f"corners {xy(corners[0])} to {xy(corners[2])}",
-        f"plate marks: crosshair and {num(plate.mark_radius)} {unit} radius circle, "
-        + _marks_drawn(drawings) + ", not cut",
-        "plate marks at: " + ", ".join(xy(m) for m in marks[:4]) + f", origin {xy(marks[4])}",
-        f"plate zero: {zero}",
-    ]
-
-
-def _marks_drawn(drawings: Sequence[str]) -> str:
-    """Where the plate marks are drawn, in words: "layer PLATE of the SVG and DXF"."""
-    names = list(drawings)
-    if not names:
-        return "in no drawing of this design"
-    listed = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
-    return f"layer PLATE of the {listed}"
-
-
-def _short_number(value: float) -> str:
-    """A setting (dwell, power) with up to 3 decimals and no trailing zeros."""
-    text = format_number(value, 3).rstrip("0").rstrip(".")
-    return text or "0"
 
 
 def check_grooves(grooves: Grooves) -> None:
@@ -744,11 +582,9 @@ def write_gcode(
     mill = opt.mill
     depth = tool.depth if depth is None else float(depth)
     width = tool.width if width is None else float(width)
+    em = Emitter(opt, machining, holder if mill else None)
     # the Z the cuts run at and the hop height, as the holder needs them
-    cut_depth = depth
-    spring = mill and holder is not None and holder.spring
-    if mill and holder is not None:
-        cut_depth, machining = holder.program(depth, machining)
+    cut_depth, machining = em.cut_depth(depth)
     # each path's plunge, where they differ: one of a few Z levels per path
     levels, level_of = np.array([cut_depth]), np.zeros(n_paths, dtype=np.int64)
     if mill and cut_depths is not None:
@@ -759,81 +595,25 @@ def write_gcode(
         cut_depth = float(levels[0]) if len(levels) == 1 else cut_depth
     safe = machining.safe_z
     dec = opt.decimals
-    scale = 10**dec * opt.per_mm  # written integers per mm
-
-    def num(mm: float) -> str:
-        return format_number(mm * opt.per_mm, dec)
-
-    def short(mm: float) -> str:  # a figure people read: no trailing zeros
-        return format_number(mm * opt.per_mm, dec).rstrip("0").rstrip(".") or "0"
-
-    unit = "mm" if opt.units == "mm" else "in"
-    comment = _comment if mill else (lambda text: _comment(text, semicolon=True))
-    head = [comment("specholo specular hologram"),
-            comment(f"dialect: {_DIALECT_NAMES[opt.dialect]}")]
-    if not mill:
-        needs = "LASER_FEATURE (M3/M4/M5) and ARC_SUPPORT (G2/G3)"
-        needs += ", INCH_MODE_SUPPORT (G20)" if opt.units == "inch" else ""
-        head.append(comment(f"needs Marlin built with {needs}"))
-    head.append(comment(f"units: {'mm' if opt.units == 'mm' else 'inch'}, absolute coordinates, "
-                        f"feed in {unit}/min"))
+    scale = em.scale  # written integers per mm
+    num = em.num
+    unit = em.unit
     if mill:
-        head += [
-            comment("origin: plate centre; X right, Y up, Z = 0 on the plate surface"),
-            comment(f"tool: {(header or {}).get('cutter', 'ball end')}, round tip radius "
-                    f"{num(tool.radius)} {unit}, groove width {num(width)} {unit}"),
-        ]
-        if len(levels) > 1:  # the caller's header says what each path's Z is for
-            head.append(comment(f"depth: by groove, Z{short(-levels[0])} to "
-                                f"Z{short(-levels[-1])} (see below)"))
-        elif spring:
-            assert holder is not None
-            head += [
-                comment(f"depth: {short(depth)} {unit} expected: the spring's force at "
-                        f"{short(holder.preload)} {unit} of preload sets it, not the Z"),
-                comment(f"holder: spring-loaded; Z0 with the tip touching the plate; cuts at "
-                        f"Z{short(-cut_depth)} (the spring compressed {short(cut_depth)} {unit}), "
-                        f"lifts to Z{short(machining.hop)} or Z{short(safe)} between strokes"),
-                comment(f"touch-off: over X0 Y0, a paper shim on the plate, jog the tip down in "
-                        f"{short(0.01)} {unit} steps until the shim is pinched; G10 L20 P1 Z<the "
-                        f"shim's thickness>, remove the shim"),
-                comment(f"preload: cut test strokes on scrap with this program's Z; turn the "
-                        f"holder's spring (or change --preload) until they are {short(depth)} "
-                        f"{unit} deep"),
-            ]
-        else:
-            head.append(comment(f"depth: {num(depth)} {unit}"))
-            if holder is not None:
-                head.append(comment(f"holder: rigid; cuts at Z{short(-depth)}: the Z is the "
-                                    "tip's, so the plate's Z must be known to a fraction of "
-                                    "the depth over the grooves"))
+        body = [f"tool: {(header or {}).get('cutter', 'ball end')}, round tip radius "
+                f"{num(tool.radius)} {unit}, groove width {num(width)} {unit}",
+                *em.depth_lines(depth, levels)]
     else:
-        head += [
-            comment("origin: plate centre; X right, Y up; no Z moves: focus on the plate first"),
-            comment(f"tool: laser, {opt.laser_on} S{_short_number(opt.laser_power)} while "
-                    f"cutting, dots fire {_short_number(opt.dot_time)} s"),
-            comment(f"depth: set by power and feed (design: {num(depth)} {unit}, "
-                    f"groove width {num(width)} {unit})"),
-        ]
-    head.append(comment(f"grooves: {n_paths}, dots: {n_dots}"))
-    head += [comment(f"{k}: {v}") for k, v in (header or {}).items() if k != "cutter"]
+        body = [f"tool: laser, {opt.laser_on} S{short_number(opt.laser_power)} while "
+                f"cutting, dots fire {short_number(opt.dot_time)} s",
+                f"depth: set by power and feed (design: {num(depth)} {unit}, "
+                f"groove width {num(width)} {unit})"]
+    body.append(f"grooves: {n_paths}, dots: {n_dots}")
     if plate is None:
         plate = Plate.fitted(drawn_extent(grooves), width)
-    head += [comment(text) for text in plate_lines(plate, opt, drawings)]
-    setup_codes = ["G21" if opt.units == "mm" else "G20", "G90"]
+    head = em.head("specholo specular hologram", body,
+                   {k: v for k, v in (header or {}).items() if k != "cutter"}, plate, drawings)
+    tail = em.tail()
     if mill:
-        head.append(" ".join([*setup_codes, "G17", "G94", "G40"]))
-    else:
-        head += setup_codes  # one command per line
-    head += list(opt.header_lines)
-    if mill:
-        spindle = machining.spindle > 0
-        if spindle:
-            head.append(f"M3 S{round(machining.spindle)}")
-            if opt.dwell > 0:
-                head.append(f"G4 P{_short_number(opt.dwell)}")
-        head.append(f"G0 Z{num(safe)}")
-        tail = (["M5"] if spindle else []) + ["M2"]
         stipple_open, stipple_close = "(stipple ", ")\n"
         start_text = f"G1 Z{num(-cut_depth)} F{num(machining.plunge)}\n"
         start_texts = [f"G1 Z{num(-d)} F{num(machining.plunge)}\n" for d in levels]
@@ -842,10 +622,8 @@ def write_gcode(
         dot_text = ""
         rapid_text = ""
     else:
-        head.append("M5")  # the laser stays off until the first groove
-        tail = []  # each groove ends with M5; Marlin has no program end
         stipple_open, stipple_close = "; stipple ", "\n"
-        start_text = f"{opt.laser_on} S{_short_number(opt.laser_power)}\n"
+        start_text = f"{opt.laser_on} S{short_number(opt.laser_power)}\n"
         start_texts = [start_text]
         end_text = "M5\n"
         hop_end_text = ""  # a laser has no Z: it travels by rapids with the beam off

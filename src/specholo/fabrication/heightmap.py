@@ -31,15 +31,9 @@ import numpy as np
 from specholo._compiling import kernel
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
-from specholo.fabrication.gcode import (
-    DECIMALS,
-    SCALE,
-    GcodeOptions,
-    TextRows,
-    format_number,
-    plate_lines,
-)
+from specholo.fabrication.gcode import TextRows
 from specholo.fabrication.plate import Plate
+from specholo.fabrication.program import DECIMALS, SCALE, GcodeOptions, format_number, plate_lines
 from specholo.setup import Machining
 from specholo.toolpaths.heightmap import HeightMap as HeightMap
 from specholo.toolpaths.ridged import RidgedPlate

@@ -34,7 +34,7 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open, part_prefix, public_mode, scratch
-from specholo.fabrication.gcode import format_number
+from specholo.fabrication.program import format_number
 
 if TYPE_CHECKING:
     from specholo.fabrication.check import Limits, Stock

@@ -49,7 +49,8 @@ from matplotlib.textpath import TextToPath
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
-from specholo.fabrication.gcode import check_grooves, format_number, is_straight
+from specholo.fabrication.gcode import check_grooves, is_straight
+from specholo.fabrication.program import format_number
 from specholo.fabrication.svg import arc_bounds
 from specholo.toolpaths.grooves import Grooves, Segments
 

@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch
 from matplotlib.path import Path
 
-from specholo.fabrication.gcode import check_grooves, format_number, is_straight
+from specholo.fabrication.gcode import check_grooves, is_straight
 from specholo.fabrication.pattern import (
     _DOT_MM,
     _FONT,
@@ -61,6 +61,7 @@ from specholo.fabrication.pattern import (
     tiling,
     write_pdf,
 )
+from specholo.fabrication.program import format_number
 from specholo.fabrication.svg import arc_bounds
 from specholo.toolpaths.grooves import Grooves, Segments
 

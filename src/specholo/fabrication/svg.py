@@ -43,13 +43,13 @@ from specholo.fabrication.gcode import (
     TextRows,
     check_grooves,
     drawn_extent,
-    format_number,
     in_order,
     is_straight,
     path_chunks,
     slice_paths,
 )
 from specholo.fabrication.plate import Plate
+from specholo.fabrication.program import format_number
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves, Segments
 
