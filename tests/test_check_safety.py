@@ -540,7 +540,7 @@ def test_compose_rapids_clear_the_hosts_top(tmp_path: Path,
     assert code == 0, capsys.readouterr().err
     text = (out / "hologram.gcode").read_text().splitlines()
     rapids = [ln for ln in text if ln.startswith("G0 Z")]
-    assert rapids and all(ln == "G0 Z0.5000" for ln in rapids)
+    assert rapids and all(ln == "G0 Z0.50000" for ln in rapids)
     check = json.loads((out / "hologram.json").read_text())["gcode"]["check"]
     assert check["violations"] == 0 and check["safe_z"] == 0.5
     assert 0 < check["deepest_cut_mm"] <= 0.02 + 2e-3

@@ -359,9 +359,9 @@ def test_tilted_panels_set_back_get_a_checked_program(tmp_path: Path, panels: st
     origin = next(ln for ln in lines if ln.startswith("(origin:"))
     assert ("crosses the axis" in origin) == on_axis
     assert ("highest point" in origin) != on_axis
-    assert f"Z{zero:.4f}".rstrip("0").rstrip(".") + " in that frame" in origin
+    assert f"Z{zero:.5f}".rstrip("0").rstrip(".") + " in that frame" in origin
     # rapids at the safe height, 1 mm, above the highest corner
-    assert next(ln for ln in lines if ln.startswith("G0 Z")) == f"G0 Z{top - zero + 1.0:.4f}"
+    assert next(ln for ln in lines if ln.startswith("G0 Z")) == f"G0 Z{top - zero + 1.0:.5f}"
     # each cut's tip lies the depth into the panel straight under it, at most
     cuts = np.array([[float(w[1:]) for w in ln.split()[1:4]] for ln in lines
                      if ln.startswith("G1 X")])

@@ -234,6 +234,7 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
     """
     from specholo.fabrication.heightmap import RIDGED_FILES, write_raster_gcode, write_ridged_files
     from specholo.fabrication.plate import Plate
+    from specholo.fabrication.program import GcodeOptions
     from specholo.preview.preview import render_field_preview
     from specholo.staging import stage_design
 
@@ -255,12 +256,14 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
                 header={"design": "ridged", "stipples": str(len(d.points)),
                         "cutter": info["tool"]["description"], **ridged_limits(d).header()},
                 plate=Plate.from_corners(plate_edges(d.plate.heights),
-                                         d.config.stock_thickness))
+                                         d.config.stock_thickness),
+                options=GcodeOptions(dialect=d.config.dialect,  # type: ignore[arg-type]
+                                     units=d.config.units))  # type: ignore[arg-type]
             timings["gcode"] = time.perf_counter() - t0
             t0 = time.perf_counter()
             safety = stage.check(path.name, ridged_limits(d))
             timings["gcode check"] = time.perf_counter() - t0
-            machining = {"dialect": d.config.dialect, "units": "mm",
+            machining = {"dialect": d.config.dialect, "units": d.config.units,
                          "ball_radius_mm": d.config.ball_radius,
                          "passes": stats.passes, "lines": stats.lines,
                          "cutting_length_mm": stats.cutting_length_mm,

@@ -324,42 +324,28 @@ def _unrolled(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
 
 
 def write_path_gcode(path: Path, design: SteadyDesign, tool: Tool, machining: Machining,
-                     header: dict[str, str], plate: Any = None) -> int:
-    """G-code for the cuts, atomically: a vertical ball-end tool whose tip follows
+                     header: dict[str, str], plate: Any = None, options: Any = None) -> int:
+    """G-code for the cuts, atomically, through the one emitter
+    (``fabrication.program.Emitter``): a vertical ball-end tool whose tip follows
     each cut's centre path R lower, in X, Y and Z; ``plate``
     (``fabrication.plate.Plate``), if given, named in the header: its size,
     thickness and corners and how to set the origin (no registration marks: a
-    steady design draws no SVG or DXF to carry them). Returns the number of lines."""
+    steady design draws no SVG or DXF to carry them); ``options``
+    (``fabrication.program.GcodeOptions``) the dialect and units, a mill's
+    (default GRBL in mm). Returns the number of lines."""
     from specholo.fabrication.atomic import atomic_open
-    from specholo.fabrication.surface_gcode import plate_comments
+    from specholo.fabrication.program import Emitter, GcodeOptions
 
-    def f(v: float) -> str:
-        s = f"{v:.5f}"
-        return "0.00000" if s == "-0.00000" else s
-
+    em = Emitter(options or GcodeOptions(), machining)
+    em.require_mill("a steady design's program")
     tips = tool_tips(design, tool)
-    lines = ["(specholo: scoops for a steady image under a moving light)",
-             "(units: mm, absolute coordinates, feed in mm/min)",
-             "(origin: plate centre; X right, Y up, Z = 0 on the plate surface)"]
-    lines += [f"({k}: {v})" for k, v in header.items()]
-    if plate is not None:
-        lines += [f"({text})" for text in plate_comments(plate)]
-    lines.append("G21 G90 G17 G94")
-    if machining.spindle > 0:
-        lines.append(f"M3 S{machining.spindle:.0f}")
-    safe = machining.safe_z
-    lines.append(f"G0 Z{f(safe)}")
+    lines = em.head("specholo: scoops for a steady image under a moving light", (), header,
+                    plate, None)
     for c in range(design.n_cuts):
         tip = tips[design.offsets[c]:design.offsets[c + 1]]
-        lines.append(f"(stipple {int(design.stipple[c])} eye {'LR'[int(design.eye[c])]})")
-        lines.append(f"G0 X{f(tip[0, 0])} Y{f(tip[0, 1])}")
-        lines.append(f"G1 Z{f(tip[0, 2])} F{machining.plunge:.1f}")
-        lines.append(f"F{machining.feed:.1f}")
-        lines.extend(f"G1 X{f(x)} Y{f(y)} Z{f(z)}" for x, y, z in tip[1:])
-        lines.append(f"G0 Z{f(safe)}")
-    if machining.spindle > 0:
-        lines.append("M5")
-    lines.append("M2")
+        lines += em.polyline(tip, f"stipple {int(design.stipple[c])} eye "
+                                  f"{'LR'[int(design.eye[c])]}")
+    lines += em.tail()
     with atomic_open(path) as fh:
         fh.write("\n".join(lines) + "\n")
     return len(lines)

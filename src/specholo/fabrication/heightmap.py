@@ -21,7 +21,7 @@ import io
 import json
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +33,7 @@ from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.gcode import TextRows
 from specholo.fabrication.plate import Plate
-from specholo.fabrication.program import DECIMALS, SCALE, GcodeOptions, format_number, plate_lines
+from specholo.fabrication.program import Emitter, GcodeOptions
 from specholo.setup import Machining
 from specholo.toolpaths.heightmap import HeightMap as HeightMap
 from specholo.toolpaths.ridged import RidgedPlate
@@ -393,7 +393,8 @@ def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: floa
                        machining: Machining, stepover: float | None = None,
                        tolerance: float = 5e-4, dwell: float = 2.0,
                        header: dict[str, str] | None = None,
-                       plate: Plate | None = None) -> RasterStats:
+                       plate: Plate | None = None,
+                       options: GcodeOptions | None = None) -> RasterStats:
     """Write a ball-end raster finishing program for the surface, atomically.
 
     Passes run along x, alternating direction, one every ``stepover`` in y,
@@ -403,8 +404,9 @@ def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: floa
     next, one stepover on, the tool moves across above both passes' tips
     between their ends; after a skipped pass it retracts to the safe height,
     moves there at rapid and plunges at the plunge feed. The program: header
-    comments, ``G21 G90 G17 G94 G40``, the spindle and a dwell, the safe
-    height, the passes, a retract, ``M5 M2``.
+    comments, then the one emitter's set-up (:class:`~specholo.fabrication.program.Emitter`:
+    units, the spindle and a dwell, the safe height), the passes, a retract,
+    ``M5 M2``.
 
     Args:
         path: destination file.
@@ -415,9 +417,10 @@ def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: floa
         tolerance: largest height error of the thinned profile, mm.
         dwell: seconds to wait after starting the spindle.
         header: extra ``key: value`` comment lines.
-        plate: the plate the header's plate block names (its size, corners,
-            marks and zero, as a grooved plate's program gives them), or None
-            for no block.
+        plate: the plate the header's plate block names (its size, corners
+            and zero; a ridged design draws no marks), or None for no block.
+        options: dialect and units (a mill's); default GRBL in mm. ``dwell``
+            is taken from the argument, not the options.
 
     Returns:
         Counts, length, deepest tip and time.
@@ -439,32 +442,28 @@ def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: floa
     xs = hm.x[m:nx - m]
     safe = machining.safe_z
 
+    em = Emitter(replace(options or GcodeOptions(), dwell=dwell), machining)
+    em.require_mill("a ridged plate's raster")
+    num = em.num
+    scale = em.scale
+    dec = em.decimals
+
     def q(v: np.ndarray) -> np.ndarray:
-        return np.rint(np.asarray(v) * SCALE).astype(np.int64)
+        return np.rint(np.asarray(v) * scale).astype(np.int64)
 
     step_mm = (rows[1] - rows[0]) * res if rows.size > 1 else 0.0
-    head = [_comment(text) for text in (
-        "specholo height map, ball-end raster finishing",
-        "dialect: GRBL 1.1 / LinuxCNC, units: mm, absolute coordinates, feed in mm/min",
-        "origin: plate centre; X right, Y up, Z = 0 on the plate surface",
-        f"tool: ball end, radius {format_number(radius)} mm",
-        f"pass rows: {rows.size} along X, stepover {format_number(step_mm)} mm, "
-        f"chord tolerance {format_number(tolerance)} mm",
-        f"deepest tip: {format_number(float(tip.min()))} mm",
-        *(f"{k}: {v}" for k, v in (header or {}).items()),
-        *([] if plate is None else plate_lines(plate, GcodeOptions())))]
-    head.append("G21 G90 G17 G94 G40")
-    if machining.spindle > 0:
-        head.append(f"M3 S{round(machining.spindle)}")
-        if dwell > 0:
-            head.append(f"G4 P{format_number(dwell, 3).rstrip('0').rstrip('.')}")
-    head.append(f"G0 Z{format_number(safe)}")
+    unit = em.unit
+    body = [f"tool: ball end, radius {num(radius)} {unit}",
+            f"pass rows: {rows.size} along X, stepover {num(step_mm)} {unit}, "
+            f"chord tolerance {num(tolerance)} {unit}",
+            f"deepest tip: {num(float(tip.min()))} {unit}"]
+    head = em.head("specholo height map, ball-end raster finishing", body, header, plate, None)
     n_lines = len(head)
     points = 0
     length = 0.0
-    feed_text = f" F{format_number(machining.feed)}"
+    feed_text = f" F{num(machining.feed)}"
     written = 0
-    plunge_text = f" F{format_number(machining.plunge)}"
+    plunge_text = f" F{num(machining.plunge)}"
     with atomic_open(path, "wb", encoding=None) as fh:
         fh.write(("\n".join(head) + "\n").encode("ascii"))
         prev: tuple[int, int, float, float] | None = None  # pass, column, y, z at its end
@@ -492,26 +491,26 @@ def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: floa
                 lift = max(float(tip[k - 1, lo:hi + 1].max()), float(prof[lo:hi + 1].max()),
                            pz, float(z[0]))
                 if lift > pz:
-                    out.append(f"G1 Z{format_number(lift)}{feed_text}")
-                out.append(f"G1 X{format_number(x[0])} Y{format_number(y)}{feed_text}")
+                    out.append(f"G1 Z{num(lift)}{feed_text}")
+                out.append(f"G1 X{num(x[0])} Y{num(y)}{feed_text}")
                 if z[0] < lift:
-                    out.append(f"G1 Z{format_number(z[0])}")
+                    out.append(f"G1 Z{num(z[0])}")
                 length += (lift - pz) + math.hypot(float(xs[col] - x[0]), y - py) \
                     + (lift - float(z[0]))
                 first_feed = ""
             else:
                 if prev is not None:
-                    out.append(f"G0 Z{format_number(safe)}")
-                out.append(f"G0 X{format_number(x[0])} Y{format_number(y)}")
-                out.append(f"G1 Z{format_number(z[0])}{plunge_text}")
+                    out.append(f"G0 Z{num(safe)}")
+                out.append(f"G0 X{num(x[0])} Y{num(y)}")
+                out.append(f"G1 Z{num(z[0])}{plunge_text}")
                 length += safe - float(z[0])
             fh.write(("\n".join(out) + "\n").encode("ascii"))
             n_lines += len(out)
             t = TextRows(len(x) - 1)
             t.text("G1 X")
-            t.number(q(x[1:]), DECIMALS)
+            t.number(q(x[1:]), dec)
             t.text(" Z")
-            t.number(q(z[1:]), DECIMALS)
+            t.number(q(z[1:]), dec)
             if first_feed and len(x) > 1:
                 first = np.zeros(len(x) - 1, dtype=bool)
                 first[0] = True
@@ -522,7 +521,7 @@ def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: floa
             points += len(x)
             length += float(np.sum(np.hypot(np.diff(x), np.diff(z))))
             prev = (k, int(keep[-1]), y, float(z[-1]))
-        tail = [f"G0 Z{format_number(safe)}"] + (["M5"] if machining.spindle > 0 else []) + ["M2"]
+        tail = em.tail(safe)
         fh.write(("\n".join(tail) + "\n").encode("ascii"))
         n_lines += len(tail)
     return RasterStats(lines=n_lines, passes=written, points=points,

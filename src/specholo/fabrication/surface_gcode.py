@@ -40,6 +40,7 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.check import Limits, Stock, check_program, tool_kind
 from specholo.fabrication.plate import STOCK_THICKNESS, Plate
+from specholo.fabrication.program import Emitter, GcodeOptions
 from specholo.hosts.surfaces import Cylinder, HeightField, Host, MeshHost, Panels, Plane, Sphere
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.conforming import ConformingGrooves
@@ -77,73 +78,50 @@ class SurfaceProgram:
     cut_length: float
 
 
-def _f(v: float) -> str:
-    s = f"{v:.4f}"
-    return "0.0000" if s == "-0.0000" else s
-
-
 def _short(v: float) -> str:
     """A length for a comment: up to 4 decimals, no trailing zeros."""
     s = f"{v:.4f}".rstrip("0").rstrip(".")
     return "0" if s in ("", "-0") else s
 
 
-def plate_comments(plate: Plate) -> list[str]:
-    """The plate a program cuts, as comment texts (mm, a mill's words): its size,
-    thickness and corners, and how to set the origin. No registration marks:
-    they are drawn on a flat design's SVG and DXF, which these programs have
-    none of."""
-    t = f", {_short(plate.thickness)} mm thick" if plate.thickness is not None else ""
-    x0, y0, x1, y1 = (_short(v) for v in (plate.x0, plate.y0, plate.x1, plate.y1))
-    return [f"plate: {_short(plate.width)} x {_short(plate.height)} mm{t}, corners X{x0} "
-            f"Y{y0} to X{x1} Y{y1}",
-            f"plate zero: X0 Y0 at the plate centre, or G10 L20 P1 X{x0} Y{y0} with the tool "
-            "on the lower-left corner; Z0 on the top surface"]
-
-
-def _header(grooves: ConformingGrooves, host: Host, tool: Tool, machining: Machining,
-            axes: int, thickness: float, limits: Limits) -> list[str]:
+def _head(em: Emitter, host: Host, tool: Tool, axes: int, thickness: float, limits: Limits,
+          safe: float) -> list[str]:
     """The program's head: what it cuts, with what, on what, and its limits where
-    a header can name them; then the modal setup."""
-    lines = [f"specholo: grooves on a {host.kind} host, {axes}-axis",
-             "units: mm, absolute coordinates, feed in mm/min"]
+    a header can name them; then the emitter's set-up, rising to ``safe``."""
     if axes == 4:
-        lines.append("origin: X along the cylinder's axis from its middle, A turns it "
-                     "in degrees, Z = 0 at the top of its surface")
+        origin = ("origin: X along the cylinder's axis from its middle, A turns it "
+                  "in degrees, Z = 0 at the top of its surface")
     elif isinstance(host, Plane):
-        lines.append("origin: plate centre; X right, Y up, Z = 0 on the plate surface")
+        origin = "origin: plate centre; X right, Y up, Z = 0 on the plate surface"
     else:
         zero, on_axis = program_zero(host)
-        shift = _short(float(zero[2]))
+        shift = em.short(float(zero[2]))
         if on_axis:
             where = "where the host's front crosses the axis" + (
                 "" if shift == "0" else f", Z{shift} in that frame")
         else:
-            where = (f"at the host's highest point X{_short(float(zero[0]))} "
-                     f"Y{_short(float(zero[1]))}, Z{shift} in that frame: its front does not "
+            where = (f"at the host's highest point X{em.short(float(zero[0]))} "
+                     f"Y{em.short(float(zero[1]))}, Z{shift} in that frame: its front does not "
                      "cross the axis")
-        lines.append("origin: the host's frame, as hologram.json's host says; X right, Y up, Z = 0 "
-                     + where)
-    lines += [f"tool: ball end, round tip radius {_short(tool.radius)} mm, groove width "
-              f"{_short(tool.width)} mm",
-              f"depth: {_short(tool.depth)} mm below the surface"]
+        origin = ("origin: the host's frame, as hologram.json's host says; X right, Y up, "
+                  "Z = 0 " + where)
+    unit = em.unit
+    body = [f"tool: ball end, round tip radius {em.short(tool.radius)} {unit}, groove width "
+            f"{em.short(tool.width)} {unit}",
+            f"depth: {em.short(tool.depth)} {unit} below the surface"]
     header = limits.header()
+    plate = None
     if header:
-        lines += plate_comments(Plate(limits.stock.x0, limits.stock.y0, limits.stock.x1,
-                                      limits.stock.y1, thickness))
-        lines += [f"{k}: {v}" for k, v in header.items()]
+        plate = Plate(limits.stock.x0, limits.stock.y0, limits.stock.x1, limits.stock.y1,
+                      thickness)
     else:
-        lines += [f"host: {_describe(host)}, {_short(thickness)} mm of material under its "
-                  "surface",
-                  "limits: not in this header: they follow the host's curved surface, which "
-                  "no header line can name; the program passed them when it was written "
-                  "as hologram.json's gcode.check records"]
-    # a comment holds no parentheses of its own (G-code does not nest them)
-    lines = [f"({text})" for text in lines]
-    lines.append("G21 G90 G17 G94")
-    if machining.spindle > 0:
-        lines.append(f"M3 S{machining.spindle:.0f}")
-    return lines
+        body += [f"host: {_describe(host)}, {em.short(thickness)} {unit} of material under its "
+                 "surface",
+                 "limits: not in this header: they follow the host's curved surface, which "
+                 "no header line can name; the program passed them when it was written "
+                 "as hologram.json's gcode.check records"]
+    return em.head(f"specholo: grooves on a {host.kind} host, {axes}-axis", body, header,
+                   plate, None, origin, safe)
 
 
 def _describe(host: Host) -> str:
@@ -156,8 +134,9 @@ def _describe(host: Host) -> str:
 
 def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
                         machining: Machining, axes: int = 3,
-                        thickness: float = STOCK_THICKNESS) -> SurfaceProgram:
-    """Write the grooves as G-code.
+                        thickness: float = STOCK_THICKNESS,
+                        options: GcodeOptions | None = None) -> SurfaceProgram:
+    """Write the grooves as G-code (through the one :class:`~specholo.fabrication.program.Emitter`).
 
     Args:
         grooves: the grooves (centreline samples with host normals).
@@ -166,28 +145,30 @@ def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
         machining: feeds, safe height, spindle.
         axes: 3, or 4 for a cylinder on a rotary axis.
         thickness: the material under the host's surface, mm (the header names it).
+        options: dialect and units (a mill's: the tool moves in Z); default GRBL in mm.
 
     Returns:
         The program.
 
     Raises:
-        SpecholoError: 4 axes for a host that is not a cylinder.
+        SpecholoError: 4 axes for a host that is not a cylinder, or a laser dialect.
     """
     if axes not in (3, 4):
         raise SpecholoError(f"axes must be 3 or 4, got {axes}")
     if axes == 4 and not isinstance(host, Cylinder):
         raise SpecholoError("4-axis output is for a cylinder host (a rotary A axis)")
-    lines = _header(grooves, host, tool, machining, axes, thickness,
-                    surface_limits(grooves, host, tool, machining, axes, thickness))
+    em = Emitter(options or GcodeOptions(), machining)
+    em.require_mill("a program on a curved host")
+    limits = surface_limits(grooves, host, tool, machining, axes, thickness)
     paths = 0
     dropped = 0
     length = 0.0
+    body: list[str] = []
     if axes == 3:
         # machine Z is the host's z less the program's zero: the rapids clear the
         # host's highest point by the safe height whatever its height in the frame
         shift = np.array([0.0, 0.0, program_zero(host)[0][2]])
         safe = host_top(host) - shift[2] + machining.safe_z
-        lines.append(f"G0 Z{_f(safe)}")
         limit = math.cos(reach_tilt(tool))
         for path in np.split(np.arange(len(grooves.point)),
                              np.flatnonzero(np.diff(grooves.stripe)) + 1):
@@ -202,34 +183,22 @@ def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
                     continue
                 tip = (grooves.point[run] + (tool.radius - tool.depth) * grooves.normal[run]
                        - np.array([0.0, 0.0, tool.radius]) - shift)
-                lines.append(f"(stipple {int(grooves.stipple[run[0]])})")
-                lines.append(f"G0 X{_f(tip[0, 0])} Y{_f(tip[0, 1])}")
-                lines.append(f"G1 Z{_f(tip[0, 2])} F{machining.plunge:.1f}")
-                lines.append(f"F{machining.feed:.1f}")
-                lines.extend(f"G1 X{_f(x)} Y{_f(y)} Z{_f(z)}" for x, y, z in tip[1:])
-                lines.append(f"G0 Z{_f(safe)}")
+                body += em.polyline(tip, f"stipple {int(grooves.stipple[run[0]])}", safe)
                 length += float(np.linalg.norm(np.diff(tip, axis=0), axis=1).sum())
                 paths += 1
     else:
         assert isinstance(host, Cylinder)
-        lines.append(f"G0 Z{_f(machining.safe_z)}")
+        safe = machining.safe_z
         for path in np.split(np.arange(len(grooves.point)),
                              np.flatnonzero(np.diff(grooves.stripe)) + 1):
             if path.size < 2:
                 continue
             p = grooves.point[path]
             a = np.degrees(np.unwrap(host.angle(p)))
-            lines.append(f"(stipple {int(grooves.stipple[path[0]])})")
-            lines.append(f"G0 X{_f(p[0, 1])} Y0.0000 A{_f(a[0])}")
-            lines.append(f"G1 Z{_f(-tool.depth)} F{machining.plunge:.1f}")
-            lines.append(f"F{machining.feed:.1f}")
-            lines.extend(f"G1 X{_f(x)} A{_f(aa)}" for x, aa in zip(p[1:, 1], a[1:], strict=True))
-            lines.append(f"G0 Z{_f(machining.safe_z)}")
+            body += em.rotary(p[:, 1], a, tool.depth, f"stipple {int(grooves.stipple[path[0]])}")
             length += float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
             paths += 1
-    if machining.spindle > 0:
-        lines.append("M5")
-    lines.append("M2")
+    lines = _head(em, host, tool, axes, thickness, limits, safe) + body + em.tail()
     return SurfaceProgram("\n".join(lines) + "\n", paths, dropped, length)
 
 
