@@ -17,7 +17,7 @@ import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -36,6 +36,9 @@ from specholo.hosts.surfaces import (
 from specholo.scene.motion import MODES, Family, MotionSpec, Position, SceneKey, rot_z
 from specholo.scene.pose import UP_AXES, Pose
 from specholo.setup import MAX_FEED, MAX_SPINDLE, MIN_SAFE_Z, Machining, Tool
+
+if TYPE_CHECKING:
+    from specholo.fabrication.program import GcodeOptions
 
 #: Ranges of a composition's machining numbers (lowest, highest, unit): those
 #: of real machines. Feeds from a crawl to beyond the fastest routers (60 m/min);
@@ -60,7 +63,8 @@ _KEYS: dict[str, set[str]] = {
     "light": {"elevation", "distance", "stop"},
     "viewer": {"distance", "range", "height", "ipd"},
     "tool": {"radius", "depth"},
-    "machining": {"feed", "plunge", "safe_z", "spindle", "axes", "thickness"},
+    "machining": {"feed", "plunge", "safe_z", "spindle", "axes", "thickness", "dialect",
+                  "units"},
     "scene": {"model", "frames", "size", "center_z", "from", "to", "turn", "shift", "yaw",
               "stipples", "up", "rotate_x", "rotate_y", "rotate_z", "offset_x", "offset_y",
               "fit"},
@@ -196,6 +200,15 @@ class Composition:
     settings: dict[str, Any] = field(default_factory=dict)
     #: The material under the host's surface, mm: no cut may reach it.
     thickness: float = STOCK_THICKNESS
+    #: The program's G-code dialect (a mill's: "grbl" or "linuxcnc") and units.
+    dialect: str = "grbl"
+    units: str = "mm"
+
+    def gcode_options(self) -> GcodeOptions:
+        """The ``fabrication.program.GcodeOptions`` its program is written with."""
+        from specholo.spin import program_options
+
+        return program_options(self)
 
 
 #: Range of a host's sides and lengths (a plane's width and height, a cylinder's
@@ -336,6 +349,8 @@ def parse_composition(text: str, base: Path) -> Composition:
     """
     import tomllib
 
+    from specholo.spin import check_program_options
+
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -372,6 +387,9 @@ def parse_composition(text: str, base: Path) -> Composition:
                             for key, default in (("feed", 300.0), ("plunge", 100.0),
                                                  ("safe_z", 1.0), ("spindle", 0.0))))
     thickness = _machining(mach, "thickness", STOCK_THICKNESS)
+    dialect, units = mach.get("dialect", "grbl"), mach.get("units", "mm")
+    check_program_options(dialect, units, ("composition: machining.dialect",
+                                           "composition: machining.units"))
     if not tool.depth < thickness:
         raise SpecholoError(f"composition: tool.depth = {tool.depth:g} mm would cut through "
                             f"the {thickness:g} mm of material under the surface "
@@ -441,7 +459,7 @@ def parse_composition(text: str, base: Path) -> Composition:
                 stipples=stipples, yaw=yaw, pose=pose, fit=fit))
     settings = {"text": text, "base": str(base)}
     return Composition(motion, host, tool, machining, axes, band, seed, scenes, settings,
-                       thickness)
+                       thickness, dialect, units)
 
 
 def _machining(table: dict[str, Any], key: str, default: float) -> float:
@@ -704,7 +722,7 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
     inputs = [*inputs, *composition_files(comp)]
     check_out(out, inputs)  # before the G-code is made and checked
     program = write_surface_gcode(d.grooves, comp.host, comp.tool, comp.machining, comp.axes,
-                                  comp.thickness)
+                                  comp.thickness, comp.gcode_options())
     with stage_design(out, inputs, kind="composition") as stage:
         tmp = stage.path
         with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
@@ -726,7 +744,8 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
                 "tool": {"radius": comp.tool.radius, "depth": comp.tool.depth,
                          "width": comp.tool.width},
                 "band_mm": comp.band, "stats": d.stats,
-                "gcode": {"axes": comp.axes, "paths": program.paths,
+                "gcode": {"axes": comp.axes, "dialect": comp.dialect, "units": comp.units,
+                          "paths": program.paths,
                           "samples_beyond_3axis_reach": program.dropped_samples,
                           "cut_length_mm": program.cut_length, "check": check}}
         with atomic_open(tmp / "hologram.json") as fh:

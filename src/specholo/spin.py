@@ -14,7 +14,7 @@ import os
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -33,6 +33,9 @@ from specholo.toolpaths.spinning import (
     rotate_z,
     vertex_angles,
 )
+
+if TYPE_CHECKING:
+    from specholo.fabrication.program import GcodeOptions
 
 #: The setup's angles, radians inside, saved in degrees.
 SPIN_ANGLES = ("elevation",)
@@ -93,6 +96,36 @@ def check_job_bounds(config: Any) -> None:
                             f"{config.stock_thickness:g} mm plate: give a larger --stock-thickness")
 
 
+#: Why the laser dialect is refused: these programs plunge a cutter in Z.
+NO_LASER = "a laser cannot cut these programs"
+
+
+def check_program_options(dialect: Any, units: Any, names: tuple[str, str] = ("--dialect",
+                                                                              "--units")) -> None:
+    """Refuse a dialect or unit a turning plate's, a steady image's or a
+    composition's program cannot be written in, in one line naming the option
+    (``names``: how the caller spells the two) and its choices: these programs
+    plunge a cutter, so a mill's dialect (grbl, linuxcnc), in mm or inch."""
+    from specholo.fabrication.program import MILL_DIALECTS
+
+    if not isinstance(dialect, str) or dialect not in MILL_DIALECTS:
+        raise SpecholoError(f"{names[0]} must be {' or '.join(MILL_DIALECTS)} ({NO_LASER}), "
+                            f"got {repr(dialect)[:40]}")
+    if not isinstance(units, str) or units not in ("mm", "inch"):
+        raise SpecholoError(f"{names[1]} must be mm or inch, got {repr(units)[:40]}")
+
+
+def program_options(config: Any) -> GcodeOptions:
+    """The ``fabrication.program.GcodeOptions`` a job's config
+    (``SpinConfig``, ``SteadyConfig``, ``compose.Composition``) writes its programs with:
+    its dialect and units."""
+    from typing import cast
+
+    from specholo.fabrication.program import Dialect, GcodeOptions, Units
+
+    return GcodeOptions(dialect=cast(Dialect, config.dialect), units=cast(Units, config.units))
+
+
 @dataclass(frozen=True)
 class SpinConfig:
     """A turning-plate hologram: the model's placement, stippling, optics and tool.
@@ -119,6 +152,9 @@ class SpinConfig:
             from its edges, for eyes all round the axis (:func:`design_spin`).
         stock_thickness: the blank's thickness, mm: no cut (the relief's
             included) may reach its back.
+        dialect: the programs' G-code dialect, ``"grbl"`` or ``"linuxcnc"``
+            (a laser cannot cut them).
+        units: the programs' units, ``"mm"`` or ``"inch"``.
     """
 
     size: float = 40.0
@@ -136,12 +172,16 @@ class SpinConfig:
     plate_height: float | None = None
     fit: bool = False
     stock_thickness: float = STOCK_THICKNESS
+    # after the rest: folders written before they were settings lack them (GRBL in mm)
+    dialect: str = "grbl"
+    units: str = "mm"
 
     def __post_init__(self) -> None:
         from specholo.fabrication.plate import check_plate_options
 
         check_plate_options(self.plate_width, self.plate_height, self.fit)
         check_job_bounds(self)
+        check_program_options(self.dialect, self.units)
         if not 1 <= self.stipples <= 200_000:
             raise SpecholoError(f"stipples must be in [1, 200000], got {self.stipples}")
         if not 1 <= self.turns <= 8:
@@ -155,7 +195,8 @@ class SpinConfig:
                      occlusion: bool = True, tool_radius: float = 0.25, depth: float = 0.08,
                      pose: Pose | None = None, plate_width: float | None = None,
                      plate_height: float | None = None, fit: bool = False,
-                     stock_thickness: float = STOCK_THICKNESS) -> SpinConfig:
+                     stock_thickness: float = STOCK_THICKNESS, dialect: str = "grbl",
+                     units: str = "mm") -> SpinConfig:
         """The settings from the command's names and units (degrees, converted here
         once); ``turns`` defaults to the number of models."""
         setup = SpinSetup(distance=view_distance, elevation=math.radians(view_elevation),
@@ -164,7 +205,8 @@ class SpinConfig:
                    pose=pose or Pose(), occlusion=occlusion,
                    turns=models if turns is None else turns, setup=setup,
                    tool=Tool(tool_radius, depth), plate_width=plate_width,
-                   plate_height=plate_height, fit=fit, stock_thickness=stock_thickness)
+                   plate_height=plate_height, fit=fit, stock_thickness=stock_thickness,
+                   dialect=dialect, units=units)
 
     @property
     def plate(self) -> tuple[float, float] | None:
@@ -506,9 +548,10 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                   f"turning plate, open grooves: the view circles the scene {cfg.turns} "
                   "times per turn", "walls": cfg.setup.walls, "stock": stock_line(cfg)}
         limits = spin_limits(d.grooves, cfg.tool.depth, cfg.machining, cfg.stock_thickness)
+        options = program_options(cfg)
         gstats = write_gcode(tmp / "hologram.gcode", d.grooves, cfg.tool, cfg.machining,
-                             header={**header, **limits.header()}, plate=plate,
-                             drawings=SPIN_DRAWINGS)
+                             header={**header, **limits.header()}, options=options,
+                             plate=plate, drawings=SPIN_DRAWINGS)
         safety = stage.check("hologram.gcode", limits)
         meta: dict[str, Any] = {
             "design": "spin", "config": cfg.as_dict(),
@@ -540,8 +583,9 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
                                    "groove's edge"}
                 rlimits = spin_limits(relief, depth, cfg.machining, cfg.stock_thickness)
                 write_gcode(tmp / "relief.gcode", relief, vbit.model(depth), cfg.machining,
-                            header={**rhead, **rlimits.header()}, depth=depth, plate=plate,
-                            width=vbit.section(depth).width, drawings=SPIN_DRAWINGS)
+                            header={**rhead, **rlimits.header()}, options=options,
+                            depth=depth, plate=plate, width=vbit.section(depth).width,
+                            drawings=SPIN_DRAWINGS)
                 stage.check("relief.gcode", rlimits)
             meta["relief"] = {"depth_mm": depth, "v_bit_included_deg": 30.0,
                               "other_wall_keeps_tilts_below_deg":

@@ -47,6 +47,9 @@ class SteadyConfig:
         fit: ``size`` is the largest whose cuts lie on the plate, 5 mm in from
             its edges (:func:`design_steady_sized`).
         stock_thickness: the blank's thickness, mm: no cut may reach its back.
+        dialect: the program's G-code dialect, ``"grbl"`` or ``"linuxcnc"`` (a
+            laser cannot cut it).
+        units: the program's units, ``"mm"`` or ``"inch"``.
     """
 
     size: float = 40.0
@@ -63,13 +66,17 @@ class SteadyConfig:
     plate_height: float | None = None
     fit: bool = False
     stock_thickness: float = STOCK_THICKNESS
+    # after the rest: folders written before they were settings lack them (GRBL in mm)
+    dialect: str = "grbl"
+    units: str = "mm"
 
     def __post_init__(self) -> None:
         from specholo.fabrication.plate import check_plate_options
-        from specholo.spin import check_job_bounds
+        from specholo.spin import check_job_bounds, check_program_options
 
         check_plate_options(self.plate_width, self.plate_height, self.fit)
         check_job_bounds(self)
+        check_program_options(self.dialect, self.units)
         if not 1 <= self.stipples <= 200_000:
             raise SpecholoError(f"stipples must be in [1, 200000], got {self.stipples}")
 
@@ -80,7 +87,8 @@ class SteadyConfig:
                      shape: str = "scoop", tool_radius: float = 0.05, depth: float = 0.02,
                      pose: Pose | None = None, plate_width: float | None = None,
                      plate_height: float | None = None, fit: bool = False,
-                     stock_thickness: float = STOCK_THICKNESS) -> SteadyConfig:
+                     stock_thickness: float = STOCK_THICKNESS, dialect: str = "grbl",
+                     units: str = "mm") -> SteadyConfig:
         """The settings from the command's names and units (degrees, converted here once)."""
         setup = SteadySetup(distance=view_distance, ipd=ipd,
                             elevation=math.radians(light_elevation),
@@ -88,7 +96,7 @@ class SteadyConfig:
         return cls(size=size, center_z=center_z, stipples=stipples, seed=seed,
                    pose=pose or Pose(), shape=shape, setup=setup, tool=Tool(tool_radius, depth),
                    plate_width=plate_width, plate_height=plate_height, fit=fit,
-                   stock_thickness=stock_thickness)
+                   stock_thickness=stock_thickness, dialect=dialect, units=units)
 
     @property
     def plate(self) -> tuple[float, float] | None:
@@ -380,7 +388,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
     from specholo.fabrication.atomic import atomic_open
     from specholo.folders import check_out
     from specholo.preview.steady import steady_preview
-    from specholo.spin import json_ready, stock_line
+    from specholo.spin import json_ready, program_options, stock_line
     from specholo.staging import stage_design
 
     inputs = list(inputs)
@@ -400,7 +408,8 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
                                   "depth": f"{config.tool.depth:g} mm at most: each cut "
                                            "rises out of the plate at its ends",
                                   "stock": stock_line(config),
-                                  **limits.header()}, plate=plate)
+                                  **limits.header()}, plate=plate,
+                                 options=program_options(config))
         safety = stage.check("hologram.gcode", limits)
         with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
             np.savez_compressed(fh, points=design.points, centres=design.centres,

@@ -21,6 +21,16 @@ from specholo_cli.app import (
 )
 
 
+def _program_options(fn: Any) -> Any:
+    """--dialect and --units, for the jobs whose programs plunge a cutter (no
+    laser): the library checks them again, and says why a laser cannot."""
+    fn = click.option("--units", type=click.Choice(["mm", "inch"]), default="mm",
+                      help="G-code units: every coordinate and feed in mm or inches [mm].")(fn)
+    return click.option("--dialect", type=click.Choice(["grbl", "linuxcnc"]), default="grbl",
+                        help="G-code for GRBL or LinuxCNC; no laser: these programs plunge a "
+                             "cutter [grbl].")(fn)
+
+
 @cli.command()
 @click.argument("composition", type=click.Path(path_type=Path))
 @click.option("--out", type=_Folder(path_type=Path), required=True,
@@ -73,14 +83,16 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
               help="Frames of preview.gif over one turn (0 for none).")
 @click.option("--stock-thickness", type=float, default=3.0, show_default=True,
               help="Thickness of the plate blank, mm: no cut may reach its back.")
+@_program_options
 @_plate_options
 @_pose_options
 def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns: int | None,
          stipples: int, seed: int,
          view_distance: float, view_elevation: float, ipd: float, light_height: float | None,
          walls: str, no_occlusion: bool, tool_radius: float, depth: float, step: float,
-         frames: int, stock_thickness: float, plate_width: float | None,
-         plate_height: float | None, fit: bool, **pose: Any) -> None:
+         frames: int, stock_thickness: float, dialect: str, units: str,
+         plate_width: float | None, plate_height: float | None, fit: bool,
+         **pose: Any) -> None:
     """Design a hologram of MODEL for a plate turning about its normal (a turntable or
     wall spinner) under a light on the axis, then verify it over the turn.
 
@@ -96,7 +108,8 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
         "light_height": light_height, "walls": walls, "occlusion": not no_occlusion,
         "tool_radius": tool_radius, "depth": depth, "plate_width": plate_width,
         "plate_height": plate_height, "fit": fit, "stock_thickness": stock_thickness,
-        **pose}, out, WriteOptions(step_deg=step, frames=frames))
+        "dialect": dialect, "units": units, **pose}, out,
+        WriteOptions(step_deg=step, frames=frames))
 
 
 @cli.command()
@@ -127,13 +140,14 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
               help="Step between verified light elevations, degrees.")
 @click.option("--stock-thickness", type=float, default=3.0, show_default=True,
               help="Thickness of the plate blank, mm: no cut may reach its back.")
+@_program_options
 @_plate_options
 @_pose_options
 def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, seed: int,
            view_distance: float, ipd: float, light_elevation: float, light_range: float,
            shape: str, tool_radius: float, depth: float, step: float, stock_thickness: float,
-           plate_width: float | None, plate_height: float | None, fit: bool,
-           **pose: Any) -> None:
+           dialect: str, units: str, plate_width: float | None, plate_height: float | None,
+           fit: bool, **pose: Any) -> None:
     """Design a hologram of MODEL for a viewer standing still whose image stays put
     while the sun moves a little in elevation: for each stipple and eye, a scoop
     whose glint does not move with the light. Then verify it over the range."""
@@ -144,7 +158,8 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
         "view_distance": view_distance, "ipd": ipd, "light_elevation": light_elevation,
         "light_range": light_range, "shape": shape, "tool_radius": tool_radius,
         "depth": depth, "plate_width": plate_width, "plate_height": plate_height, "fit": fit,
-        "stock_thickness": stock_thickness, **pose}, out, WriteOptions(step_deg=step))
+        "stock_thickness": stock_thickness, "dialect": dialect, "units": units, **pose}, out,
+        WriteOptions(step_deg=step))
 
 
 #: ``specholo design``'s options a coupon takes as they are: the long job's
