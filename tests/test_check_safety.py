@@ -291,7 +291,10 @@ def _off_plate(p: Program, i: int, extra: float) -> tuple[list[str], str]:
     move = f"G1 X{_number(x)}"
     if not p.limits.rotary:
         move += f" Y{_number(_modal(lines, i, 'Y'))}"
-    if p.limits.surface is not None and not p.limits.rotary:
+    # a cut in X, Y and Z (a curved host's, a steady scoop's) keeps its own Z: the
+    # move before it may end above the surface (a scoop starts at it)
+    if (p.limits.surface is not None and not p.limits.rotary) or \
+            any(k == "Z" for k, _ in _words(lines[i])):
         move += f" Z{_number(_modal(lines, i, 'Z'))}"
     lines[i] = move
     return lines, "leaves the stock"
