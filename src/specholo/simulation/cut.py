@@ -646,7 +646,7 @@ class CutGlints:
         """The glints on the grooves and dots, without the caps."""
         keep = ~self.cap
         g = self.glints
-        return Glints(g.path[keep], g.stipple[keep], g.point[keep])
+        return Glints(g.path[keep], g.stipple[keep], g.point[keep], self.brightness[keep])
 
 
 #: Lobe width, in samples of position (see the module docstring).

@@ -255,6 +255,26 @@ class Engraved:
                                                                   self.direction[idx])
 
 
+#: A glint this many times fainter than its stipple's brightest for the same
+#: eye is haze, not the stipple's image: a corner where a path turns sweeps
+#: every wall direction between its tangents and glints for many eyes, but as
+#: a sphere of the tip's radius R (brightness R^2), where a designed glint on a
+#: groove of curvature radius rho has about R rho / sin(tilt): on the default
+#: drag tip (R 0.025 mm) a groove of 1 mm is already 40 times brighter.
+FAINT_RATIO = 20.0
+#: A glint this many times fainter than the plate's typical stipple is not
+#: seen at all beside them: 5 magnitudes. Typical is the brightness of the
+#: stipples that give half the light (the median of the stipples' brightest
+#: glints, each weighted by its brightness), so that many faint stipples do not
+#: drag it down. A turning path's corner is about 2,000 times fainter than the
+#: README example's glints, and so is a dimple (a dot) beside grooves; a plate
+#: of dots alone keeps them, being its own typical stipple.
+INVISIBLE_RATIO = 100.0
+#: Longest radius of curvature along a wall counted, mm: a straight groove's
+#: glint spreads as far as h turns along it, about the viewing distance.
+MAX_ALONG_RADIUS = 1000.0
+
+
 @dataclass(frozen=True)
 class Glints:
     """Glints seen by one eye.
@@ -263,11 +283,40 @@ class Glints:
         path: (g,) index of the groove path that glints.
         stipple: (g,) the stipple that path draws.
         point: (g, 3) glint positions in mm.
+        brightness: (g,) reflecting area per steradian of the wall normal, mm^2/sr
+            (the product of the wall's two radii of curvature there): how bright
+            the glint is under a given light and pupil; None where unknown (every
+            glint then counts alike).
     """
 
     path: np.ndarray
     stipple: np.ndarray
     point: np.ndarray
+    brightness: np.ndarray | None = None
+
+    def take(self, keep: np.ndarray) -> Glints:
+        """The glints at ``keep`` (a mask or indexes), brightness and all."""
+        return Glints(self.path[keep], self.stipple[keep], self.point[keep],
+                      None if self.brightness is None else self.brightness[keep])
+
+    def image(self, ratio: float = FAINT_RATIO,
+              invisible: float = INVISIBLE_RATIO) -> Glints:
+        """The glints that make the stipples' image for this eye: those at least
+        1/``ratio`` as bright as their stipple's brightest and 1/``invisible``
+        as bright as the typical stipple's (the median of the stipples'
+        brightest, weighted by their brightness: see :data:`INVISIBLE_RATIO`);
+        all of them, without brightness. The rest are haze: a turning path's
+        corners beside the designed glints."""
+        b = self.brightness
+        if b is None or len(b) == 0:
+            return self
+        n = int(self.stipple.max()) + 1
+        top = np.zeros(n)
+        np.maximum.at(top, self.stipple, b)
+        lit = np.sort(top[np.unique(self.stipple)])
+        light = np.cumsum(lit)
+        typical = float(lit[np.searchsorted(light, 0.5 * light[-1])])
+        return self.take((b * ratio >= top[self.stipple]) & (b * invisible >= typical))
 
 
 def _wrap_half(a: np.ndarray) -> np.ndarray:
@@ -322,12 +371,16 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
             same; False tests every arc).
 
     Returns:
-        The glints, sorted by stipple.
+        The glints, sorted by stipple, with their brightness
+        (:attr:`Glints.brightness`).
     """
     eye = np.asarray(eye, dtype=float)
     max_tilt = eng.tool.max_tilt
     paths: list[np.ndarray] = []
     points: list[np.ndarray] = []
+    bright: list[np.ndarray] = []
+    # a corner or a dimple reflects as a sphere of the ball's radius
+    sphere = eng.tool.radius**2
 
     k = len(eng.path)
     if k:
@@ -351,6 +404,7 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
             ok, pts = _kernel.corner_glints(eng.kink_rows[sel], eng.geometry, *tool)
             paths.append(eng.path[eng.kinks[sel][ok]])
             points.append(pts[ok])
+            bright.append(np.full(int(ok.sum()), sphere))
         rows = _kernel.expand(starts, ends)
         ok, pts = _kernel.arc_glints(rows, eng.geometry, *tool, iterations)
         # Back to arc order, as the arcs were before the index sorted them.
@@ -358,6 +412,8 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
         order = np.argsort(arc)
         paths.append(eng.path[arc[order]])
         points.append(pts[ok][order])
+        bright.append(_groove_brightness(eng.geometry[rows[ok], 2][order], points[-1],
+                                         eng.tool, light, eye))
 
     # Dimples offer every normal up to the wall tilt.
     if len(eng.dot_path):
@@ -365,11 +421,29 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
         ok = tilt(h) <= max_tilt
         paths.append(eng.dot_path[ok])
         points.append(s[ok])
+        bright.append(np.full(int(ok.sum()), sphere))
 
     if not paths:
-        return Glints(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
+        return Glints(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)),
+                      np.zeros(0))
     path = np.concatenate(paths)
     point = np.concatenate(points)
+    brightness = np.concatenate(bright)
     stipple = eng.grooves.stipple[path]
     order = np.argsort(stipple, kind="stable")
-    return Glints(path[order], stipple[order], point[order])
+    return Glints(path[order], stipple[order], point[order], brightness[order])
+
+
+def _groove_brightness(radius: np.ndarray, point: np.ndarray, tool: Tool, light: Light,
+                       eye: np.ndarray) -> np.ndarray:
+    """(g,) brightness of glints on groove walls (see :attr:`Glints.brightness`): the
+    ball's radius R across the groove times the wall's radius of curvature along
+    it, rho / sin(tilt) for a centreline of radius ``radius`` (g,) (0: straight,
+    taken as :data:`MAX_ALONG_RADIUS`), tilt the wall normal's from vertical
+    at the glints ``point`` (g, 3). (The wall of a ball swept along a curve is a
+    tube: along it the normal turns with the tangent only by its horizontal part.)"""
+    h = normality(point, light, eye)
+    sin_tilt = np.hypot(h[:, 0], h[:, 1]) / np.linalg.norm(h, axis=1)
+    rho = np.where(radius > 0, radius, MAX_ALONG_RADIUS)
+    along = np.minimum(rho / np.maximum(sin_tilt, 1e-12), MAX_ALONG_RADIUS)
+    return tool.radius * along

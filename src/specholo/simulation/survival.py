@@ -587,6 +587,7 @@ class EyeGlints:
         sizes: (2 k,) glints of the left then right eye of each azimuth, in order.
         point: (m, 3) where each glint sits on its real wall, mm.
         path: (m,) the path it is on; stipple: (m,) the stipple it shows.
+        brightness: (m,) how bright it is (:attr:`~specholo.simulation.glints.Glints.brightness`).
     """
 
     azimuths: np.ndarray
@@ -595,6 +596,7 @@ class EyeGlints:
     point: np.ndarray
     path: np.ndarray
     stipple: np.ndarray
+    brightness: np.ndarray | None = None
 
     @property
     def slot(self) -> np.ndarray:
@@ -631,14 +633,16 @@ def eye_glints(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: Any,
             for side, eye in enumerate(pair):
                 gl = find_glints(eng, eye, setup.light)
                 point = on_real_wall(gl, setup.tool, cutter, depth, setup.light, eye)
-                found[2 * j + side].append(Glints(paths[gl.path], gl.stipple, point))
+                found[2 * j + side].append(Glints(paths[gl.path], gl.stipple, point,
+                                                  gl.brightness))
         del eng
     per_eye = [_join(parts) for parts in found]
     return EyeGlints(np.asarray(azimuths, dtype=float), eyes,  # type: ignore[arg-type]
                      np.array([len(gl.path) for gl in per_eye], dtype=np.int64),
                      np.concatenate([gl.point for gl in per_eye]).reshape(-1, 3),
                      np.concatenate([gl.path for gl in per_eye]).astype(np.int64),
-                     np.concatenate([gl.stipple for gl in per_eye]).astype(np.int64))
+                     np.concatenate([gl.stipple for gl in per_eye]).astype(np.int64),
+                     np.concatenate([_brightness(gl) for gl in per_eye]))
 
 
 def as_cut_report(glints: EyeGlints, keep: np.ndarray, points: np.ndarray,
@@ -655,7 +659,8 @@ def as_cut_report(glints: EyeGlints, keep: np.ndarray, points: np.ndarray,
         for s in (0, 1):
             sl = slice(bounds[2 * j + s], bounds[2 * j + s + 1])
             m = keep[sl]
-            side.append(Glints(glints.path[sl][m], glints.stipple[sl][m], glints.point[sl][m]))
+            side.append(Glints(glints.path[sl][m], glints.stipple[sl][m], glints.point[sl][m],
+                               None if glints.brightness is None else glints.brightness[sl][m]))
             counts[j, s] = int(m.sum())
         eye_l, eye_r = glints.eyes[j]
         reports.append(view_report(float(theta), points, side[0], side[1], eye_l, eye_r,
@@ -712,7 +717,14 @@ def verify_as_cut(grooves: Grooves, points: np.ndarray, setup: Setup, cutter: An
 def _join(parts: list[Glints]) -> Glints:
     """One eye's glints from the stipple chunks (which come in stipple order)."""
     if not parts:
-        return Glints(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
+        return Glints(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)),
+                      np.zeros(0))
     return Glints(np.concatenate([p.path for p in parts]),
                   np.concatenate([p.stipple for p in parts]),
-                  np.concatenate([p.point for p in parts]))
+                  np.concatenate([p.point for p in parts]),
+                  np.concatenate([_brightness(p) for p in parts]))
+
+
+def _brightness(glints: Glints) -> np.ndarray:
+    """(g,) the glints' brightness, or ones where it is unknown (all alike)."""
+    return glints.brightness if glints.brightness is not None else np.ones(len(glints.path))

@@ -115,6 +115,8 @@ def view_report(theta: float, points: np.ndarray, gl: Glints, gr: Glints, eye_l:
         vis_l, vis_r: (n,) whether each stipple is unoccluded from each eye.
     """
     n = len(points)
+    # each stipple's image is its bright glints: the faint ones beside them are haze
+    gl, gr = gl.image(), gr.image()
     lit_l = np.bincount(gl.stipple, minlength=n) > 0
     lit_r = np.bincount(gr.stipple, minlength=n) > 0
     seen = vis_l & vis_r
@@ -200,8 +202,10 @@ def verify(grooves: Grooves, points: np.ndarray, setup: Setup,
         eng = Engraved.from_grooves(part, setup.tool)
         for j, (eyes_l, eyes_r) in enumerate(eyes):
             eye_l, eye_r = eyes_l[0], eyes_r[0]
-            gl = find_glints(eng, eye_l, setup.light)
-            gr = find_glints(eng, eye_r, setup.light)
+            # each stipple's image is its bright glints (a plate verified in chunks
+            # takes the typical brightness of each chunk's thousands of stipples)
+            gl = find_glints(eng, eye_l, setup.light).image()
+            gr = find_glints(eng, eye_r, setup.light).image()
             vis_l, vis_r = shown[j, 0, lo:hi], shown[j, 1, lo:hi]
             lit_l = np.bincount(gl.stipple, minlength=m) > 0
             lit_r = np.bincount(gr.stipple, minlength=m) > 0

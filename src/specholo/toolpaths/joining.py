@@ -24,6 +24,7 @@ them, and the corners where the tip turns; the design's as-cut step (and
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,7 +54,8 @@ class Joined:
         grooves: the joined grooves (a connector is a straight segment).
         connectors: (c, 2, 2) each connector's ends, mm.
         joined: hand-overs joined.
-        kept_apart: hand-overs left apart because a connector there could glint.
+        kept_apart: hand-overs left apart because a connector there could glint
+            or was not allowed (it would cut other glints away).
     """
 
     grooves: Grooves
@@ -144,7 +146,8 @@ def hand_overs(grooves: Grooves, max_step: float = MAX_STEP) -> np.ndarray:
     return np.stack([a[ok], b[ok]], axis=1)
 
 
-def join_stripes(grooves: Grooves, setup: Setup, max_step: float = MAX_STEP) -> Joined:
+def join_stripes(grooves: Grooves, setup: Setup, max_step: float = MAX_STEP,
+                 allow: Callable[[np.ndarray], np.ndarray] | None = None) -> Joined:
     """Join each stipple's stripes where they hand over and a connector there
     would be dark (:func:`dark`), into as few strokes as the hand-overs allow.
 
@@ -152,6 +155,9 @@ def join_stripes(grooves: Grooves, setup: Setup, max_step: float = MAX_STEP) -> 
         grooves: the designed grooves (any order).
         setup: the light and viewer the connectors must stay dark for.
         max_step: largest hand-over step joined, mm.
+        allow: given the dark connectors' ends (c, 2, 2), mm, which of them
+            (c,) bool may be cut (the design's test that a connector cuts no
+            other groove's glints away); None allows every dark one.
 
     Returns:
         The joined grooves, in the order of their first stripe, and the connectors.
@@ -160,6 +166,10 @@ def join_stripes(grooves: Grooves, setup: Setup, max_step: float = MAX_STEP) -> 
     ends, _ = _ends(grooves)
     ok = dark(ends[pairs[:, 0]], ends[pairs[:, 1]], setup) if len(pairs) else \
         np.zeros(0, dtype=bool)
+    if allow is not None and ok.any():
+        where = np.flatnonzero(ok)
+        ok[where] = np.asarray(allow(np.stack([ends[pairs[where, 0]], ends[pairs[where, 1]]],
+                                              axis=1)), dtype=bool)
     kept_apart = int((~ok).sum())
     pairs = pairs[ok]
     n = grooves.n_paths
