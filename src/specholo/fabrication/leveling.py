@@ -34,7 +34,8 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open, part_prefix, public_mode, scratch
-from specholo.fabrication.program import format_number
+from specholo.fabrication.program import Emitter, GcodeOptions, format_number
+from specholo.setup import Machining
 
 if TYPE_CHECKING:
     from specholo.fabrication.check import Limits, Stock
@@ -374,15 +375,18 @@ def write_probe(path: str | os.PathLike[str], area: np.ndarray, dialect: str,
     # back up, with the travel between points at 3000 mm/min
     seconds = len(points) * 60.0 * safe_z / PROBE_FEED + 60.0 * travel / 3000.0 \
         + len(points) * 60.0 * 2.0 * safe_z / 3000.0
-    name = "GRBL 1.1" if dialect == "grbl" else "LinuxCNC RS274/NGC"
     log = ("GRBL reports [PRB:x,y,z:1] in machine coordinates (mm with $13=0): save the "
            "sender's console as the log" if dialect == "grbl" else
            f"LinuxCNC writes x y z ... per point to {LINUXCNC_LOG} (where it runs)")
-    head = [
-        f"specholo probe grid of {source}: {len(ys)} rows of {len(xs)} points, "
-        f"{num(step[0])} x {num(step[1])} mm apart, over X{num(xs[0])}..{num(xs[-1])} "
-        f"Y{num(ys[0])}..{num(ys[-1])} (the grooves), after X0 Y0",
-        f"dialect: {name}; units: mm; about {max(1, round(seconds / 60.0))} min",
+    # the one emitter's header and set-up, in mm (the log is), the spindle off
+    # (M5 among the set-up lines: a touch probe must not turn) and no dwell
+    em = Emitter(GcodeOptions(dialect=dialect, dwell=0.0,  # type: ignore[arg-type]
+                              header_lines=("M5",)),
+                 Machining(safe_z=safe_z, spindle=0.0))
+    body = [
+        f"grid: {len(ys)} rows of {len(xs)} points, {num(step[0])} x {num(step[1])} mm "
+        f"apart, over X{num(xs[0])}..{num(xs[-1])} Y{num(ys[0])}..{num(ys[-1])} (the "
+        f"grooves), after X0 Y0; about {max(1, round(seconds / 60.0))} min",
         "probe: a touch probe, or a conductive tool with the plate wired to the probe "
         "input; test the input first; the spindle stays off",
         f"start: X0 Y0 on the origin mark, Z0 set on the plate there to within a few tenths; "
@@ -392,18 +396,17 @@ def write_probe(path: str | os.PathLike[str], area: np.ndarray, dialect: str,
         "next: specholo level FOLDER LOG writes hologram_leveled.gcode; cut it with Z0 set "
         "on the plate at X0 Y0 by the cutting tool",
     ]
-    # a comment holds no parentheses of its own (GRBL and LinuxCNC do not nest them)
-    lines = ["(" + text.replace("(", "[").replace(")", "]") + ")" for text in head]
-    lines += ["G21 G90 G17 G94 G40", "M5"]
+    lines = em.head(f"specholo probe grid of {source}", body,
+                    origin="origin: plate centre; X right, Y up, Z = 0 on the plate surface")
     if dialect == "linuxcnc":
-        lines.append(f"(PROBEOPEN {LINUXCNC_LOG})")
-    lines.append(f"G0 Z{num(safe_z)}")
+        lines.insert(len(lines) - 1, f"(PROBEOPEN {LINUXCNC_LOG})")
     for x, y in points:
-        lines += [f"G0 X{num(x)} Y{num(y)}", f"G38.2 Z{num(-PROBE_REACH)} F{num(PROBE_FEED)}",
-                  f"G0 Z{num(safe_z)}"]
+        lines += [f"G0 X{em.num(x)} Y{em.num(y)}",
+                  f"G38.2 Z{em.num(-PROBE_REACH)} F{em.num(PROBE_FEED)}",
+                  f"G0 Z{em.num(safe_z)}"]
     if dialect == "linuxcnc":
         lines.append("(PROBECLOSE)")
-    lines.append("M2")
+    lines += em.tail()
     with atomic_open(path, "w", encoding="ascii") as fh:
         fh.write("\n".join(lines) + "\n")
     return ProbeStats(len(points), (len(ys), len(xs)), step, seconds)
