@@ -67,6 +67,7 @@ class Design:
     thinned: np.ndarray | None = None  # stipple ids left uncut by thinning
     thinning: dict[str, Any] | None = None  # its stereo points as cut, before and after
     up_hint: str = ""  # the --up the model's own flat base suggests, in words ('' if none)
+    band_note: str = ""  # why the band is what it is, where the design chose it ('' if not)
 
 
 @dataclass(frozen=True)
@@ -348,6 +349,10 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     timings: dict[str, float] = {}
     model, st, config = stipple_model(model_path, config, rng, timings)
     points = st.points
+    band_note = ""
+    if config.band_share is not None and config.method == "striped":
+        config, band_note = machine_band(config, points)
+        setup = config.setup()
     t0 = time.perf_counter()
     iv = visible_intervals(model.mesh, points, st.normals, setup.viewer)
     runs = make_runs(points, iv.stipple, iv.start, iv.end)
@@ -410,7 +415,41 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
                   views, overlaps, plate, cover, as_cut, placement=placed or None,
                   thinned=thinned if len(thinned) else None, thinning=thinning,
-                  up_hint=up_hint(model, config))
+                  up_hint=up_hint(model, config), band_note=band_note)
+
+
+def stipple_spacing(points: np.ndarray, distance: float) -> float | None:
+    """The median angle between a stipple and its nearest neighbour, seen from
+    the viewing distance straight on, arcmin (None for fewer than two)."""
+    from scipy.spatial import cKDTree
+
+    p = np.asarray(points, dtype=float)
+    if len(p) < 2:
+        return None
+    # Seen from the eyes, a point d behind the plate is (D + d) away.
+    gap, _ = cKDTree(p).query(p, k=2)
+    far = distance - p[:, 2]
+    return float(np.median(np.degrees(gap[:, 1] / far)) * 60.0)
+
+
+def machine_band(config: DesignConfig, points: np.ndarray) -> tuple[DesignConfig, str]:
+    """The band a machine whose strokes lift is given (``config.band_share``, see
+    :data:`~specholo.settings.MACHINE_BAND_SHARE`): seen from the viewing
+    distance, that share of the neighbouring stipples' spacing, never finer
+    than the default, to 0.01 mm. Returns the settings with that band (and no
+    share left to apply) and a few words saying why, for the summary."""
+    share = float(config.band_share or 0.0)
+    default = float(config.band or BAND)
+    distance = config.setup().viewer.distance
+    spacing = stipple_spacing(points, distance)
+    done = dataclasses.replace(config, band_share=None)
+    if spacing is None:
+        return done, ""
+    wanted = distance * math.tan(math.radians(share * spacing / 60.0))
+    band = max(default, math.floor(wanted * 100.0) / 100.0)
+    note = (f"chosen for {config.machine}, whose strokes each lift the tool: "
+            f"{share:g} of the stipples' spacing")
+    return dataclasses.replace(done, band=band), note
 
 
 #: Head azimuths of the design's as-cut estimate are at most this far apart, degrees.

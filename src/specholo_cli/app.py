@@ -43,6 +43,10 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("seed", int, "Random seed for stippling [0]."),
     ("band", float, "Striped design: half-height of the band, bounds vertical error, mm "
      "[0.2; 1 with --tool scriber, for fewer, longer strokes by hand]."),
+    ("band-share", float, "Striped design: choose the band so that, seen from the viewing "
+     "distance, it is this share of the neighbouring stipples' spacing (never finer than "
+     "0.2 mm) [0.2 with a --machine whose strokes lift the tool: a router, mill or plotter; "
+     "else off; --band wins]."),
     ("placement", click.Choice(["auto", "avoid", "phase"]),
      "Striped design: avoid places each stipple's stripes in turn out of the grooves placed "
      "before (jumping between the band's paths where a crossing would cut glints away); "

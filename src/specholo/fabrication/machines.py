@@ -105,6 +105,12 @@ class MachineProfile:
         return self.kind in ("router", "mill")
 
     @property
+    def lifts(self) -> bool:
+        """Whether every stroke lifts the tool and lowers it again (a router's or
+        mill's Z, a plotter's pen), costing about as much as a short cut."""
+        return self.kind in ("router", "mill", "plotter")
+
+    @property
     def laser(self) -> bool:
         """Whether it marks with a beam (no plunges, retracts or hops)."""
         return self.kind in ("co2", "galvo")

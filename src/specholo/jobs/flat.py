@@ -122,6 +122,7 @@ HIDDEN_HINT = 0.6
 def band_line(d: Any) -> str:
     """The stripes' band as the eye sees it: each glint may sit up to a band off
     its place vertically, against how far apart neighbouring stipples look."""
+    from specholo.flat import stipple_spacing
     from specholo.settings import BAND
 
     band = float(d.config.band or BAND)
@@ -131,24 +132,11 @@ def band_line(d: Any) -> str:
             f"place vertically, {arcmin:.1f} arcmin seen from {distance:g} mm")
     spacing = stipple_spacing(d.points, distance)
     if spacing is not None:
-        line += (f", where neighbouring stipples look {spacing:.1f} arcmin apart (a wider "
-                 "--band cuts fewer, longer stripes)")
+        line += f", where neighbouring stipples look {spacing:.1f} arcmin apart"
+        note = getattr(d, "band_note", "")
+        line += (f" ({note}; --band sets it)" if note else
+                 " (a wider --band cuts fewer, longer stripes)")
     return line
-
-
-def stipple_spacing(points: Any, distance: float) -> float | None:
-    """The median angle between a stipple and its nearest neighbour, seen from
-    the viewing distance straight on, arcmin (None for fewer than two)."""
-    import numpy as np
-    from scipy.spatial import cKDTree
-
-    p = np.asarray(points, dtype=float)
-    if len(p) < 2:
-        return None
-    # Seen from the eyes, a point d behind the plate is (D + d) away.
-    gap, _ = cKDTree(p).query(p, k=2)
-    far = distance - p[:, 2]
-    return float(np.median(np.degrees(gap[:, 1] / far)) * 60.0)
 
 
 def plate_line(plate: Any, config: Any) -> str:
