@@ -4,15 +4,17 @@ Usage: python benchmarks/machine_time.py [--methods striped arc] [--json out.jso
 
 Designs the README's example (``specholo design examples/bunny.obj --size 60
 --center-z -40 --light-elevation 45 --view-distance 600 --view-range 45
---stipples 2000``, default drag tip) once by each method, puts its paths in
-cutting order as ``write_design`` does, and estimates the program's time
-as it does (:func:`specholo.fabrication.timing.estimate_time`, a drag tip in
-its default spring holder: each stroke plunges from the 0.05 mm lift to the
-0.3 mm preload) with no machine (every axis
-at 250 mm/s^2, rapids at 3000 mm/min, the default 300 mm/min feed) and on every
-profile of :data:`specholo.fabrication.machines.MACHINES` at that profile's own
-feeds (what ``specholo design --machine NAME`` writes and reports). Each row
-gives the whole time and its parts; they add up to it.
+--stipples 2000``, default drag tip) by each method as ``specholo design
+--machine NAME`` designs it (a machine whose strokes lift the tool widens the
+striped band; one design serves every machine of the same band), puts its
+paths in cutting order as ``write_design`` does, and estimates the program's
+time as it does (:func:`specholo.fabrication.timing.estimate_time`, a drag tip
+in its default spring holder: each stroke plunges from the 0.05 mm lift to the
+0.3 mm preload) with no machine (every axis at 250 mm/s^2, rapids at
+3000 mm/min, the default 300 mm/min feed) and on every profile of
+:data:`specholo.fabrication.machines.MACHINES` at that profile's own feeds.
+Each row gives the band, the strokes, the whole time and its parts; they add
+up to it.
 
 The estimates are the same on any computer; only the design's own run time
 (printed first) depends on the one it runs on.
@@ -44,42 +46,38 @@ def hours(seconds: float) -> str:
     return f"{minutes // 60}:{minutes % 60:02d}"
 
 
-def estimates(grooves: Any, depth: float) -> list[dict[str, Any]]:
-    """The grooves' time with no machine and on every profile, each at its feeds."""
-    from specholo.fabrication.machines import MACHINES
+def estimate(name: str | None, grooves: Any, depth: float) -> dict[str, Any]:
+    """The grooves' time with no machine (None) or on the profile ``name``, at its feeds."""
     from specholo.fabrication.timing import estimate_time
     from specholo.settings import DesignConfig
 
-    rows = []
-    for name in (None, *MACHINES):
-        config = DesignConfig.from_dict({} if name is None else {"machine": name})
-        profile = config.profile
-        laser = config.dialect == "marlin"
-        # timed as write_design times the program: a spring holder (a drag tip's
-        # default) plunges from its lift to its preload on every stroke
-        holder = None if laser else config.holder_setup()
-        machining = config.setup().machining
-        depth_z, machining = (holder.program(depth, machining) if holder is not None
-                              else (depth, machining))
-        est = estimate_time(grooves, depth_z, machining, laser=laser, machine=profile)
-        row = {"machine": name or "none", "feed_mm_min": config.feed,
-               "total_s": est.total_s, "stipples_per_s": est.stipples_per_s,
-               "hops": est.hops}
-        row.update({key: getattr(est, key) for key, _ in PARTS})
-        assert abs(sum(row[key] for key, _ in PARTS) - est.total_s) <= 1e-9 * est.total_s
-        rows.append(row)
-    return rows
+    config = DesignConfig.from_dict({} if name is None else {"machine": name})
+    profile = config.profile
+    laser = config.dialect == "marlin"
+    # timed as write_design times the program: a spring holder (a drag tip's
+    # default) plunges from its lift to its preload on every stroke
+    holder = None if laser else config.holder_setup()
+    machining = config.setup().machining
+    depth_z, machining = (holder.program(depth, machining) if holder is not None
+                          else (depth, machining))
+    est = estimate_time(grooves, depth_z, machining, laser=laser, machine=profile)
+    row = {"machine": name or "none", "feed_mm_min": config.feed,
+           "total_s": est.total_s, "stipples_per_s": est.stipples_per_s,
+           "hops": est.hops, "paths": grooves.n_paths}
+    row.update({key: getattr(est, key) for key, _ in PARTS})
+    assert abs(sum(row[key] for key, _ in PARTS) - est.total_s) <= 1e-9 * est.total_s
+    return row
 
 
 def report(method: str, paths: int, length_m: float, rows: list[dict[str, Any]]) -> None:
     """A markdown table of one method's rows."""
     print(f"\n{method}: {paths:,} paths, {length_m:.1f} m of groove\n")
-    print("| machine | feed mm/min | total h:mm | " + " | ".join(h for _, h in PARTS)
-          + " | stipples/s |")
-    print("|---|---:|---:|" + "---:|" * len(PARTS) + "---:|")
+    print("| machine | band mm | strokes | feed mm/min | total h:mm | "
+          + " | ".join(h for _, h in PARTS) + " | stipples/s |")
+    print("|---|---:|---:|---:|---:|" + "---:|" * len(PARTS) + "---:|")
     for r in rows:
-        print(f"| {r['machine']} | {r['feed_mm_min']:g} | {hours(r['total_s'])} | "
-              + " | ".join(hours(r[key]) for key, _ in PARTS)
+        print(f"| {r['machine']} | {r['band']} | {r['paths']:,} | {r['feed_mm_min']:g} | "
+              f"{hours(r['total_s'])} | " + " | ".join(hours(r[key]) for key, _ in PARTS)
               + f" | {r['stipples_per_s']:.2f} |")
 
 
@@ -89,17 +87,31 @@ def main() -> None:
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     sys.path.insert(0, str(ROOT / "src"))
+    from specholo.fabrication.machines import MACHINES
     from specholo.fabrication.order import order_paths
     from specholo.pipeline import DesignConfig, design
 
     results = {}
     for method in args.methods:
-        t0 = time.perf_counter()
-        d = design(MODEL, DesignConfig.from_dict({**EXAMPLE, "method": method}))
-        grooves, _ = order_paths(d.grooves)  # the cutting order write_design writes
-        seconds = time.perf_counter() - t0
-        print(f"{method}: designed and ordered in {seconds:.1f} s", file=sys.stderr)
-        rows = estimates(grooves, d.config.depth_mm)
+        designs: dict[Any, Any] = {}  # by band share: one design a band
+        rows = []
+        seconds = 0.0
+        for name in (None, *MACHINES):
+            settings = {**EXAMPLE, "method": method, **({"machine": name} if name else {})}
+            key = DesignConfig.from_dict(settings).band_share
+            if key not in designs:
+                t0 = time.perf_counter()
+                d = design(MODEL, DesignConfig.from_dict(settings))
+                grooves, _ = order_paths(d.grooves)  # the cutting order write_design writes
+                seconds += time.perf_counter() - t0
+                designs[key] = (d, grooves)
+            d, grooves = designs[key]
+            row = estimate(name, grooves, d.config.depth_mm)
+            row["band"] = f"{d.config.band:g}" if method == "striped" else "-"
+            rows.append(row)
+        print(f"{method}: {len(designs)} designs, designed and ordered in {seconds:.1f} s",
+              file=sys.stderr)
+        d, grooves = designs[None]
         report(method, grooves.n_paths, grooves.total_length() / 1000.0, rows)
         results[method] = {"paths": grooves.n_paths, "groove_m": grooves.total_length() / 1000,
                            "design_s": seconds, "rows": rows}

@@ -3,7 +3,10 @@
 :func:`read_gcode` reads the programs :mod:`specholo.fabrication.gcode` writes
 (and other plain 3-axis programs of G0-G3 moves): every cutting move below the
 surface becomes a groove's arc, with the stipple named in its ``(stipple N)``
-comment, so the simulator can verify the file that will be cut.
+comment, so the simulator can verify the file that will be cut. A laser's
+program (no Z word at all) cuts where its beam is on: feed moves between
+``M3``/``M4`` and ``M5``, and a dot where the beam comes on and goes off in
+place, each with the stipple of its ``; stipple N`` comment.
 """
 
 from __future__ import annotations
@@ -70,6 +73,7 @@ class _Moves:
         self.number: list[int] = []
         self.units: list[tuple[int, float]] = []  # (line, mm per unit) from G20/G21
         self.stipple: list[tuple[int, int]] = []  # (line, id) from (stipple N)
+        self.laser: list[tuple[int, bool]] = []  # (line, on) from M3/M4 and M5
 
     def line(self, number: int, raw: str) -> None:
         if self.fast_number and self.fast_number[-1] > self.synced:
@@ -81,6 +85,14 @@ class _Moves:
             return
         semi = text.find(";")
         if semi >= 0 and not 0 <= text.find("(") < semi:
+            # a ; comment names the stipple too (Marlin's, whose parenthesised
+            # comments need a build option)
+            found = _STIPPLE.fullmatch(text[semi + 1:])
+            if found:
+                sid = int(found.group(1))
+                if abs(sid) > _MAX_STIPPLE:
+                    raise _line_error(number, raw, "stipple id out of range")
+                self.stipple.append((number, sid))
             text = text[:semi]
         if "(" in text:
             for comment in _COMMENT.findall(text):
@@ -126,6 +138,10 @@ class _Moves:
             elif letter == "M":
                 if round(value) in (2, 30):
                     self.ended = True
+                elif round(value) in (3, 4, 5):
+                    # a laser's beam (or a spindle: only a program with no Z
+                    # word at all reads them as its cuts)
+                    self.laser.append((number, round(value) != 5))
             elif letter in "XYZIJ":
                 if letter in values:
                     raise _line_error(number, raw, f"{letter} given twice")
@@ -240,6 +256,8 @@ def _assemble(moves: _Moves) -> Grooves:
             raise SpecholoError(f"G-code line {number[e]}: {why} (start {start[e].round(5)}, "
                                 f"centre {centre[e].round(5)}, end {end[e].round(5)})")
 
+    if moves.laser and np.isnan(cols["z"]).all():  # a laser's: M3..M5, no Z at all
+        return _assemble_laser(moves, kind, number, has_xy, start, end, centre, arc)
     below = z[1:] < 0.0
     begins = below & ~(z[:-1] < 0.0)  # a groove starts where the tool goes below the plate
     vertex = below & (begins | has_xy)
@@ -271,8 +289,10 @@ def read_gcode(path: str | os.PathLike[str]) -> Grooves:
     programs: modal ``G0/G1/G2/G3`` with ``X Y Z I J F`` words (G2/G3 with
     incremental ``I J`` in the XY plane), ``G20``/``G21``, comments in
     parentheses or after ``;``. A groove is a run of moves below Z = 0 (a move
-    with X or Y words adds a vertex, a move along Z alone does not); its stipple
-    id is that of the last ``(stipple N)`` comment before it (-1 if none).
+    with X or Y words adds a vertex, a move along Z alone does not), or in a
+    program with no Z word (a laser's) a run of feed moves with the beam on;
+    its stipple id is that of the last ``(stipple N)`` or ``; stipple N``
+    comment before it (-1 if none).
 
     Args:
         path: G-code file.
@@ -306,3 +326,73 @@ def read_gcode(path: str | os.PathLike[str]) -> Grooves:
     except OSError as exc:
         raise SpecholoError(f"cannot read G-code file {os.fspath(path)!r}: {exc.strerror}") from exc
     return _assemble(moves)
+
+
+def _bulge(kind: np.ndarray, centre: np.ndarray, start: np.ndarray,
+           end: np.ndarray) -> np.ndarray:
+    """(k,) bulges of arcs (G2: kind 2, G3: 3) from start to end about centre."""
+    u = start - centre
+    v = end - centre
+    ang = np.arctan2(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0], np.sum(u * v, axis=1))
+    # the direction word decides which way round the circle the arc goes
+    sweep = np.where(kind == 3, np.where(ang <= 0, ang + 2 * np.pi, ang),
+                     np.where(ang >= 0, ang - 2 * np.pi, ang))
+    return np.tan(sweep / 4.0)
+
+
+def _assemble_laser(moves: _Moves, kind: np.ndarray, number: np.ndarray, has_xy: np.ndarray,
+                    start: np.ndarray, end: np.ndarray, centre: np.ndarray,
+                    arc: np.ndarray) -> Grooves:
+    """The grooves of a laser's program (no Z): every feed move (G1-G3) in X/Y
+    while the beam is on (after an ``M3``/``M4``, before an ``M5``) cuts, from
+    where the beam came on; a beam switched on and off with no move between (a
+    dwell) marks a dot where it stands."""
+    at, on = (np.asarray(v) for v in zip(*moves.laser, strict=True))
+    at = at.astype(np.int64)
+    state = np.searchsorted(at, number, side="right") - 1
+    beam = np.where(state >= 0, on[np.maximum(state, 0)], False).astype(bool)
+    cutting = beam & (kind >= 1) & has_xy
+    # a groove begins at a cut whose move before it did not cut, or after the
+    # beam went off and on again between the two
+    prev = np.concatenate([[-1], state[:-1]])
+    begins = cutting & (~np.concatenate([[False], cutting[:-1]]) | (state != prev))
+    idx = np.flatnonzero(cutting)
+    first = begins[idx]
+    count = np.where(first, 2, 1)  # a groove's first cut adds where it started
+    where = np.cumsum(count) - 1  # each cut's end vertex
+    verts = np.empty((int(count.sum()), 2))
+    verts[where] = end[idx]
+    verts[where[first] - 1] = start[idx[first]]
+    bulges = np.zeros(len(verts))
+    arcs = arc[idx]
+    bulges[where[arcs] - 1] = _bulge(kind[idx[arcs]], centre[idx[arcs]], start[idx[arcs]],
+                                     end[idx[arcs]])
+    path_first = where[first] - 1
+    path_line = number[idx[first]]
+    # dots: each time the beam comes on, goes off again and no cut ran between
+    ons = np.flatnonzero(on)
+    offs_after = np.searchsorted(at, at[ons], side="right")
+    dot_pos, dot_line = [], []
+    for k, nxt in zip(ons, offs_after, strict=True):
+        stop = at[nxt] if nxt < len(at) else np.iinfo(np.int64).max
+        ran = np.searchsorted(number, [at[k], stop])
+        if not cutting[ran[0]:ran[1]].any():
+            before = ran[0] - 1  # the last move before the beam came on
+            dot_pos.append(end[before] if before >= 0 else np.zeros(2))
+            dot_line.append(int(at[k]))
+    if dot_pos:
+        # dots and grooves in program order, each a path
+        lines = np.concatenate([path_line, np.asarray(dot_line, dtype=np.int64)])
+        order = np.argsort(lines, kind="stable")
+        sizes = np.concatenate([np.diff(np.append(path_first, len(verts))),
+                                np.ones(len(dot_pos), dtype=np.int64)])
+        starts = np.concatenate([path_first, len(verts) + np.arange(len(dot_pos))])
+        all_v = np.concatenate([verts, np.asarray(dot_pos, dtype=float)])
+        all_b = np.concatenate([bulges, np.zeros(len(dot_pos))])
+        take = np.concatenate([np.arange(a, a + n) for a, n in zip(starts[order], sizes[order],
+                                                                    strict=True)])
+        verts, bulges = all_v[take], all_b[take]
+        path_first = np.concatenate([[0], np.cumsum(sizes[order])[:-1]])
+        path_line = lines[order]
+    offsets = np.append(path_first, len(verts)).astype(np.int64)
+    return Grooves(verts.reshape(-1, 2), bulges, offsets, moves.stipple_at(path_line))
