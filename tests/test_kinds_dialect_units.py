@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from test_gcode import needs_rs274, run_rs274
+from test_kinds_spin_steady_bounds import _head
 
 from specholo.errors import SpecholoError
 from specholo_cli.cli import main
@@ -73,16 +74,6 @@ def written(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFac
     for out, in_inches in ((mm, False), (inch, True)):
         assert main(_argv(kind, out, in_inches, folder)) == 0
     return kind, mm, inch
-
-
-def _head(path: Path) -> list[str]:
-    """The header comments' texts, up to the first command."""
-    out = []
-    for line in path.read_text().splitlines():
-        if not line.startswith("("):
-            break
-        out.append(line[1:-1])
-    return out
 
 
 def _commands(path: Path) -> list[str]:
