@@ -25,10 +25,10 @@ MODEL = ROOT / "examples" / "bunny.obj"
 
 
 def run_one(n: int, dialect: str) -> dict[str, float]:
-    from specholo.fabrication.gcode import write_gcode
-    from specholo.fabrication.order import order_paths
-    from specholo.fabrication.program import GcodeOptions
-    from specholo.fabrication.timing import estimate_time
+    from specholo.fabrication.programs.gcode import write_gcode
+    from specholo.fabrication.programs.order import order_paths
+    from specholo.fabrication.programs.program import GcodeOptions
+    from specholo.fabrication.programs.timing import estimate_time
     from specholo.pipeline import DesignConfig, design
 
     d = design(MODEL, DesignConfig(stipples=n))

@@ -125,7 +125,7 @@ def plain_sum(path: Path) -> dict[str, Any]:
 
 def run(d: Any, hop_max: float, out: Path) -> dict[str, Any]:
     """Write the design's folder with this longest hop; its figures."""
-    from specholo.fabrication.timing import estimate_time
+    from specholo.fabrication.programs.timing import estimate_time
     from specholo.pipeline import write_design
     from specholo.toolpaths.grooves import Grooves
 

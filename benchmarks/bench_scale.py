@@ -141,18 +141,18 @@ def _stage(stage: str, folder: Path) -> dict[str, float]:
         with tempfile.TemporaryDirectory(dir=folder) as tmp:
             out = Path(tmp)
             if stage == "gcode":
-                from specholo.fabrication.gcode import write_gcode
-                from specholo.fabrication.program import GcodeOptions
+                from specholo.fabrication.programs.gcode import write_gcode
+                from specholo.fabrication.programs.program import GcodeOptions
 
                 _, row["gcode_s"] = _timed(lambda: write_gcode(
                     out / "h.gcode", grooves, setup.tool, setup.machining,
                     options=GcodeOptions(), depth=config.depth_mm))
             elif stage == "svg":
-                from specholo.fabrication.svg import write_svg
+                from specholo.fabrication.drawings.svg import write_svg
 
                 _, row["svg_s"] = _timed(lambda: write_svg(out / "h.svg", grooves, setup.tool))
             else:
-                from specholo.fabrication.dxf import write_dxf
+                from specholo.fabrication.drawings.dxf import write_dxf
 
                 _, row["dxf_s"] = _timed(lambda: write_dxf(out / "h.dxf", grooves, setup.tool))
     row[f"{stage}_peak_mb"] = _peak_mb()

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from specholo.fabrication.order import order_paths
-from specholo.fabrication.timing import estimate_time
+from specholo.fabrication.programs.order import order_paths
+from specholo.fabrication.programs.timing import estimate_time
 from specholo.flat import design
 from specholo.settings import DesignConfig
 from specholo.setup import Holder

@@ -8,11 +8,11 @@ Designs the README's example (``specholo design examples/bunny.obj --size 60
 --machine NAME`` designs it (a machine whose strokes lift the tool widens the
 striped band; one design serves every machine of the same band), puts its
 paths in cutting order as ``write_design`` does, and estimates the program's
-time as it does (:func:`specholo.fabrication.timing.estimate_time`, a drag tip
+time as it does (:func:`specholo.fabrication.programs.timing.estimate_time`, a drag tip
 in its default spring holder: each stroke plunges from the 0.05 mm lift to the
 0.3 mm preload) with no machine (every axis at 250 mm/s^2, rapids at
 3000 mm/min, the default 300 mm/min feed) and on every profile of
-:data:`specholo.fabrication.machines.MACHINES` at that profile's own feeds.
+:data:`specholo.fabrication.programs.machines.MACHINES` at that profile's own feeds.
 Each row gives the band, the strokes, the whole time and its parts; they add
 up to it.
 
@@ -48,7 +48,7 @@ def hours(seconds: float) -> str:
 
 def estimate(name: str | None, grooves: Any, depth: float) -> dict[str, Any]:
     """The grooves' time with no machine (None) or on the profile ``name``, at its feeds."""
-    from specholo.fabrication.timing import estimate_time
+    from specholo.fabrication.programs.timing import estimate_time
     from specholo.settings import DesignConfig
 
     config = DesignConfig.from_dict({} if name is None else {"machine": name})
@@ -87,8 +87,8 @@ def main() -> None:
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     sys.path.insert(0, str(ROOT / "src"))
-    from specholo.fabrication.machines import MACHINES
-    from specholo.fabrication.order import order_paths
+    from specholo.fabrication.programs.machines import MACHINES
+    from specholo.fabrication.programs.order import order_paths
     from specholo.pipeline import DesignConfig, design
 
     results = {}

@@ -1,4 +1,4 @@
-"""Coverage-guided fuzzing of ``specholo.fabrication.gcode.read_gcode`` with atheris.
+"""Coverage-guided fuzzing of ``specholo.fabrication.programs.gcode.read_gcode`` with atheris.
 
 An input with an even first byte is the G-code file after that byte; with an
 odd one the rest drives a generator of G-code lines (motion words, huge and
@@ -22,7 +22,7 @@ import targets  # noqa: E402
 # kernel from its bytecode, and instrumented bytecode calls into atheris.
 with atheris.instrument_imports(include=["specholo"],
                                 exclude=targets.compiled_modules()):
-    import specholo.fabrication.gcode  # noqa: F401
+    import specholo.fabrication.programs.gcode  # noqa: F401
 
 
 def test_one_input(data: bytes) -> None:

@@ -63,7 +63,7 @@ def _config_seeds() -> dict[str, bytes]:
 
 
 def _gcode_seeds() -> dict[str, bytes]:
-    from specholo.fabrication.gcode import GcodeOptions, write_gcode
+    from specholo.fabrication.programs.gcode import GcodeOptions, write_gcode
     from specholo.setup import Machining, Tool
     from specholo.toolpaths.grooves import Grooves
 

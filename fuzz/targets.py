@@ -286,7 +286,7 @@ def check_config_bytes(data: bytes) -> None:
 
 def check_gcode_file(path: str | os.PathLike[str]) -> None:
     """Read a G-code program back into grooves; accepted grooves must be well formed."""
-    from specholo.fabrication.gcode_reader import read_gcode
+    from specholo.fabrication.programs.gcode_reader import read_gcode
 
     name = Path(path).name
     with quiet_check(f"gcode {name}"):

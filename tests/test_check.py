@@ -14,8 +14,8 @@ from test_gcode import check_canon, hopping_example, needs_rs274, run_rs274
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.check import CheckReport, Limits, Stock, check_gcode, check_limits
-from specholo.fabrication.gcode import write_gcode
-from specholo.fabrication.program import DIALECTS, GcodeOptions
+from specholo.fabrication.programs.gcode import write_gcode
+from specholo.fabrication.programs.program import DIALECTS, GcodeOptions
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves
 

@@ -112,7 +112,7 @@ def _program(path: Path, limits: Limits, top: float = 0.0) -> Program:
 def programs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Program]:
     """Every job's kept programs, made once (each passed its job's check to be kept)."""
     from specholo.compose import design_composition, parse_composition, write_composition
-    from specholo.fabrication.surface_gcode import host_top, surface_limits
+    from specholo.fabrication.programs.surface_gcode import host_top, surface_limits
     from specholo.pipeline import DesignConfig, design, design_limits, write_design
     from specholo.ridged import design_ridged_model, ridged_limits, write_ridged_design
     from specholo.spin import SpinConfig, design_spin, spin_limits, write_spin
@@ -435,7 +435,7 @@ def test_a_drag_tips_plunge_made_deep_is_refused(tmp_path: Path,
 
 def test_check_bounds_hops_when_asked(tmp_path: Path,
                                       capsys: pytest.CaptureFixture[str]) -> None:
-    from specholo.fabrication.gcode import write_gcode
+    from specholo.fabrication.programs.gcode import write_gcode
     from specholo.setup import Tool
 
     path = tmp_path / "hops.ngc"
@@ -500,7 +500,7 @@ def test_steady_cuts_no_deeper_than_its_depth_and_is_checked(
 
 
 def test_spin_programs_are_checked(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import specholo.fabrication.gcode as gcode
+    import specholo.fabrication.programs.gcode as gcode
     from specholo.spin import SpinConfig, design_spin, write_spin
 
     job = design_spin(BUNNY, SpinConfig(stipples=6, size=20, occlusion=False))
@@ -594,7 +594,7 @@ def test_inch_designs_pass_their_check(tmp_path: Path, capsys: pytest.CaptureFix
 @needs_rs274
 def test_inch_designs_run_in_linuxcnc(tmp_path: Path, capsys: pytest.CaptureFixture[str]
                                       ) -> None:
-    from specholo.fabrication.program import GcodeOptions
+    from specholo.fabrication.programs.program import GcodeOptions
     from specholo.pipeline import load_design
 
     # a rigid holder's program (a spring holder's is read by rs274 in test_holders.py)

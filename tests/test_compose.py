@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from specholo.compose import design_composition, parse_composition, verify_composition
 from specholo.errors import SpecholoError
-from specholo.fabrication.surface_gcode import check_surface_program, write_surface_gcode
+from specholo.fabrication.programs.surface_gcode import check_surface_program, write_surface_gcode
 from specholo.hosts.surfaces import Cylinder, HeightField, MeshHost, Panel, Panels, Plane, Sphere
 from specholo.simulation.conforming import find_conforming_glints, summarise
 from specholo_cli.cli import main

@@ -186,7 +186,7 @@ def test_the_card_is_small_and_named_in_its_header(card: Path) -> None:
 
 def test_it_takes_at_most_15_minutes_on_the_router(card: Path) -> None:
     from specholo.coupon import CouponConfig
-    from specholo.fabrication.timing import estimate_time
+    from specholo.fabrication.programs.timing import estimate_time
     from specholo.toolpaths.grooves import Grooves
 
     info = info_of(card)
@@ -260,7 +260,7 @@ def handing_over(track: np.ndarray, azimuth: float, step: float) -> bool:
 
 def test_the_glints_show_from_where_the_sheet_says(card: Path) -> None:
     from specholo.coupon import CouponConfig
-    from specholo.fabrication.gcode_reader import read_gcode
+    from specholo.fabrication.programs.gcode_reader import read_gcode
     from specholo.simulation.glints import Engraved, find_glints
 
     info = info_of(card)

@@ -248,8 +248,8 @@ def test_stl_is_a_watertight_plate(tmp_path: Path) -> None:
 
 
 def test_gcode_round_trip_cuts_the_same_plate(tmp_path: Path) -> None:
-    from specholo.fabrication.gcode import write_gcode
-    from specholo.fabrication.gcode_reader import read_gcode
+    from specholo.fabrication.programs.gcode import write_gcode
+    from specholo.fabrication.programs.gcode_reader import read_gcode
     from specholo.setup import Machining
 
     g = Grooves(np.array([[0.0, 0.0], [1.0, 0.2], [2.0, 0.1], [0.5, 1.0], [1.5, 1.2]]),

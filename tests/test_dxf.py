@@ -13,10 +13,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
-from specholo.fabrication import dxf
-from specholo.fabrication.dxf import write_dxf
-from specholo.fabrication.gcode import is_straight
-from specholo.fabrication.svg import LAYER_COLOURS, PLATE_LAYER_NAME, plan_layers
+from specholo.fabrication.drawings import dxf
+from specholo.fabrication.drawings.dxf import write_dxf
+from specholo.fabrication.drawings.svg import LAYER_COLOURS, PLATE_LAYER_NAME, plan_layers
+from specholo.fabrication.exporting import is_straight
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -189,9 +189,9 @@ def test_chunks(tmp_path, groove_example, monkeypatch):
     parts = tmp_path / "parts.dxf"
     write_dxf(parts, g, Tool(), depths=depths)
     assert parts.read_bytes() == whole.read_bytes()
-    from specholo.fabrication import gcode
+    from specholo.fabrication import exporting
 
-    monkeypatch.setattr(gcode, "WRITER_THREADS", 1)  # and made in one thread
+    monkeypatch.setattr(exporting, "WRITER_THREADS", 1)  # and made in one thread
     one = tmp_path / "one.dxf"
     write_dxf(one, g, Tool(), depths=depths)
     assert one.read_bytes() == whole.read_bytes()

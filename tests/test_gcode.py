@@ -21,24 +21,16 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.gcode import (
-    GcodeStats,
+from specholo.fabrication.exporting import (
     TextRows,
     chunk_bounds,
+    format_number,
     is_straight,
     path_chunks,
-    split_wide_arcs,
-    wide_arcs,
-    write_gcode,
 )
-from specholo.fabrication.gcode_reader import read_gcode
-from specholo.fabrication.program import (
-    DIALECTS,
-    MAX_ARC_OFFSET_MM,
-    SCALE,
-    GcodeOptions,
-    format_number,
-)
+from specholo.fabrication.programs.gcode import GcodeStats, split_wide_arcs, wide_arcs, write_gcode
+from specholo.fabrication.programs.gcode_reader import read_gcode
+from specholo.fabrication.programs.program import DIALECTS, MAX_ARC_OFFSET_MM, SCALE, GcodeOptions
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -485,7 +477,7 @@ def test_split_wide_arcs_keeps_the_arcs():
 
 @pytest.mark.parametrize("writer", ["gcode", "svg"])
 def test_decimal_point_ignores_locale(tmp_path, groove_example, writer):
-    from specholo.fabrication.svg import write_svg
+    from specholo.fabrication.drawings.svg import write_svg
 
     def write(out: Path) -> bytes:
         if writer == "gcode":
@@ -872,7 +864,7 @@ def test_path_chunks_read_from_the_offsets(monkeypatch):
     """Chunks found from the offsets, a block of paths at a time, are the same
     as from the sizes: whole, for a subset of paths and for a slice whose
     offsets do not start at 0."""
-    import specholo.fabrication.gcode as gcode_module
+    from specholo.fabrication import exporting
 
     rng = np.random.default_rng(3)
     sizes = rng.integers(1, 9, 200)
@@ -881,7 +873,7 @@ def test_path_chunks_read_from_the_offsets(monkeypatch):
     paths = rng.permutation(200)[:150]
     tail = Grooves(g.vertices, g.bulges, offsets[50:] - 0, np.arange(150))  # starts at 50's
     for block in (1, 7, 1 << 22):
-        monkeypatch.setattr(gcode_module, "_BLOCK_PATHS", block)
+        monkeypatch.setattr(exporting, "_BLOCK_PATHS", block)
         for rows in (1, 5, 16, 10_000):
             assert path_chunks(g, rows).tolist() == chunk_bounds(sizes, rows).tolist()
             assert path_chunks(g, rows, paths).tolist() == \
@@ -893,7 +885,7 @@ def test_path_chunks_read_from_the_offsets(monkeypatch):
 def test_chunks_change_nothing(tmp_path, groove_example, monkeypatch):
     """Written a few paths at a time, the program is the same byte for byte
     (hops onto and off each chunk's paths included)."""
-    from specholo.fabrication import gcode
+    from specholo.fabrication.programs import gcode
 
     g = Grooves.concatenate([groove_example, hopping_example()] * 4)
     whole = tmp_path / "whole.ngc"
@@ -907,7 +899,9 @@ def test_chunks_change_nothing(tmp_path, groove_example, monkeypatch):
     assert again.cutting_length_mm == pytest.approx(stats.cutting_length_mm, rel=1e-12)
     assert again.rapid_length_mm == pytest.approx(stats.rapid_length_mm, rel=1e-12)
     assert parts.read_bytes() == whole.read_bytes()
-    monkeypatch.setattr(gcode, "WRITER_THREADS", 1)  # and made in one thread
+    from specholo.fabrication import exporting
+
+    monkeypatch.setattr(exporting, "WRITER_THREADS", 1)  # and made in one thread
     one = tmp_path / "one.ngc"
     write_gcode(one, g, Tool(), Machining())
     assert one.read_bytes() == whole.read_bytes()
@@ -920,7 +914,7 @@ def test_chunks_made_in_threads_come_in_order(monkeypatch):
     import threading
     import time
 
-    from specholo.fabrication import gcode
+    from specholo.fabrication import exporting
 
     rng = np.random.default_rng(0)
     delays = rng.uniform(0, 0.004, 40)
@@ -932,7 +926,7 @@ def test_chunks_made_in_threads_come_in_order(monkeypatch):
         return lo, hi
 
     bounds = np.arange(41)
-    assert list(gcode.in_order(make, bounds)) == [(i, i + 1) for i in range(40)]
+    assert list(exporting.in_order(make, bounds)) == [(i, i + 1) for i in range(40)]
     assert threading.get_ident() not in makers
 
     def fail(lo: int, hi: int) -> int:
@@ -941,16 +935,16 @@ def test_chunks_made_in_threads_come_in_order(monkeypatch):
         return lo
 
     with pytest.raises(ValueError, match="chunk 7"):
-        list(gcode.in_order(fail, bounds))
+        list(exporting.in_order(fail, bounds))
     made: list[int] = []
-    for lo in gcode.in_order(lambda lo, hi: made.append(lo) or lo, bounds, ahead=2):
+    for lo in exporting.in_order(lambda lo, hi: made.append(lo) or lo, bounds, ahead=2):
         if lo == 3:
             break
     assert len(made) <= 3 + 2 + 2  # the chunks in flight, not all 40
 
     makers.clear()
-    monkeypatch.setattr(gcode, "concurrent_kernels_safe", lambda: False)
-    assert list(gcode.in_order(make, bounds)) == [(i, i + 1) for i in range(40)]
+    monkeypatch.setattr(exporting, "concurrent_kernels_safe", lambda: False)
+    assert list(exporting.in_order(make, bounds)) == [(i, i + 1) for i in range(40)]
     assert makers == {threading.get_ident()}
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from specholo.fabrication.gcode_reader import read_gcode
+from specholo.fabrication.programs.gcode_reader import read_gcode
 from specholo.pipeline import DesignConfig, design, write_design
 from specholo.setup import Light
 from specholo.simulation.glints import Engraved, find_glints

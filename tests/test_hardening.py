@@ -453,7 +453,7 @@ def test_run_json_records_the_run(tmp_path: Path, capsys) -> None:
 def test_ordering_paths_far_from_the_origin_ends() -> None:
     """The closed-form hyperbolas with the sun at 90 degrees reach 1e16 mm: the
     2-opt pass undid its own moves forever there (rounding passed for gains)."""
-    from specholo.fabrication.order import order_paths
+    from specholo.fabrication.programs.order import order_paths
     from specholo.toolpaths.common import make_runs
     from specholo.toolpaths.hyperbola import design_hyperbola
 

@@ -33,15 +33,16 @@ from specholo.fabrication.check import (
     check_program,
     limits_from_header,
 )
-from specholo.fabrication.gcode import drawn_extent, write_gcode
-from specholo.fabrication.leveling import (
+from specholo.fabrication.exporting import drawn_extent
+from specholo.fabrication.programs.gcode import write_gcode
+from specholo.fabrication.programs.leveling import (
     FOLLOW,
     level_program,
     leveled_limits,
     read_probe_log,
 )
-from specholo.fabrication.program import GcodeOptions
-from specholo.fabrication.timing import estimate_time, trapezoid_time
+from specholo.fabrication.programs.program import GcodeOptions
+from specholo.fabrication.programs.timing import estimate_time, trapezoid_time
 from specholo.pipeline import DesignConfig
 from specholo.setup import SPRING_LIFT, Holder, Machining, Tool
 from specholo.toolpaths.grooves import Grooves

@@ -15,7 +15,7 @@ import pytest
 from specholo.compose import parse_composition
 from specholo.errors import SpecholoError
 from specholo.fabrication.check import limits_from_header
-from specholo.fabrication.surface_gcode import check_surface_program
+from specholo.fabrication.programs.surface_gcode import check_surface_program
 from specholo_cli.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from specholo.fabrication.gcode import write_gcode
-from specholo.fabrication.gcode_reader import read_gcode
-from specholo.fabrication.program import GcodeOptions
+from specholo.fabrication.programs.gcode import write_gcode
+from specholo.fabrication.programs.gcode_reader import read_gcode
+from specholo.fabrication.programs.program import GcodeOptions
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves
 from specholo_cli.cli import main

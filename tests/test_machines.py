@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.machines import KINDS, MACHINES, MachineProfile, machine_profile
-from specholo.fabrication.timing import estimate_time
+from specholo.fabrication.programs.machines import KINDS, MACHINES, MachineProfile, machine_profile
+from specholo.fabrication.programs.timing import estimate_time
 from specholo.settings import DesignConfig
 from specholo.setup import Machining
 from specholo.toolpaths.grooves import Grooves

@@ -11,9 +11,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.gcode import write_gcode
-from specholo.fabrication.order import OrderStats, order_paths, reorder, travel_length
-from specholo.fabrication.timing import describe_machining, estimate_time, plain_duration
+from specholo.fabrication.programs.gcode import write_gcode
+from specholo.fabrication.programs.order import OrderStats, order_paths, reorder, travel_length
+from specholo.fabrication.programs.timing import describe_machining, estimate_time, plain_duration
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -351,7 +351,7 @@ def _random_strokes(seed: int, n: int) -> Grooves:
 
 
 def test_a_large_plate_is_ordered_a_tile_at_a_time(monkeypatch):
-    import specholo.fabrication.order as order_module
+    import specholo.fabrication.programs.order as order_module
 
     g = _random_strokes(3, 600)
     whole, whole_stats = order_paths(g)
@@ -365,7 +365,7 @@ def test_a_large_plate_is_ordered_a_tile_at_a_time(monkeypatch):
 
 
 def test_large_grooves_are_reordered_in_place(monkeypatch, tmp_path):
-    import specholo.fabrication.order as order_module
+    import specholo.fabrication.programs.order as order_module
 
     g = _random_strokes(4, 300)
     copy = Grooves(g.vertices.copy(), g.bulges.copy(), g.offsets.copy(), g.stipple.copy())
@@ -392,8 +392,8 @@ def test_large_grooves_are_reordered_in_place(monkeypatch, tmp_path):
 
 
 def test_travel_and_time_summed_a_block_of_paths_at_a_time(monkeypatch):
-    import specholo.fabrication.order as order_module
-    import specholo.fabrication.timing as timing_module
+    import specholo.fabrication.programs.order as order_module
+    import specholo.fabrication.programs.timing as timing_module
 
     g = _random_strokes(5, 50)
     ordered, stats = order_paths(g)

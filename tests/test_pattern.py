@@ -12,7 +12,7 @@ from matplotlib.patches import PathPatch
 from matplotlib.text import Text
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.pattern import (
+from specholo.fabrication.drawings.pattern import (
     PAPERS,
     PT_PER_MM,
     SCALE_BAR_MM,
@@ -22,7 +22,7 @@ from specholo.fabrication.pattern import (
     tile_name,
     write_pattern,
 )
-from specholo.fabrication.program import format_number
+from specholo.fabrication.exporting import format_number
 from specholo.setup import Setup
 from specholo.toolpaths.classic import design_classic
 from specholo.toolpaths.common import make_runs

@@ -16,8 +16,15 @@ from test_gcode import check_canon, needs_rs274, run_rs274
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.check import limits_from_header
-from specholo.fabrication.dxf import write_dxf
-from specholo.fabrication.gcode import write_gcode
+from specholo.fabrication.drawings.dxf import write_dxf
+from specholo.fabrication.drawings.svg import (
+    LAYER_COLOURS,
+    PLATE_COLOUR,
+    PLATE_LAYER,
+    PLATE_LAYER_NAME,
+    plan_layers,
+    write_svg,
+)
 from specholo.fabrication.plate import (
     MARK_ARM,
     MARK_INSET,
@@ -26,15 +33,8 @@ from specholo.fabrication.plate import (
     Plate,
     fit_plate,
 )
-from specholo.fabrication.program import GcodeOptions
-from specholo.fabrication.svg import (
-    LAYER_COLOURS,
-    PLATE_COLOUR,
-    PLATE_LAYER,
-    PLATE_LAYER_NAME,
-    plan_layers,
-    write_svg,
-)
+from specholo.fabrication.programs.gcode import write_gcode
+from specholo.fabrication.programs.program import GcodeOptions
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.grooves import Grooves
 

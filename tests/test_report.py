@@ -36,7 +36,7 @@ def test_report_is_self_contained_and_matches_the_files(verified: Path):
     assert f"{info['stats']['groove_length_mm'] / 1000:.2f} m" in page
     assert f"{info['stats']['paths']:,}" in page
     # the machining time is the design's own estimate, as hologram.json holds it
-    from specholo.fabrication.timing import plain_duration
+    from specholo.fabrication.programs.timing import plain_duration
 
     hours = info["machining"]["estimated_hours"]
     assert f"<th>machining</th><td>about {plain_duration(3600 * hours)} at" in page

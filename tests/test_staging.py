@@ -12,7 +12,7 @@ from test_check import MACHINING, TOOL, hop_limits
 from test_gcode import hopping_example
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.gcode import write_gcode
+from specholo.fabrication.programs.gcode import write_gcode
 from specholo.staging import stage_design
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "specholo"

@@ -193,7 +193,7 @@ def test_summary_says_what_became_of_every_stipple_asked_for_and_how_long_it_cut
     """The summary accounts for every stipple asked for (cut, hidden, no scoop),
     names the plate, the tool and its depth, and the machining time at the feed,
     which is the program's own: no less than its moves at full speed."""
-    from specholo.fabrication.timing import describe_machining
+    from specholo.fabrication.programs.timing import describe_machining
 
     out = tmp_path / "steady"
     # a high, wide light: some visible stipples find no scoop that keeps the other

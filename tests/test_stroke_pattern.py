@@ -11,8 +11,8 @@ from matplotlib.colors import to_rgb
 from scipy.spatial import cKDTree
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.pattern import PT_PER_MM, SCALE_BAR_MM, _targets
-from specholo.fabrication.stroke_pattern import (
+from specholo.fabrication.drawings.pattern import PT_PER_MM, SCALE_BAR_MM, _targets
+from specholo.fabrication.drawings.stroke_pattern import (
     COLOURS,
     STROKE_PT,
     StrokePlan,

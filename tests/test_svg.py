@@ -12,8 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.gcode import is_straight
-from specholo.fabrication.svg import (
+from specholo.fabrication.drawings.svg import (
     LAYER_COLOURS,
     PLATE_LAYER,
     PLATE_LAYER_NAME,
@@ -21,6 +20,7 @@ from specholo.fabrication.svg import (
     plan_layers,
     write_svg,
 )
+from specholo.fabrication.exporting import is_straight
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -326,7 +326,7 @@ def test_rejects_bad_grooves(tmp_path):
 
 def test_chunks_change_nothing(tmp_path, groove_example, monkeypatch):
     """Written a few paths at a time, the drawing is the same byte for byte."""
-    from specholo.fabrication import svg
+    from specholo.fabrication.drawings import svg
 
     g = Grooves.concatenate([groove_example] * 7)
     depths = np.tile([0.1, 0.05, 0.05], 7)
@@ -336,9 +336,9 @@ def test_chunks_change_nothing(tmp_path, groove_example, monkeypatch):
     parts = tmp_path / "parts.svg"
     write_svg(parts, g, Tool(), depths=depths)
     assert parts.read_bytes() == whole.read_bytes()
-    from specholo.fabrication import gcode
+    from specholo.fabrication import exporting
 
-    monkeypatch.setattr(gcode, "WRITER_THREADS", 1)  # and made in one thread
+    monkeypatch.setattr(exporting, "WRITER_THREADS", 1)  # and made in one thread
     one = tmp_path / "one.svg"
     write_svg(one, g, Tool(), depths=depths)
     assert one.read_bytes() == whole.read_bytes()

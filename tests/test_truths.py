@@ -181,8 +181,8 @@ def test_a_hand_pattern_gives_the_hand_s_time(tmp_path: Path,
                                              capsys: pytest.CaptureFixture[str]):
     """Asked only for the printed pattern, the summary gives the strokes and the
     time by hand at the pattern's own 10 s a stroke, not a machine's time."""
-    from specholo.fabrication.stroke_pattern import SECONDS_PER_STROKE
-    from specholo.fabrication.timing import plain_duration
+    from specholo.fabrication.drawings.stroke_pattern import SECONDS_PER_STROKE
+    from specholo.fabrication.programs.timing import plain_duration
     from specholo.toolpaths.grooves import Grooves
 
     out = tmp_path / "hand"

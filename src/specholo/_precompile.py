@@ -30,11 +30,12 @@ from typing import Any
 
 
 def cache_is_cold() -> bool:
-    """Whether numba's cache holds no G-code writer yet, one of the last kernels
-    a design compiles: a fresh install, or a cache emptied since."""
-    from specholo.fabrication import gcode
+    """Whether numba's cache holds no text writer yet (the G-code's and the
+    drawings'), one of the last kernels a design compiles: a fresh install, or
+    a cache emptied since."""
+    from specholo.fabrication import exporting
 
-    writer: Any = gcode._write_rows
+    writer: Any = exporting._write_rows
     try:
         index = writer._cache._cache_file._index_path
     except AttributeError:  # another numba, or caching off: nothing to share

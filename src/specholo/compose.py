@@ -38,7 +38,7 @@ from specholo.scene.pose import UP_AXES, Pose
 from specholo.setup import MAX_FEED, MAX_SPINDLE, MIN_SAFE_Z, Machining, Tool
 
 if TYPE_CHECKING:
-    from specholo.fabrication.program import GcodeOptions
+    from specholo.fabrication.programs.program import GcodeOptions
 
 #: Ranges of a composition's machining numbers (lowest, highest, unit): those
 #: of real machines. Feeds from a crawl to beyond the fastest routers (60 m/min);
@@ -205,7 +205,7 @@ class Composition:
     units: str = "mm"
 
     def gcode_options(self) -> GcodeOptions:
-        """The ``fabrication.program.GcodeOptions`` its program is written with."""
+        """The ``fabrication.programs.program.GcodeOptions`` its program is written with."""
         from specholo.spin import program_options
 
         return program_options(self)
@@ -714,7 +714,10 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
         The G-code check's figures.
     """
     from specholo.fabrication.atomic import atomic_open
-    from specholo.fabrication.surface_gcode import check_surface_program, write_surface_gcode
+    from specholo.fabrication.programs.surface_gcode import (
+        check_surface_program,
+        write_surface_gcode,
+    )
     from specholo.folders import check_out
     from specholo.staging import stage_design
 

@@ -522,7 +522,7 @@ def design_coupon(config: CouponConfig) -> Coupon:
         SpecholoError: a stipple the striped method cannot design, rungs that
             would overlap, or a card taking longer than :data:`MAX_MINUTES`.
     """
-    from specholo.fabrication.order import order_paths
+    from specholo.fabrication.programs.order import order_paths
     from specholo.flat import design_runs
 
     timings: dict[str, float] = {}
@@ -685,15 +685,15 @@ def sheet_positions(track: np.ndarray, azimuth: float) -> np.ndarray:
 def machining_estimate(coupon: Coupon) -> dict[str, Any]:
     """The card's machining time as the program runs, on the design's machine.
 
-    :func:`~specholo.fabrication.timing.estimate_time` takes one depth a
+    :func:`~specholo.fabrication.programs.timing.estimate_time` takes one depth a
     program, and every part of its estimate adds up path by path (each path's
     move onto it from the last one's end, its plunge and retract, its cut), so
     a rung's share is the estimate of the paths up to its last less that of
     the paths before its first, both at its own Z: the card's estimate is
     exact, the move from one rung onto the next included.
     """
-    from specholo.fabrication.program import GcodeOptions
-    from specholo.fabrication.timing import estimate_time
+    from specholo.fabrication.programs.program import GcodeOptions
+    from specholo.fabrication.programs.timing import estimate_time
 
     design = coupon.config.design
     profile = design.profile
@@ -809,10 +809,10 @@ def write_coupon(coupon: Coupon, out: str | os.PathLike[str],
     import json
 
     from specholo.fabrication.atomic import atomic_open
-    from specholo.fabrication.gcode import write_gcode
-    from specholo.fabrication.program import GcodeOptions
-    from specholo.fabrication.sheet import write_sheet
-    from specholo.fabrication.svg import write_svg
+    from specholo.fabrication.drawings.sheet import write_sheet
+    from specholo.fabrication.drawings.svg import write_svg
+    from specholo.fabrication.programs.gcode import write_gcode
+    from specholo.fabrication.programs.program import GcodeOptions
     from specholo.staging import run_record, stage_design
 
     config = coupon.config
@@ -1012,7 +1012,7 @@ def load_coupon(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
                 seen[sid], dark[sid] = (lo, hi), (dlo, dhi)
     total = lay.targets + len(lay.labels)
     if from_gcode:
-        from specholo.fabrication.gcode_reader import read_gcode
+        from specholo.fabrication.programs.gcode_reader import read_gcode
 
         grooves = read_gcode(folder / "hologram.gcode")
         grooves.validate(total, str(folder / "hologram.gcode"))

@@ -148,7 +148,7 @@ def design_limits(d: Design) -> Any:
     lift (there the tip drags on the plate). In mm whatever the program's
     units: the check reads a G20 program in mm."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
-    from specholo.fabrication.program import GcodeOptions
+    from specholo.fabrication.programs.program import GcodeOptions
 
     m = d.config.setup().machining
     width = d.config.cutter().section(d.config.depth_mm).width
@@ -178,7 +178,7 @@ def flatness_line(grooves: Grooves, holder: Any) -> dict[str, str]:
     within :data:`~specholo.settings.DEPTH_ALLOWANCE` of their depth, and a
     rigid holder cuts at the Z it is given, so the plate's height over the
     grooves must be known that well: on a hobby machine, by probing it."""
-    from specholo.fabrication.gcode import drawn_extent
+    from specholo.fabrication.exporting import drawn_extent
 
     if holder is None or holder.spring:
         return {}
@@ -269,7 +269,7 @@ def write_design(d: Design, out: str | os.PathLike[str],
 
     Every file but ``run.json`` is the same byte for byte for the same model,
     settings and software; ``run.json`` records this run (see :func:`run_record`).
-    Grooves of over a GB (:data:`~specholo.fabrication.order.IN_PLACE_BYTES`)
+    Grooves of over a GB (:data:`~specholo.fabrication.programs.order.IN_PLACE_BYTES`)
     are put in cutting order in place: ``d.grooves`` is then in that order.
 
     Args:
@@ -283,11 +283,12 @@ def write_design(d: Design, out: str | os.PathLike[str],
     Returns:
         Seconds spent per output, and the machining estimate.
     """
-    from specholo.fabrication.gcode import check_grooves, write_gcode
-    from specholo.fabrication.order import order_paths
-    from specholo.fabrication.program import GcodeOptions
-    from specholo.fabrication.svg import write_svg
-    from specholo.fabrication.timing import estimate_time
+    from specholo.fabrication.drawings.svg import write_svg
+    from specholo.fabrication.exporting import check_grooves
+    from specholo.fabrication.programs.gcode import write_gcode
+    from specholo.fabrication.programs.order import order_paths
+    from specholo.fabrication.programs.program import GcodeOptions
+    from specholo.fabrication.programs.timing import estimate_time
     from specholo.folders import check_out
     from specholo.preview.preview import render_preview
     from specholo.scene.stippling import check_disk
@@ -375,7 +376,7 @@ def write_design(d: Design, out: str | os.PathLike[str],
                       cut=(d.config.depth_mm, width))
             timings["svg"] = time.perf_counter() - t0
         if "dxf" in formats:
-            from specholo.fabrication.dxf import write_dxf  # ezdxf: only when asked for
+            from specholo.fabrication.drawings.dxf import write_dxf  # ezdxf: only when asked for
 
             t0 = time.perf_counter()
             write_dxf(tmp / "hologram.dxf", grooves, setup.tool, plate=plate,
@@ -383,8 +384,8 @@ def write_design(d: Design, out: str | os.PathLike[str],
             timings["dxf"] = time.perf_counter() - t0
         if "pdf" in formats:
             # matplotlib's PDF: an arc design's compass pattern, else its strokes
-            from specholo.fabrication.pattern import write_pattern
-            from specholo.fabrication.stroke_pattern import write_stroke_pattern
+            from specholo.fabrication.drawings.pattern import write_pattern
+            from specholo.fabrication.drawings.stroke_pattern import write_stroke_pattern
 
             t0 = time.perf_counter()
             write = write_pattern if d.config.method == "arc" else write_stroke_pattern
@@ -444,7 +445,7 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
                             "grooves): render, verify and view read it")
     points, normals = load_stipples(folder / "stipples.npz")
     if from_gcode:
-        from specholo.fabrication.gcode_reader import read_gcode
+        from specholo.fabrication.programs.gcode_reader import read_gcode
 
         grooves = read_gcode(folder / "hologram.gcode")
         grooves.validate(len(points), str(folder / "hologram.gcode"))

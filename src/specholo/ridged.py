@@ -234,7 +234,7 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
     """
     from specholo.fabrication.heightmap import RIDGED_FILES, write_raster_gcode, write_ridged_files
     from specholo.fabrication.plate import Plate
-    from specholo.fabrication.program import GcodeOptions
+    from specholo.fabrication.programs.program import GcodeOptions
     from specholo.preview.preview import render_field_preview
     from specholo.staging import stage_design
 

@@ -12,8 +12,8 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.machines import MACHINES, MachineProfile, machine_profile
 from specholo.fabrication.plate import STOCK_THICKNESS
+from specholo.fabrication.programs.machines import MACHINES, MachineProfile, machine_profile
 from specholo.fabrication.tools import (
     Cutter,
     make_cutter,

@@ -35,7 +35,7 @@ from specholo.toolpaths.spinning import (
 )
 
 if TYPE_CHECKING:
-    from specholo.fabrication.program import GcodeOptions
+    from specholo.fabrication.programs.program import GcodeOptions
 
 #: The setup's angles, radians inside, saved in degrees.
 SPIN_ANGLES = ("elevation",)
@@ -106,7 +106,7 @@ def check_program_options(dialect: Any, units: Any, names: tuple[str, str] = ("-
     composition's program cannot be written in, in one line naming the option
     (``names``: how the caller spells the two) and its choices: these programs
     plunge a cutter, so a mill's dialect (grbl, linuxcnc), in mm or inch."""
-    from specholo.fabrication.program import MILL_DIALECTS
+    from specholo.fabrication.programs.program import MILL_DIALECTS
 
     if not isinstance(dialect, str) or dialect not in MILL_DIALECTS:
         raise SpecholoError(f"{names[0]} must be {' or '.join(MILL_DIALECTS)} ({NO_LASER}), "
@@ -116,12 +116,12 @@ def check_program_options(dialect: Any, units: Any, names: tuple[str, str] = ("-
 
 
 def program_options(config: Any) -> GcodeOptions:
-    """The ``fabrication.program.GcodeOptions`` a job's config
+    """The ``fabrication.programs.program.GcodeOptions`` a job's config
     (``SpinConfig``, ``SteadyConfig``, ``compose.Composition``) writes its programs with:
     its dialect and units."""
     from typing import cast
 
-    from specholo.fabrication.program import Dialect, GcodeOptions, Units
+    from specholo.fabrication.programs.program import Dialect, GcodeOptions, Units
 
     return GcodeOptions(dialect=cast(Dialect, config.dialect), units=cast(Units, config.units))
 
@@ -501,8 +501,8 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
         The summary of the verification.
     """
     from specholo.fabrication.atomic import atomic_open
-    from specholo.fabrication.gcode import write_gcode
-    from specholo.fabrication.svg import write_svg
+    from specholo.fabrication.drawings.svg import write_svg
+    from specholo.fabrication.programs.gcode import write_gcode
     from specholo.fabrication.tools import VBit
     from specholo.folders import check_out
     from specholo.preview.motion import write_animation

@@ -271,9 +271,9 @@ def steady_plate(design: SteadyDesign, config: SteadyConfig) -> Any:
 
 def steady_machining(design: SteadyDesign, config: SteadyConfig) -> dict[str, float]:
     """How long :func:`write_path_gcode`'s program takes, as a flat design's
-    ``machining`` figures (hours; :func:`specholo.fabrication.timing.describe_machining`
+    ``machining`` figures (hours; :func:`specholo.fabrication.programs.timing.describe_machining`
     words them), from the same timing model
-    (:func:`~specholo.fabrication.timing.estimate_time`).
+    (:func:`~specholo.fabrication.programs.timing.estimate_time`).
 
     The program rapids to each cut's start at the safe height, plunges to it,
     feeds along the cut in X, Y and Z and retracts: never a hop. A scoop starts
@@ -286,7 +286,7 @@ def steady_machining(design: SteadyDesign, config: SteadyConfig) -> dict[str, fl
     """
     import dataclasses
 
-    from specholo.fabrication.timing import estimate_time
+    from specholo.fabrication.programs.timing import estimate_time
     from specholo.toolpaths.grooves import Grooves
 
     n = design.n_cuts
@@ -334,15 +334,15 @@ def _unrolled(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
 def write_path_gcode(path: Path, design: SteadyDesign, tool: Tool, machining: Machining,
                      header: dict[str, str], plate: Any = None, options: Any = None) -> int:
     """G-code for the cuts, atomically, through the one emitter
-    (``fabrication.program.Emitter``): a vertical ball-end tool whose tip follows
+    (``fabrication.programs.program.Emitter``): a vertical ball-end tool whose tip follows
     each cut's centre path R lower, in X, Y and Z; ``plate``
     (``fabrication.plate.Plate``), if given, named in the header: its size,
     thickness and corners and how to set the origin (no registration marks: a
     steady design draws no SVG or DXF to carry them); ``options``
-    (``fabrication.program.GcodeOptions``) the dialect and units, a mill's
+    (``fabrication.programs.program.GcodeOptions``) the dialect and units, a mill's
     (default GRBL in mm). Returns the number of lines."""
     from specholo.fabrication.atomic import atomic_open
-    from specholo.fabrication.program import Emitter, GcodeOptions
+    from specholo.fabrication.programs.program import Emitter, GcodeOptions
 
     em = Emitter(options or GcodeOptions(), machining)
     em.require_mill("a steady design's program")

@@ -15,7 +15,7 @@ import click
 
 from specholo import __version__
 from specholo.errors import SpecholoError
-from specholo.fabrication.machines import MACHINES
+from specholo.fabrication.programs.machines import MACHINES
 
 _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("size", float, "Largest side of the model's bounding box, mm [60]."),

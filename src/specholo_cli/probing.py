@@ -1,5 +1,5 @@
 """``specholo probe`` and ``specholo level``: a rigid holder's plate, probed and
-levelled to (:mod:`specholo.fabrication.leveling`)."""
+levelled to (:mod:`specholo.fabrication.programs.leveling`)."""
 
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ def probe(folder: Path, spacing: float, dialect: str | None) -> None:
     grooves must be known to the depth's allowance (0.005 mm): run the program
     with a touch probe and keep its log (GRBL's console, or LinuxCNC's
     probe_results.txt)."""
-    from specholo.fabrication.leveling import (
+    from specholo.fabrication.programs.leveling import (
         PROBE_PROGRAM,
         probe_area,
         read_program,
@@ -70,7 +70,7 @@ def level(folder: Path, log: Path) -> None:
     points, long moves split so that the Z follows them within 0.001 mm. It is
     kept only once the safety check passes it against the probed plate."""
     from specholo.fabrication.check import check_program
-    from specholo.fabrication.leveling import (
+    from specholo.fabrication.programs.leveling import (
         LEVELED_PROGRAM,
         level_program,
         leveled_limits,

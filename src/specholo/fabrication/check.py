@@ -1,7 +1,7 @@
 """An independent safety check of a G-code program before it runs on a machine.
 
 This is a small modal interpreter of its own, sharing no code with the writer
-or reader in :mod:`specholo.fabrication.gcode`, so a mistake there is not
+or reader in :mod:`specholo.fabrication.programs.gcode`, so a mistake there is not
 repeated here. It reads ``G0 G1 G2 G3`` (arcs by ``I J`` or ``R``, and their
 ``P`` as LinuxCNC runs it: ``Pn`` turns n - 1 whole circles before the arc's
 end), ``G4 G17 G20 G21 G90 G91 G94``, the harmless ``G40 G49 G54 G61 G64 G80

@@ -12,7 +12,7 @@
   surface the ball can reach without gouging it (the height field dilated by
   the ball), points thinned to a chord tolerance; rapids at the safe height and
   a plunge at the plunge feed, in the conventions of
-  :mod:`specholo.fabrication.gcode` (GRBL-compatible words, 5 decimals in mm).
+  :mod:`specholo.fabrication.programs.gcode` (GRBL-compatible words, 5 decimals in mm).
 """
 
 from __future__ import annotations
@@ -31,9 +31,9 @@ import numpy as np
 from specholo._compiling import kernel
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
-from specholo.fabrication.gcode import TextRows
+from specholo.fabrication.exporting import TextRows
 from specholo.fabrication.plate import Plate
-from specholo.fabrication.program import Emitter, GcodeOptions
+from specholo.fabrication.programs.program import Emitter, GcodeOptions
 from specholo.setup import Machining
 from specholo.toolpaths.heightmap import HeightMap as HeightMap
 from specholo.toolpaths.ridged import RidgedPlate
@@ -404,9 +404,9 @@ def write_raster_gcode(path: str | os.PathLike[str], hm: HeightMap, radius: floa
     next, one stepover on, the tool moves across above both passes' tips
     between their ends; after a skipped pass it retracts to the safe height,
     moves there at rapid and plunges at the plunge feed. The program: header
-    comments, then the one emitter's set-up (:class:`~specholo.fabrication.program.Emitter`:
-    units, the spindle and a dwell, the safe height), the passes, a retract,
-    ``M5 M2``.
+    comments, then the one emitter's set-up
+    (:class:`~specholo.fabrication.programs.program.Emitter`: units, the spindle
+    and a dwell, the safe height), the passes, a retract, ``M5 M2``.
 
     Args:
         path: destination file.

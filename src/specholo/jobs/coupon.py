@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 def coupon_summary(coupon: Any, checks: list[Any], out: Path) -> Summary:
     """What a written coupon says: the card, its ladder, the machining time,
     what simulated eyes found against its sheet, and what to do next."""
-    from specholo.fabrication.timing import describe_machining
+    from specholo.fabrication.programs.timing import describe_machining
 
     c = coupon.config
     ladder = ", ".join(f"{v:g}" for v in c.ladder)
@@ -116,7 +116,7 @@ class CouponJob:
         return load_coupon(folder)
 
     def preview(self, folder: Path, status: Status) -> dict[str, Callable[[Path], object]]:
-        from specholo.fabrication.sheet import write_sheet
+        from specholo.fabrication.drawings.sheet import write_sheet
 
         loaded = self.load(folder)
         return {"sheet.pdf": lambda into: write_sheet(into / "sheet.pdf", loaded.info,

@@ -30,7 +30,7 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
     cutting, the machining time in plain words and the stipples hidden."""
     from collections import Counter
 
-    from specholo.fabrication.timing import describe_machining
+    from specholo.fabrication.programs.timing import describe_machining
     from specholo.pipeline import AS_CUT_SKIPPED, drop_reasons
 
     lines: list[str] = []
@@ -160,8 +160,8 @@ def plate_line(plate: Any, config: Any) -> str:
 
 def hand_line(d: Any) -> str:
     """The time to scribe a design by hand from its pattern, in one line."""
-    from specholo.fabrication.stroke_pattern import SECONDS_PER_STROKE
-    from specholo.fabrication.timing import plain_duration
+    from specholo.fabrication.drawings.stroke_pattern import SECONDS_PER_STROKE
+    from specholo.fabrication.programs.timing import plain_duration
 
     strokes = int(d.grooves.n_paths - d.grooves.is_dot.sum())
     line = (f"by hand: {strokes:,} strokes to scribe from pattern.pdf, about "

@@ -48,7 +48,7 @@ def design_summary(d: Any, written: dict[str, Any], out: Path) -> Summary:
                      f"{-config.stock_thickness:g} mm), lit from behind by {where}")
     mach = written["machining"]
     if mach:
-        from specholo.fabrication.timing import plain_duration
+        from specholo.fabrication.programs.timing import plain_duration
 
         lines.append(f"machining: ball-end mill radius {mach['ball_radius_mm']:g} mm, "
                      f"{mach['passes']} raster passes, about "

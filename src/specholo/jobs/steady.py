@@ -40,7 +40,7 @@ def design_summary(design: Any, config: Any, s: dict[str, Any], out: Path,
     the stipples asked for got scoops and why the rest did not
     (``steady.Stippling``, when known), the plate, the tool, the machining time
     (``machining``: hologram.json's figures, when known) and the verification."""
-    from specholo.fabrication.timing import describe_machining
+    from specholo.fabrication.programs.timing import describe_machining
     from specholo.steady import steady_plate
 
     noun = "scoop" if config.shape == "scoop" else "flat groove"

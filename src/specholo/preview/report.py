@@ -70,7 +70,7 @@ def fabrication_figures(info: dict[str, Any]) -> list[tuple[str, str]]:
     mach = info.get("machining")
     if isinstance(mach, dict) and "estimated_hours" in mach:
         # the design's own estimate, as its summary and hologram.json give it
-        from specholo.fabrication.timing import describe_machining
+        from specholo.fabrication.programs.timing import describe_machining
 
         # the row's label says machining; a machine, if any, stays ("on NAME (...): about ...")
         rows.append(("machining", describe_machining(mach, settings["feed"])

@@ -471,7 +471,7 @@ def cut_surface(grooves: Grooves, tool_profile: ToolProfile | Tool | Any, depth:
 
     Args:
         grooves: the program's paths (from the design, or read back with
-            :func:`~specholo.fabrication.gcode_reader.read_gcode`).
+            :func:`~specholo.fabrication.programs.gcode_reader.read_gcode`).
         tool_profile: the tool (see :func:`as_profile`).
         depth: depth of the tool's tip below the plate on every move, mm.
         bounds: (2, 2) lower-left and upper-right corners of the plate region to

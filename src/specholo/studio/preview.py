@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.timing import estimate_time, plain_duration, trapezoid_time
+from specholo.fabrication.programs.timing import estimate_time, plain_duration, trapezoid_time
 from specholo.hosts.flat import sightline_crossing
 from specholo.pipeline import DEFAULT_STIPPLES, DesignConfig, check_points
 from specholo.scene.loading import Model

@@ -40,7 +40,7 @@ def one_line(exc: BaseException) -> str:
 
 def summary_figures(d: Any, written: Any, out: Path) -> dict[str, Any]:
     """The design's own figures for the page: as cut, machining, hidden stipples."""
-    from specholo.fabrication.timing import plain_duration
+    from specholo.fabrication.programs.timing import plain_duration
     from specholo.jobs.flat import design_summary
 
     figures = d.as_cut.mean_and_lowest() if d.as_cut is not None else None

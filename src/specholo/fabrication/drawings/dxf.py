@@ -6,7 +6,7 @@ like the plate, has y up: nothing is flipped). Coordinates are written with 9
 decimals (1e-9 mm) and bulges with 12 (the sweep within 4e-12 rad), trailing
 zeros left out; the dots' radii and the extents keep Python's shortest
 round-trip text.
-Arcs the other exporters draw straight (:func:`~specholo.fabrication.gcode.is_straight`)
+Arcs the other exporters draw straight (:func:`~specholo.fabrication.programs.gcode.is_straight`)
 get bulge 0 here too: a near-zero bulge means a near-infinite radius, which
 some CAD programs mishandle.
 
@@ -15,7 +15,7 @@ POINT entities would be the literal choice, but laser software and many
 viewers do not show or select them; a circle is visible, drawn at the true
 dimple size, and CAM drilling operations take circle centres as drill points.
 
-Layers are those of :func:`~specholo.fabrication.svg.plan_layers`: grooves and
+Layers are those of :func:`~specholo.fabrication.drawings.svg.plan_layers`: grooves and
 dots of each depth class, named like ``GROOVES_D0.080_R0.250`` (depth and ball
 radius in mm), each in its own colour. The drawing is in the plate frame (x
 right, y up, origin at the plate centre), $INSUNITS = 4 (mm), $MEASUREMENT = 1.
@@ -31,7 +31,7 @@ are its fixed values (1 January 2000 and the constant GUID), and its classes
 are listed in name order, not in the order of a set of strings.
 
 The ENTITIES section is written here, not by ezdxf, a chunk of paths at a time
-and formatted by a compiled loop (:class:`~specholo.fabrication.gcode.TextRows`):
+and formatted by a compiled loop (:class:`~specholo.fabrication.programs.gcode.TextRows`):
 adding 10^5 entities one by one through ezdxf takes minutes and holds the whole
 drawing in memory, and even Python's float text costs microseconds a number.
 ezdxf writes the rest of the drawing (header, tables, objects) with an empty
@@ -57,17 +57,7 @@ from ezdxf import units
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
-from specholo.fabrication.gcode import (
-    TextRows,
-    check_grooves,
-    drawn_extent,
-    in_order,
-    is_straight,
-    path_chunks,
-)
-from specholo.fabrication.plate import Plate
-from specholo.fabrication.program import format_number
-from specholo.fabrication.svg import (
+from specholo.fabrication.drawings.svg import (
     PLATE_COLOUR,
     PLATE_LAYER_NAME,
     Layer,
@@ -75,6 +65,16 @@ from specholo.fabrication.svg import (
     plan_layers,
     take_paths,
 )
+from specholo.fabrication.exporting import (
+    TextRows,
+    check_grooves,
+    drawn_extent,
+    format_number,
+    in_order,
+    is_straight,
+    path_chunks,
+)
+from specholo.fabrication.plate import Plate
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves
 
@@ -199,7 +199,7 @@ def write_dxf(path: str | os.PathLike[str], grooves: Grooves, tool: Tool,
             default the plate fitted to the grooves
             (:func:`~specholo.fabrication.plate.fit_plate`).
         cut: (depth, width) mm of the grooves as cut, where the tool is not the
-            ball ``tool`` models (see :func:`~specholo.fabrication.svg.plan_layers`).
+            ball ``tool`` models (see :func:`~specholo.fabrication.drawings.svg.plan_layers`).
 
     Returns:
         The groove and dot layers written (non-empty ones only), by number.

@@ -1,6 +1,6 @@
 """Reading G-code back into grooves: what a program will cut, for verification.
 
-:func:`read_gcode` reads the programs :mod:`specholo.fabrication.gcode` writes
+:func:`read_gcode` reads the programs :mod:`specholo.fabrication.programs.gcode` writes
 (and other plain 3-axis programs of G0-G3 moves): every cutting move below the
 surface becomes a groove's arc, with the stipple named in its ``(stipple N)``
 comment, so the simulator can verify the file that will be cut. A laser's

@@ -20,7 +20,7 @@ two 50 mm scale bars (across and down) to check that it was printed at 100 %.
 The first page says how to print, assemble and use the pattern. The pages
 (:class:`Tiling`, the tiles' axes and margins, labels, instruction and table
 pages) also carry the stroke pattern of the other designs
-(:mod:`specholo.fabrication.stroke_pattern`).
+(:mod:`specholo.fabrication.drawings.stroke_pattern`).
 
 Geometry is in the plate frame (mm, x right, y up, origin at the plate
 centre), seen from the viewer's side. Figures are 72 dpi, so their display
@@ -49,9 +49,8 @@ from matplotlib.textpath import TextToPath
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
-from specholo.fabrication.gcode import check_grooves, is_straight
-from specholo.fabrication.program import format_number
-from specholo.fabrication.svg import arc_bounds
+from specholo.fabrication.drawings.svg import arc_bounds
+from specholo.fabrication.exporting import check_grooves, format_number, is_straight
 from specholo.toolpaths.grooves import Grooves, Segments
 
 #: Paper sizes (width, height) in mm, portrait.

@@ -8,7 +8,7 @@ the strokes of one stipple share a colour and a number, placed left of the
 stipple's leftmost stroke, and a checklist at the end lists the numbers with
 their stroke counts and pages.
 
-The pages are the scratch pattern's (:mod:`specholo.fabrication.pattern`):
+The pages are the scratch pattern's (:mod:`specholo.fabrication.drawings.pattern`):
 tiles with overlap strips and registration targets, crop marks, two 50 mm
 scale bars per page and an instruction page; where the numbers do not all fit
 on one set of pages, the stipples are spread over several *sheets*.
@@ -30,8 +30,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch
 from matplotlib.path import Path
 
-from specholo.fabrication.gcode import check_grooves, is_straight
-from specholo.fabrication.pattern import (
+from specholo.fabrication.drawings.pattern import (
     _DOT_MM,
     _FONT,
     _LABEL_PAD,
@@ -61,8 +60,8 @@ from specholo.fabrication.pattern import (
     tiling,
     write_pdf,
 )
-from specholo.fabrication.program import format_number
-from specholo.fabrication.svg import arc_bounds
+from specholo.fabrication.drawings.svg import arc_bounds
+from specholo.fabrication.exporting import check_grooves, format_number, is_straight
 from specholo.toolpaths.grooves import Grooves, Segments
 
 #: Line width of a stroke, points: thin, so its middle is clear to follow (and
@@ -94,7 +93,7 @@ class StrokePlan(Tiling):
 
     Attributes:
         paper, page, frame, overlap, origin, columns, rows: the tiles, as in
-            :class:`~specholo.fabrication.pattern.PatternPlan`.
+            :class:`~specholo.fabrication.drawings.pattern.PatternPlan`.
         strokes: the grooves to scribe (no dots), one path a stroke, in the
             design's order.
         path: (p,) index of each stroke in the design's grooves.

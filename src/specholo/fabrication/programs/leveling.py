@@ -34,7 +34,8 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open, part_prefix, public_mode, scratch
-from specholo.fabrication.program import Emitter, GcodeOptions, format_number
+from specholo.fabrication.exporting import format_number
+from specholo.fabrication.programs.program import Emitter, GcodeOptions
 from specholo.setup import Machining
 
 if TYPE_CHECKING:

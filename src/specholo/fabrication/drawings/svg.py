@@ -24,7 +24,7 @@ plate cannot take 0, and a number past every groove and dot layer never takes
 one of theirs. The drawing's page holds the whole plate.
 
 Like the G-code writer, it writes a chunk of paths at a time, one row of text
-per vertex (:class:`~specholo.fabrication.gcode.TextRows`), so memory does not
+per vertex (:class:`~specholo.fabrication.programs.gcode.TextRows`), so memory does not
 grow with the drawing and no Python code runs per element.
 """
 
@@ -39,17 +39,17 @@ import numpy as np
 from specholo._compiling import kernel
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
-from specholo.fabrication.gcode import (
+from specholo.fabrication.exporting import (
     TextRows,
     check_grooves,
     drawn_extent,
+    format_number,
     in_order,
     is_straight,
     path_chunks,
     slice_paths,
 )
 from specholo.fabrication.plate import Plate
-from specholo.fabrication.program import format_number
 from specholo.setup import Tool
 from specholo.toolpaths.grooves import Grooves, Segments
 

@@ -12,7 +12,7 @@ G90 G17 G94 G40``, the spindle and its dwell, the safe height) and one holder
 rule (a spring holder cuts at its preload and lifts clear between strokes; a
 program whose depth varies along a cut needs a rigid one). The bodies differ:
 a flat design's grooves are written by the compiled writer of
-:mod:`specholo.fabrication.gcode` from the emitter's texts; paths in X, Y and Z
+:mod:`specholo.fabrication.programs.gcode` from the emitter's texts; paths in X, Y and Z
 or X and A by :meth:`Emitter.polyline` and :meth:`Emitter.rotary`.
 """
 
@@ -26,6 +26,7 @@ from typing import Literal
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.fabrication.exporting import format_number
 from specholo.fabrication.plate import Plate
 from specholo.setup import Holder, Machining
 
@@ -122,18 +123,6 @@ class GcodeOptions:
     def max_arc_offset(self) -> float:
         """Largest I/J written, mm (infinite for LinuxCNC, which computes in doubles)."""
         return math.inf if self.dialect == "linuxcnc" else MAX_ARC_OFFSET_MM
-
-
-def format_number(value: float, decimals: int = DECIMALS) -> str:
-    """Fixed-point text of a number, '.' as decimal point whatever the locale.
-
-    Rounds half to even like the vectorised writer, and never gives ``-0.0000``.
-    """
-    scale = 10**decimals
-    q = round(float(value) * scale)
-    sign = "-" if q < 0 else ""
-    whole, frac = divmod(abs(q), scale)
-    return f"{sign}{whole}.{frac:0{decimals}d}" if decimals else f"{sign}{whole}"
 
 
 def comment(text: str, semicolon: bool = False) -> str:

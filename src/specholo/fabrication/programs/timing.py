@@ -1,6 +1,6 @@
 """How long a machine takes to cut the grooves (an estimate for planning).
 
-The model follows the programs :func:`~specholo.fabrication.gcode.write_gcode`
+The model follows the programs :func:`~specholo.fabrication.programs.gcode.write_gcode`
 writes: the tool starts above the origin at the safe height; for each path it
 rapids to the start, plunges at the plunge rate, cuts along the arcs at the
 feed and retracts at the rapid rate (a laser has no plunge or retract, and
@@ -25,7 +25,7 @@ not stop between arcs; as in GRBL's planner, its speed is limited
 Real controllers differ per axis and in their arc handling, so expect a few
 per cent either way on a well-tuned machine.
 
-On a machine profile (``machine``, :mod:`specholo.fabrication.machines`) the
+On a machine profile (``machine``, :mod:`specholo.fabrication.programs.machines`) the
 same moves are timed on that machine's figures: X/Y moves and arcs (cuts, hops,
 rapids) accelerate at its X/Y acceleration and Z moves (plunges, retracts, the
 lifts to the hop height) at its Z acceleration; rapids run at its maximum
@@ -51,8 +51,8 @@ import numpy as np
 from specholo._compiling import kernel
 from specholo._threads import chunked
 from specholo.errors import SpecholoError
-from specholo.fabrication.machines import MachineProfile
-from specholo.fabrication.order import HOPS, hop_lengths
+from specholo.fabrication.programs.machines import MachineProfile
+from specholo.fabrication.programs.order import HOPS, hop_lengths
 from specholo.setup import Machining
 from specholo.toolpaths.grooves import Grooves
 

@@ -1,7 +1,7 @@
 """Machines a design can be timed on: their kinematics and feeds, each sourced.
 
 A :class:`MachineProfile` holds what the time estimate
-(:func:`specholo.fabrication.timing.estimate_time`) needs of one class of
+(:func:`specholo.fabrication.programs.timing.estimate_time`) needs of one class of
 machine: how fast and how hard its axes move, how it takes corners, the feeds a
 drag tip or scriber runs at on it, and what a plotter's pen or a galvo's beam
 costs per stroke. :data:`MACHINES` holds one entry a profile, by name;

@@ -40,7 +40,7 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.check import Limits, Stock, check_program, tool_kind
 from specholo.fabrication.plate import STOCK_THICKNESS, Plate
-from specholo.fabrication.program import Emitter, GcodeOptions
+from specholo.fabrication.programs.program import Emitter, GcodeOptions
 from specholo.hosts.surfaces import Cylinder, HeightField, Host, MeshHost, Panels, Plane, Sphere
 from specholo.setup import Machining, Tool
 from specholo.toolpaths.conforming import ConformingGrooves
@@ -136,7 +136,8 @@ def write_surface_gcode(grooves: ConformingGrooves, host: Host, tool: Tool,
                         machining: Machining, axes: int = 3,
                         thickness: float = STOCK_THICKNESS,
                         options: GcodeOptions | None = None) -> SurfaceProgram:
-    """Write the grooves as G-code (through the one :class:`~specholo.fabrication.program.Emitter`).
+    """Write the grooves as G-code, through the one emitter
+    (:class:`~specholo.fabrication.programs.program.Emitter`).
 
     Args:
         grooves: the grooves (centreline samples with host normals).
