@@ -6,7 +6,7 @@ like the plate, has y up: nothing is flipped). Coordinates are written with 9
 decimals (1e-9 mm) and bulges with 12 (the sweep within 4e-12 rad), trailing
 zeros left out; the dots' radii and the extents keep Python's shortest
 round-trip text.
-Arcs the other exporters draw straight (:func:`~specholo.fabrication.programs.gcode.is_straight`)
+Arcs the other exporters draw straight (:func:`~specholo.fabrication.exporting.is_straight`)
 get bulge 0 here too: a near-zero bulge means a near-infinite radius, which
 some CAD programs mishandle.
 
@@ -31,7 +31,7 @@ are its fixed values (1 January 2000 and the constant GUID), and its classes
 are listed in name order, not in the order of a set of strings.
 
 The ENTITIES section is written here, not by ezdxf, a chunk of paths at a time
-and formatted by a compiled loop (:class:`~specholo.fabrication.programs.gcode.TextRows`):
+and formatted by a compiled loop (:class:`~specholo.fabrication.exporting.TextRows`):
 adding 10^5 entities one by one through ezdxf takes minutes and holds the whole
 drawing in memory, and even Python's float text costs microseconds a number.
 ezdxf writes the rest of the drawing (header, tables, objects) with an empty

@@ -24,7 +24,7 @@ plate cannot take 0, and a number past every groove and dot layer never takes
 one of theirs. The drawing's page holds the whole plate.
 
 Like the G-code writer, it writes a chunk of paths at a time, one row of text
-per vertex (:class:`~specholo.fabrication.programs.gcode.TextRows`), so memory does not
+per vertex (:class:`~specholo.fabrication.exporting.TextRows`), so memory does not
 grow with the drawing and no Python code runs per element.
 """
 
