@@ -118,7 +118,7 @@ def test_profiles_other_than_a_ball() -> None:
 
 
 def test_cutters_give_their_profiles() -> None:
-    tools = pytest.importorskip("specholo.fabrication.tools")
+    tools = pytest.importorskip("specholo.optics.cutters")
     for cutter in (tools.BallEnd(0.25), tools.RoundCone(), tools.VBit(math.radians(60.0), 0.02),
                    tools.Laser(0.1)):
         profile = as_profile(cutter, 0.08)

@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.tools import check_views
 from specholo.hosts.flat import sightline_crossing
+from specholo.optics.cutters import check_views
 from specholo.pipeline import DesignConfig, design, drop_reasons, groove_extent
 from specholo.simulation.glints import Engraved, find_glints
 from specholo.simulation.verify import verify

@@ -969,7 +969,7 @@ def test_plate_marks_name_only_the_drawings_written(tmp_path, groove_example, dr
 def test_a_v_bit_program_names_the_v_s_groove_width(tmp_path, groove_example):
     """Written through its small round-tip model, a V-bit's program names the
     groove the V cuts: its width at the surface, 2 d tan(angle / 2)."""
-    from specholo.fabrication.tools import VBit
+    from specholo.optics.cutters import VBit
 
     vbit, depth = VBit(math.radians(30.0)), 0.4
     out = tmp_path / "v.ngc"

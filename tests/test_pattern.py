@@ -12,16 +12,8 @@ from matplotlib.patches import PathPatch
 from matplotlib.text import Text
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.drawings.pattern import (
-    PAPERS,
-    PT_PER_MM,
-    SCALE_BAR_MM,
-    arc_path,
-    pattern_figures,
-    plan_pattern,
-    tile_name,
-    write_pattern,
-)
+from specholo.fabrication.drawings.paper import PAPERS, PT_PER_MM, SCALE_BAR_MM, arc_path, tile_name
+from specholo.fabrication.drawings.pattern import pattern_figures, plan_pattern, write_pattern
 from specholo.fabrication.exporting import format_number
 from specholo.setup import Setup
 from specholo.toolpaths.classic import design_classic

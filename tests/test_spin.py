@@ -267,7 +267,7 @@ def test_programs_name_the_drawing_it_writes_and_the_v_s_groove_width(tmp_path: 
     """A turning plate writes an SVG and no DXF: both programs' headers send a
     maker to the SVG's marks alone. The relief is cut by the V-bit: its header
     names the groove the V cuts (2 d tan(angle / 2) wide), not its tip model's."""
-    from specholo.fabrication.tools import VBit
+    from specholo.optics.cutters import VBit
 
     out = tmp_path / "spin"
     assert main(["spin", str(BUNNY), "--out", str(out), "--stipples", "8", "--frames", "0",

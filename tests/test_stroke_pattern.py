@@ -11,7 +11,7 @@ from matplotlib.colors import to_rgb
 from scipy.spatial import cKDTree
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.drawings.pattern import PT_PER_MM, SCALE_BAR_MM, _targets
+from specholo.fabrication.drawings.paper import PT_PER_MM, SCALE_BAR_MM, target_marks
 from specholo.fabrication.drawings.stroke_pattern import (
     COLOURS,
     STROKE_PT,
@@ -210,7 +210,7 @@ def test_registration_and_scale_on_every_page(tmp_path, wide):
     plan = write_stroke_pattern(out, wide)
     assert plan.columns > 1
     reader = pypdf.PdfReader(out)
-    targets = _targets(plan)
+    targets = target_marks(plan)
     for k, page in enumerate(reader.pages):
         content = drawn(page, reader)
         # the two 50 mm scale bars, across and down, on every page

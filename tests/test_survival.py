@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.tools import BallEnd, Laser, RoundCone, VBit
+from specholo.optics.cutters import BallEnd, Laser, RoundCone, VBit
 from specholo.setup import Light, Setup, Tool
 from specholo.simulation.cut import cut_surface, verify_cut
 from specholo.simulation.glints import Engraved, find_glints

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from specholo.errors import SpecholoError
-from specholo.fabrication.tools import (
+from specholo.optics.cutters import (
     BallEnd,
     Laser,
     RoundCone,
@@ -282,7 +282,7 @@ def test_the_automatic_depth_serves_every_view_the_cone_can():
     a cone that would serve them."""
     import math
 
-    from specholo.fabrication.tools import RoundCone
+    from specholo.optics.cutters import RoundCone
     from specholo.pipeline import DesignConfig, design
 
     d = design(BUNNY, DesignConfig(stipples=500, size=60, center_z=-40, light_elevation=30,

@@ -422,7 +422,7 @@ def _least_depth(config: CouponConfig) -> float:
     """The shallowest depth (mm, to the micrometre above) whose walls serve every
     window of the coupon with the design's tilt margin: a rigid rung any
     shallower would lose its steepest glints by design, not by its cut."""
-    from specholo.fabrication.tools import depth_for, needed_tilts, steepest_wall
+    from specholo.optics.cutters import depth_for, needed_tilts, steepest_wall
     from specholo.settings import TILT_MARGIN
 
     lay = layout(config)

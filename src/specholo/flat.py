@@ -19,7 +19,7 @@ import numpy as np
 from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import PLATE_MARGIN, fit_plate
-from specholo.fabrication.tools import (
+from specholo.optics.cutters import (
     Cutter,
     ViewCheck,
     check_views,

@@ -14,7 +14,7 @@ from typing import Any
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import STOCK_THICKNESS
 from specholo.fabrication.programs.machines import MACHINES, MachineProfile, machine_profile
-from specholo.fabrication.tools import (
+from specholo.optics.cutters import (
     Cutter,
     make_cutter,
 )

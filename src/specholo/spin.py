@@ -503,8 +503,8 @@ def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
     from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.drawings.svg import write_svg
     from specholo.fabrication.programs.gcode import write_gcode
-    from specholo.fabrication.tools import VBit
     from specholo.folders import check_out
+    from specholo.optics.cutters import VBit
     from specholo.preview.motion import write_animation
     from specholo.staging import stage_design
 

@@ -39,7 +39,7 @@ import numpy as np
 from specholo._compiling import kernel
 from specholo._threads import chunked
 from specholo.errors import SpecholoError
-from specholo.fabrication.tools import TILT_TOLERANCE, BallEnd, Laser, RoundCone, VBit
+from specholo.optics.cutters import TILT_TOLERANCE, BallEnd, Laser, RoundCone, VBit
 from specholo.optics.normality import normality
 from specholo.setup import Setup, Tool
 from specholo.simulation.glints import Engraved, Glints, find_glints
@@ -111,7 +111,7 @@ def removal_radius(cutter: Any, depth: float, lift: np.ndarray) -> np.ndarray:
     radius returned here.
 
     Args:
-        cutter: a :mod:`~specholo.fabrication.tools` cutter, or the ball model
+        cutter: a :mod:`~specholo.optics.cutters` cutter, or the ball model
             :class:`~specholo.setup.Tool` (its own depth is then the cut's).
         depth: groove depth, mm (the tip runs at z = -depth).
         lift: (g,) heights of the points above the tip plane, mm.

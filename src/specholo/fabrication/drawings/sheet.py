@@ -28,7 +28,7 @@ from matplotlib import rc_context
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
-from specholo.fabrication.drawings.pattern import write_pdf
+from specholo.fabrication.drawings.paper import write_pdf
 from specholo.fabrication.plate import Plate
 from specholo.toolpaths.grooves import Grooves
 

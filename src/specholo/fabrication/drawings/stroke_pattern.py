@@ -30,32 +30,32 @@ from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch
 from matplotlib.path import Path
 
-from specholo.fabrication.drawings.pattern import (
-    _DOT_MM,
-    _FONT,
-    _LABEL_PAD,
-    _LABEL_PT,
-    _RINGS,
+from specholo.fabrication.drawings.paper import (
+    DOT_MM,
+    FONT,
+    LABEL_PAD,
+    LABEL_PT,
     MAX_SHEETS,
     PT_PER_MM,
+    RINGS,
     Tiling,
-    _char_widths,
-    _draw_labels,
-    _instruction_page,
-    _pages_line,
-    _paper,
-    _place_labels,
-    _plate_centre,
-    _print_steps,
-    _sheets_step,
-    _table_page,
-    _table_size,
-    _text_width,
-    _tile_axes,
-    _tile_margins,
     arc_path,
+    char_widths,
     check_overlap,
+    draw_labels,
+    instruction_page,
+    pages_line,
+    paper_named,
+    place_labels,
+    plate_centre,
+    print_steps,
     reading_numbers,
+    sheets_step,
+    table_page,
+    table_size,
+    text_width,
+    tile_axes,
+    tile_margins,
     tiled_figures,
     tiling,
     write_pdf,
@@ -235,7 +235,7 @@ def plan_strokes(grooves: Grooves, paper: str = "a4", overlap: float = 10.0) -> 
         SpecholoError: if the grooves cannot be written, or the paper or
             overlap is not allowed.
     """
-    key, page = _paper(paper)
+    key, page = paper_named(paper)
     overlap = check_overlap(overlap)
     check_grooves(grooves)
     dots, _ = grooves.dots()
@@ -275,11 +275,11 @@ def plan_strokes(grooves: Grooves, paper: str = "a4", overlap: float = 10.0) -> 
 
     # the numbers, clear of every stroke, dot and other number, on as many
     # sheets as it takes
-    widths = _char_widths(_FONT, _LABEL_PT, "0123456789")
-    height = 0.73 * _LABEL_PT / PT_PER_MM + 2 * _LABEL_PAD
+    widths = char_widths(FONT, LABEL_PT, "0123456789")
+    height = 0.73 * LABEL_PT / PT_PER_MM + 2 * LABEL_PAD
     longest = "8" * len(str(max(g, 1)))
-    size = np.column_stack([np.full(g, _text_width(np.array([longest]), widths)[0]
-                                    + 2 * _LABEL_PAD), np.full(g, height)])
+    size = np.column_stack([np.full(g, text_width(np.array([longest]), widths)[0]
+                                    + 2 * LABEL_PAD), np.full(g, height)])
     seg_lo = np.minimum(segs.start, segs.end) - _STROKE_CLEAR
     seg_hi = np.maximum(segs.start, segs.end) + _STROKE_CLEAR
     seg_group = group[segs.path]
@@ -292,8 +292,8 @@ def plan_strokes(grooves: Grooves, paper: str = "a4", overlap: float = 10.0) -> 
         sheet[left] = s
         mine = np.isin(seg_group, left)
         obstacles = np.column_stack([seg_lo[mine], seg_hi[mine]])
-        label[left], ok[left], ring[left] = _place_labels(
-            anchor[left], size[left], dots if s == 0 else np.zeros((0, 2)), _RINGS,
+        label[left], ok[left], ring[left] = place_labels(
+            anchor[left], size[left], dots if s == 0 else np.zeros((0, 2)), RINGS,
             _LEFT_FIRST, obstacles)
         left = left[~ok[left]]
         if len(left) == 0:
@@ -306,7 +306,7 @@ def plan_strokes(grooves: Grooves, paper: str = "a4", overlap: float = 10.0) -> 
         parts.append(arc_bounds(segs))
     pts = np.concatenate(parts)
     frame, origin, count = tiling(pts.min(axis=0) - 2.0, pts.max(axis=0) + 2.0, page, overlap)
-    table_rows, table_columns = _table_size(frame, len(_check_line(0, "", "", "")))
+    table_rows, table_columns = table_size(frame, len(_check_line(0, "", "", "")))
     plan = StrokePlan(key, page, frame, overlap, origin, int(count[0]), int(count[1]),
                       strokes, path, group, box, length, stipple, anchor, dots, sheet,
                       sheets, np.zeros(g, dtype=np.int64), np.zeros(g, dtype=object), label,
@@ -317,7 +317,7 @@ def plan_strokes(grooves: Grooves, paper: str = "a4", overlap: float = 10.0) -> 
 
 
 def _tile(plan: StrokePlan, sheet: int, col: int, row: int, targets: np.ndarray) -> Figure:
-    fig, paper, ax, box = _tile_axes(plan, col, row, targets)
+    fig, paper, ax, box = tile_axes(plan, col, row, targets)
     # this sheet's strokes that reach this tile, whole: a stroke across a page
     # edge shows on both pages
     near = np.all((plan.box[:, 1] >= box[0]) & (plan.box[:, 0] <= box[1]), axis=1)
@@ -340,13 +340,13 @@ def _tile(plan: StrokePlan, sheet: int, col: int, row: int, targets: np.ndarray)
     ax.add_collection(LineCollection(list(ticks), colors=np.repeat(colour, 2).tolist(),
                                      lw=TICK_PT, capstyle="butt", gid="stroke ends"))
     if len(plan.dots) and sheet == 0:
-        ax.plot(plan.dots[:, 0], plan.dots[:, 1], "o", ms=_DOT_MM * PT_PER_MM, mfc="black",
+        ax.plot(plan.dots[:, 0], plan.dots[:, 1], "o", ms=DOT_MM * PT_PER_MM, mfc="black",
                 mec="none", gid="dots")
-    _plate_centre(ax)
+    plate_centre(ax)
     groups = np.flatnonzero(plan.sheet == sheet)
-    _draw_labels(ax, box, groups, plan.anchor, plan.label, plan.label_size, plan.text,
+    draw_labels(ax, box, groups, plan.anchor, plan.label, plan.label_size, plan.text,
                  plan.leader, plan.colour(np.arange(len(plan.stipple))), _ANCHOR_GAP)
-    _tile_margins(plan, paper, sheet, col, row, plan.pages)
+    tile_margins(plan, paper, sheet, col, row, plan.pages)
     return fig
 
 
@@ -366,7 +366,7 @@ def _checklist(plan: StrokePlan, index: int) -> Figure:
              for i, c, r in zip(order.tolist(), col.tolist(), row.tolist(), strict=True)]
     title = (f"Checklist: strokes by stipple number \u2014 page "
              f"{1 + plan.tile_pages + index + 1} of {plan.pages}")
-    return _table_page(plan, title, _check_line(0, "strokes", "mm", "page")[:-1], lines,
+    return table_page(plan, title, _check_line(0, "strokes", "mm", "page")[:-1], lines,
                        plan.table_rows, plan.table_columns)
 
 
@@ -374,7 +374,7 @@ def _instructions(plan: StrokePlan) -> Figure:
     p, g, d = len(plan.path), len(plan.stipple), len(plan.dots)
     title = (f"Stroke pattern: {p} stroke{'s' * (p != 1)} for {g} stipple{'s' * (g != 1)}"
              + (f", {d} dimple{'s' * (d != 1)}" if d else ""))
-    steps = _print_steps(plan)
+    steps = print_steps(plan)
     steps += [
         "Fix the pattern to the plate with \u201cplate top\u201d up (towards the light). A "
         "clear plate (acrylic, glass): tape the pattern face up under it and scribe its top "
@@ -390,7 +390,7 @@ def _instructions(plan: StrokePlan) -> Figure:
         "when all its strokes are done.",
     ]
     if plan.sheets > 1:
-        steps.append(_sheets_step(plan, "stipples", "Scribe"))
+        steps.append(sheets_step(plan, "stipples", "Scribe"))
     if d:
         steps.append("At each dot, press a small dimple with the scriber point"
                      + (" (dots are on sheet 1)." if plan.sheets > 1 else "."))
@@ -406,7 +406,7 @@ def _instructions(plan: StrokePlan) -> Figure:
         if plan.crowded:
             facts += f" {plan.crowded} numbers found no free place and overlap others."
     drawing = stroke_path(plan.strokes.segments())
-    return _instruction_page(plan, title, _pages_line(plan, plan.pages, plan.table_pages,
+    return instruction_page(plan, title, pages_line(plan, plan.pages, plan.table_pages,
                                                       "checklist"),
                              steps, facts, drawing, plan.dots)
 

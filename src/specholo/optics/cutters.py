@@ -1,4 +1,4 @@
-"""Cutting tools, the grooves they leave, and the views those grooves can serve.
+"""Cutters: the grooves they leave, and the views those grooves can serve.
 
 A groove glints where its wall's normal is the normality vector h, so the tilts
 of h a design needs (the paper's orthogonal tangent t2: the angle between the
