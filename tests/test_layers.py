@@ -135,3 +135,18 @@ def test_the_layer_rule_sees_an_upward_arrow():
 
 def test_no_arrow_from_a_lower_layer_up():
     assert upward(import_graph()) == []
+
+
+#: Rooms of one layer that must not import each other: a program and a drawing
+#: are both made from the grooves, by what every exporter shares
+#: (``fabrication.exporting``), never one from the other.
+APART = [("specholo.fabrication.programs", "specholo.fabrication.drawings")]
+
+
+def test_programs_and_drawings_stand_apart():
+    graph = import_graph()
+    crossing = [f"{a} -> {b}" for a in sorted(graph) for b in sorted(graph[a])
+                for one, other in APART for x, y in ((one, other), (other, one))
+                if a.startswith(x + ".") and b.startswith(y + ".")]
+    assert any(m.startswith("specholo.fabrication.programs.") for m in graph)
+    assert crossing == []

@@ -64,3 +64,15 @@ def test_the_summary_says_why_the_band_is_wide(tmp_path: Path,
                  "--machine", "pen-plotter"]) == 0
     out = capsys.readouterr().out
     assert "chosen for pen-plotter, whose strokes each lift the tool" in out
+
+
+def test_the_setup_and_cutter_are_built_once_per_settings() -> None:
+    """Every layer asks the settings for the setup and the cutter: it gets the
+    same objects, and settings that differ get their own."""
+    cfg = DesignConfig.from_dict(dict(SCENE))
+    assert cfg.setup() is cfg.setup() and cfg.cutter() is cfg.cutter()
+    assert cfg.setup().tool == cfg.cutter().model(cfg.depth_mm)
+    other = DesignConfig.from_dict({**SCENE, "light_elevation": 30})
+    assert other.setup() is not cfg.setup()
+    assert other.setup().light.elevation == pytest.approx(math.radians(30.0))
+    assert other == DesignConfig.from_dict({**SCENE, "light_elevation": 30})  # eq ignores it

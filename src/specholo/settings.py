@@ -535,14 +535,19 @@ class DesignConfig:
         return TOOL_DEFAULTS.get(self.tool, (0.08, 0.0))[0]
 
     def cutter(self) -> Cutter:
-        """The cutting tool."""
-        try:
-            return make_cutter(self.tool, self.tool_radius, self.tool_angle,
-                               float(self.tip_flat), self.spot)
-        except (TypeError, ValueError) as exc:
-            if isinstance(exc, SpecholoError):
-                raise
-            raise SpecholoError(f"bad setting: {exc}") from exc
+        """The cutting tool, built once per settings (they are frozen, and so is it)."""
+        built = self.__dict__.get("_cutter")
+        if built is None:
+            try:
+                built = make_cutter(self.tool, self.tool_radius, self.tool_angle,
+                                    float(self.tip_flat), self.spot)
+            except (TypeError, ValueError) as exc:
+                if isinstance(exc, SpecholoError):
+                    raise
+                raise SpecholoError(f"bad setting: {exc}") from exc
+            # a frozen dataclass refuses setattr; its __dict__ holds the one copy
+            self.__dict__["_cutter"] = built
+        return built
 
     def pose(self) -> Pose:
         """How the model is turned and moved onto the plate (not the stripes'
@@ -552,7 +557,15 @@ class DesignConfig:
                          (self.offset_x, self.offset_y))
 
     def setup(self) -> Setup:
-        """The physical setup in library units (radians)."""
+        """The physical setup in library units (radians), built once per settings:
+        every layer a design passes through asks for it, and gets the same one."""
+        built = self.__dict__.get("_setup")
+        if built is None:
+            built = self._build_setup()
+            self.__dict__["_setup"] = built
+        return built
+
+    def _build_setup(self) -> Setup:
         try:
             distance = None if self.light_distance is None else float(self.light_distance)
             elevation = math.radians(float(self.light_elevation))
