@@ -206,7 +206,7 @@ class Composition:
 
     def gcode_options(self) -> GcodeOptions:
         """The ``fabrication.programs.program.GcodeOptions`` its program is written with."""
-        from specholo.spin import program_options
+        from specholo.fabrication.programs.program import program_options
 
         return program_options(self)
 
@@ -349,7 +349,7 @@ def parse_composition(text: str, base: Path) -> Composition:
     """
     import tomllib
 
-    from specholo.spin import check_program_options
+    from specholo.fabrication.programs.program import check_program_options
 
     try:
         data = tomllib.loads(text)

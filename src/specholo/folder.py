@@ -1,9 +1,11 @@
-"""What kind of design a folder holds, and its ``verify.json``: shared by the jobs
-that write their own folders (turning plates, compositions, steady images)."""
+"""What kind of design a folder holds, its ``verify.json`` and the rest every job
+that writes its own folder shares (turning plates, compositions, steady images):
+JSON without NaN, the blank's header line, and the bounds of their settings."""
 
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -125,3 +127,61 @@ def config_arguments(saved: Any, setup_type: Any, angles: tuple[str, ...],
     c["tool"] = Tool(**table(c.pop("tool"), "tool"))
     c["machining"] = Machining(**table(c.pop("machining"), "machining"))
     return c
+
+
+#: Seeds a design takes: the whole numbers numpy's generator is seeded with
+#: (a negative one it refuses), as a composition's.
+SEED_RANGE = (0, 2**32)
+#: Why a verification row's figures are null.
+NOTHING_SEEN = "no stipple glints for both eyes here: nothing to measure"
+
+
+def json_ready(values: dict[str, Any]) -> dict[str, Any]:
+    """``values`` with None for each NaN: JSON has no NaN (``json.dump`` writes a
+    bare ``NaN`` that strict readers refuse)."""
+    return {k: None if isinstance(v, float) and math.isnan(v) else v
+            for k, v in values.items()}
+
+
+def row_json(row: dict[str, Any]) -> dict[str, Any]:
+    """A verification row for ``verify.json``: a figure with nothing to measure
+    (no stipple glints for both eyes there) is null, and a note says why."""
+    out = json_ready(row)
+    if out != row:
+        out["note"] = NOTHING_SEEN
+    return out
+
+
+def stock_line(config: Any) -> str:
+    """The header's words for the blank's thickness (``SpinConfig``, ``SteadyConfig``)."""
+    return f"{config.stock_thickness:g} mm thick plate: no cut may reach its back"
+
+
+def check_job_bounds(config: Any) -> None:
+    """Refuse a turning plate's or a steady image's setting (``SpinConfig``,
+    ``SteadyConfig``) beyond its physical range, in one line naming its option:
+    the model's size and depth, the eyes' spacing, the tool's radius, the plate
+    and its thickness, as a flat design's (``setup.SETTING_BOUNDS``), and the seed. Beyond them
+    the placement overflows or the optics divide by nothing; a groove depth of
+    the tool's radius or less is the tool's own check, and the blank must be
+    thicker than the cut."""
+    from specholo.errors import SpecholoError
+    from specholo.setup import SETTING_BOUNDS
+    from specholo.toolpaths.spinning import within
+
+    values = {"size": config.size, "center_z": config.center_z, "ipd": config.setup.ipd,
+              "tool_radius": config.tool.radius, "plate_width": config.plate_width,
+              "plate_height": config.plate_height, "stock_thickness": config.stock_thickness}
+    for name, value in values.items():
+        if value is not None:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise SpecholoError(f"{name.replace('_', '-')} must be a number, got {value!r}")
+            within(name, value, *SETTING_BOUNDS[name])
+    lo, hi = SEED_RANGE
+    if isinstance(config.seed, bool) or not isinstance(config.seed, int) \
+            or not lo <= config.seed <= hi:
+        raise SpecholoError(f"seed {config.seed} is out of range: it must be a whole number in "
+                            f"[{lo}, {hi}]")
+    if not config.tool.depth < config.stock_thickness:
+        raise SpecholoError(f"a {config.tool.depth:g} mm deep cut would go through the "
+                            f"{config.stock_thickness:g} mm plate: give a larger --stock-thickness")

@@ -458,3 +458,38 @@ class Setup:
     viewer: Viewer = field(default_factory=Viewer)
     tool: Tool = field(default_factory=Tool)
     machining: Machining = field(default_factory=Machining)
+
+
+#: Physical bounds of the design settings: (lowest, highest, unit), both included.
+#: Beyond them a design is not a hologram anyone can cut or see (a 2 m tool, a
+#: 1 nm band, eyes 100 km up), and the construction's work grows without bound.
+SETTING_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "size": (0.01, 10_000.0, "mm"),
+    "center_z": (-10_000.0, 10_000.0, "mm"),
+    "rotate_x": (-360.0, 360.0, "degrees"),
+    "rotate_y": (-360.0, 360.0, "degrees"),
+    "rotate_z": (-360.0, 360.0, "degrees"),
+    "offset_x": (-10_000.0, 10_000.0, "mm"),
+    "offset_y": (-10_000.0, 10_000.0, "mm"),
+    "light_distance": (1.0, 1e7, "mm"),
+    "view_distance": (10.0, 1e7, "mm"),
+    "view_range": (0.0, 89.0, "degrees"),
+    "eye_height": (-1e5, 1e5, "mm"),
+    "ipd": (1.0, 1000.0, "mm"),
+    "spacing": (0.001, 10_000.0, "mm"),
+    "band": (0.001, 1000.0, "mm"),
+    "tool_radius": (0.001, 25.0, "mm"),
+    "tool_angle": (1.0, 179.0, "degrees"),
+    "tip_flat": (0.0, 10.0, "mm"),
+    "spot": (0.005, 1.0, "mm"),
+    "depth": (1e-4, 100.0, "mm"),
+    "plate_width": (1.0, 100_000.0, "mm"),
+    "plate_height": (1.0, 100_000.0, "mm"),
+    "stock_thickness": (0.001, 1000.0, "mm"),
+    "feed": (0.01, MAX_FEED, "mm/min"),
+    "plunge": (0.01, MAX_FEED, "mm/min"),
+    "safe_z": (MIN_SAFE_Z, 1000.0, "mm"),
+    "hop": (MIN_HOP, MAX_HOP, "mm"),
+    "hop_max": (0.0, MAX_HOP_DISTANCE, "mm"),
+    "spindle": (0.0, 1e6, "rpm"),
+}

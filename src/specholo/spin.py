@@ -20,6 +20,8 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import STOCK_THICKNESS
+from specholo.fabrication.programs.program import check_program_options, program_options
+from specholo.folder import check_job_bounds, json_ready, row_json, stock_line
 from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.spinning import SpinReport, find_spin_glints, verify_spinning
@@ -35,95 +37,17 @@ from specholo.toolpaths.spinning import (
 )
 
 if TYPE_CHECKING:
-    from specholo.fabrication.programs.program import GcodeOptions
+    pass
 
 #: The setup's angles, radians inside, saved in degrees.
 SPIN_ANGLES = ("elevation",)
-#: Seeds a design takes: the whole numbers numpy's generator is seeded with
-#: (a negative one it refuses), as a composition's.
-SEED_RANGE = (0, 2**32)
 
 
 #: The drawings a turning plate writes beside its programs (hologram.svg; no
 #: DXF), which carry the plate's marks: the programs' headers name these alone.
 SPIN_DRAWINGS = ("SVG",)
-#: Why a verification row's figures are null.
-NOTHING_SEEN = "no stipple glints for both eyes here: nothing to measure"
 
 
-def json_ready(values: dict[str, Any]) -> dict[str, Any]:
-    """``values`` with None for each NaN: JSON has no NaN (``json.dump`` writes a
-    bare ``NaN`` that strict readers refuse)."""
-    return {k: None if isinstance(v, float) and math.isnan(v) else v
-            for k, v in values.items()}
-
-
-def row_json(row: dict[str, Any]) -> dict[str, Any]:
-    """A verification row for ``verify.json``: a figure with nothing to measure
-    (no stipple glints for both eyes there) is null, and a note says why."""
-    out = json_ready(row)
-    if out != row:
-        out["note"] = NOTHING_SEEN
-    return out
-
-
-def check_job_bounds(config: Any) -> None:
-    """Refuse a turning plate's or a steady image's setting (``SpinConfig``,
-    ``SteadyConfig``) beyond its physical range, in one line naming its option:
-    the model's size and depth, the eyes' spacing, the tool's radius, the plate
-    and its thickness, as a flat design's (``settings.SETTING_BOUNDS``), and the seed. Beyond them
-    the placement overflows or the optics divide by nothing; a groove depth of
-    the tool's radius or less is the tool's own check, and the blank must be
-    thicker than the cut."""
-    from specholo.settings import SETTING_BOUNDS
-    from specholo.toolpaths.spinning import within
-
-    values = {"size": config.size, "center_z": config.center_z, "ipd": config.setup.ipd,
-              "tool_radius": config.tool.radius, "plate_width": config.plate_width,
-              "plate_height": config.plate_height, "stock_thickness": config.stock_thickness}
-    for name, value in values.items():
-        if value is not None:
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise SpecholoError(f"{name.replace('_', '-')} must be a number, got {value!r}")
-            within(name, value, *SETTING_BOUNDS[name])
-    lo, hi = SEED_RANGE
-    if isinstance(config.seed, bool) or not isinstance(config.seed, int) \
-            or not lo <= config.seed <= hi:
-        raise SpecholoError(f"seed {config.seed} is out of range: it must be a whole number in "
-                            f"[{lo}, {hi}]")
-    if not config.tool.depth < config.stock_thickness:
-        raise SpecholoError(f"a {config.tool.depth:g} mm deep cut would go through the "
-                            f"{config.stock_thickness:g} mm plate: give a larger --stock-thickness")
-
-
-#: Why the laser dialect is refused: these programs plunge a cutter in Z.
-NO_LASER = "a laser cannot cut these programs"
-
-
-def check_program_options(dialect: Any, units: Any, names: tuple[str, str] = ("--dialect",
-                                                                              "--units")) -> None:
-    """Refuse a dialect or unit a turning plate's, a steady image's or a
-    composition's program cannot be written in, in one line naming the option
-    (``names``: how the caller spells the two) and its choices: these programs
-    plunge a cutter, so a mill's dialect (grbl, linuxcnc), in mm or inch."""
-    from specholo.fabrication.programs.program import MILL_DIALECTS
-
-    if not isinstance(dialect, str) or dialect not in MILL_DIALECTS:
-        raise SpecholoError(f"{names[0]} must be {' or '.join(MILL_DIALECTS)} ({NO_LASER}), "
-                            f"got {repr(dialect)[:40]}")
-    if not isinstance(units, str) or units not in ("mm", "inch"):
-        raise SpecholoError(f"{names[1]} must be mm or inch, got {repr(units)[:40]}")
-
-
-def program_options(config: Any) -> GcodeOptions:
-    """The ``fabrication.programs.program.GcodeOptions`` a job's config
-    (``SpinConfig``, ``SteadyConfig``, ``compose.Composition``) writes its programs with:
-    its dialect and units."""
-    from typing import cast
-
-    from specholo.fabrication.programs.program import Dialect, GcodeOptions, Units
-
-    return GcodeOptions(dialect=cast(Dialect, config.dialect), units=cast(Units, config.units))
 
 
 @dataclass(frozen=True)
@@ -463,18 +387,12 @@ def spin_limits(grooves: Any, depth: float, machining: Machining,
     the cut's depth, feeds and spindle as set."""
     from specholo.fabrication.check import Limits, Stock, tool_kind
     from specholo.fabrication.plate import PLATE_MARGIN
-    from specholo.flat import groove_extent
 
     m = machining
-    (x0, y0), (x1, y1) = groove_extent(grooves) + np.array([[-PLATE_MARGIN], [PLATE_MARGIN]])
+    (x0, y0), (x1, y1) = grooves.extent() + np.array([[-PLATE_MARGIN], [PLATE_MARGIN]])
     return Limits(Stock(float(x0), float(y0), float(x1), float(y1), thickness), depth, m.safe_z,
                   (min(m.feed, m.plunge), max(m.feed, m.plunge)), (m.spindle, m.spindle),
                   tool_kind("ball", m.spindle), hop_max=m.hop_max, hop=m.hop, groove_depth=depth)
-
-
-def stock_line(config: Any) -> str:
-    """The header's words for the blank's thickness (``SpinConfig``, ``SteadyConfig``)."""
-    return f"{config.stock_thickness:g} mm thick plate: no cut may reach its back"
 
 
 def spin_plate(job: SpinJob) -> Any:

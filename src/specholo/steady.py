@@ -72,7 +72,8 @@ class SteadyConfig:
 
     def __post_init__(self) -> None:
         from specholo.fabrication.plate import check_plate_options
-        from specholo.spin import check_job_bounds, check_program_options
+        from specholo.fabrication.programs.program import check_program_options
+        from specholo.folder import check_job_bounds
 
         check_plate_options(self.plate_width, self.plate_height, self.fit)
         check_job_bounds(self)
@@ -386,9 +387,10 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
     hologram.json records the program's machining time (:func:`steady_machining`)
     and, given ``stippling``, what became of the stipples asked for."""
     from specholo.fabrication.atomic import atomic_open
+    from specholo.fabrication.programs.program import program_options
+    from specholo.folder import json_ready, stock_line
     from specholo.folders import check_out
     from specholo.preview.steady import steady_preview
-    from specholo.spin import json_ready, program_options, stock_line
     from specholo.staging import stage_design
 
     inputs = list(inputs)
@@ -438,8 +440,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
 def write_verification(reports: list[SteadyReport], folder: Path, step_deg: float
                        ) -> dict[str, Any]:
     """Write ``verify.json`` atomically into ``folder``; returns the summary."""
-    from specholo.folder import write_verify_json
-    from specholo.spin import json_ready, row_json
+    from specholo.folder import json_ready, row_json, write_verify_json
 
     summary = summarise(reports)
     write_verify_json(folder, "steady", step_deg, json_ready(summary), "elevations",

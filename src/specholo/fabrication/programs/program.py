@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 
@@ -410,3 +410,26 @@ class Emitter:
             feed = ""
         lines.append(f"G0 Z{n(safe)}")
         return lines
+
+#: Why the laser dialect is refused: these programs plunge a cutter in Z.
+NO_LASER = "a laser cannot cut these programs"
+
+
+def check_program_options(dialect: Any, units: Any, names: tuple[str, str] = ("--dialect",
+                                                                              "--units")) -> None:
+    """Refuse a dialect or unit a turning plate's, a steady image's or a
+    composition's program cannot be written in, in one line naming the option
+    (``names``: how the caller spells the two) and its choices: these programs
+    plunge a cutter, so a mill's dialect (grbl, linuxcnc), in mm or inch."""
+    if not isinstance(dialect, str) or dialect not in MILL_DIALECTS:
+        raise SpecholoError(f"{names[0]} must be {' or '.join(MILL_DIALECTS)} ({NO_LASER}), "
+                            f"got {repr(dialect)[:40]}")
+    if not isinstance(units, str) or units not in ("mm", "inch"):
+        raise SpecholoError(f"{names[1]} must be mm or inch, got {repr(units)[:40]}")
+
+
+def program_options(config: Any) -> GcodeOptions:
+    """The ``fabrication.programs.program.GcodeOptions`` a job's config
+    (``SpinConfig``, ``SteadyConfig``, ``compose.Composition``) writes its programs with:
+    its dialect and units."""
+    return GcodeOptions(dialect=cast(Dialect, config.dialect), units=cast(Units, config.units))
