@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from specholo.pipeline import DesignConfig, design
+from specholo.jobs.flat.folder import DesignConfig, design
 from specholo.simulation.cut import CutCells, cut_surface, find_cut_glints, write_stl
 
 MODEL = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"

@@ -29,7 +29,7 @@ def run_one(n: int, dialect: str) -> dict[str, float]:
     from specholo.fabrication.programs.order import order_paths
     from specholo.fabrication.programs.program import GcodeOptions
     from specholo.fabrication.programs.timing import estimate_time
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     d = design(MODEL, DesignConfig(stipples=n))
     setup = d.config.setup()

@@ -126,7 +126,7 @@ def plain_sum(path: Path) -> dict[str, Any]:
 def run(d: Any, hop_max: float, out: Path) -> dict[str, Any]:
     """Write the design's folder with this longest hop; its figures."""
     from specholo.fabrication.programs.timing import estimate_time
-    from specholo.pipeline import write_design
+    from specholo.jobs.flat.folder import write_design
     from specholo.toolpaths.grooves import Grooves
 
     config = dataclasses.replace(d.config, hop_max=hop_max)
@@ -234,7 +234,7 @@ def main() -> None:
         except json.JSONDecodeError:
             extra[name] = value
 
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

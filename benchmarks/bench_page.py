@@ -55,13 +55,13 @@ def measure(html: Path, seconds: float,
         out: dict[str, float] = {"load_s": load}
         mode = str(page.evaluate("window.specholo.getView().mode"))
         for sync in (False, True):
-            page.evaluate(f"window.specholo.spin(true, {str(sync).lower()})")
+            page.evaluate(f"window.specholo.jobs.spin.design(true, {str(sync).lower()})")
             page.wait_for_timeout(int(seconds * 1000))
             frames = page.evaluate("window.specholo.frameTimes()")
             draws = page.evaluate("window.specholo.drawTimes()")
             culls = page.evaluate("window.specholo.cullTimes()")
             drawn = page.evaluate("window.specholo.drawnArcs()")
-            page.evaluate("window.specholo.spin(false)")
+            page.evaluate("window.specholo.jobs.spin.design(false)")
             if sync:
                 out["draw_ms"] = statistics.median(draws) if draws else float("nan")
                 out["cull_ms"] = statistics.median(culls) if culls else float("nan")
@@ -74,7 +74,7 @@ def measure(html: Path, seconds: float,
 
 
 def main() -> None:
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
     from specholo.preview.page import build_page
 
     ap = argparse.ArgumentParser(description=__doc__)

@@ -23,7 +23,7 @@ MODEL = ROOT / "examples" / "bunny.obj"
 
 
 def run_one(n: int, method: str) -> dict[str, float]:
-    from specholo.pipeline import DesignConfig, design, write_design
+    from specholo.jobs.flat.folder import DesignConfig, design, write_design
 
     cfg = DesignConfig(stipples=n, method=method)
     t0 = time.perf_counter()

@@ -13,7 +13,7 @@ import argparse
 import time
 from pathlib import Path
 
-from specholo.pipeline import DesignConfig, Loaded, design
+from specholo.jobs.flat.folder import DesignConfig, Loaded, design
 from specholo.preview.motion import turntable
 from specholo.preview.render import design_camera, render_still
 from specholo.simulation.glints import Engraved

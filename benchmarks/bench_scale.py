@@ -69,7 +69,7 @@ def _design(n: int, folder: Path) -> dict[str, float]:
     """Design n stipples (striped, occlusion) and keep what the other stages need."""
     import pickle
 
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     d, total = _timed(lambda: design(MODEL, DesignConfig(stipples=n)))
     row: dict[str, float] = {"stipples": n, "paths": d.grooves.n_paths,

@@ -20,7 +20,7 @@ import time
 import urllib.request
 from pathlib import Path
 
-from specholo.pipeline import DesignConfig
+from specholo.jobs.flat.folder import DesignConfig
 from specholo.scene.loading import load_model
 from specholo.studio.preview import fast_preview
 from specholo.studio.server import make_server

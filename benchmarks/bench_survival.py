@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from specholo.pipeline import DesignConfig, design
+from specholo.jobs.flat.folder import DesignConfig, design
 from specholo.simulation.cut import cut_surface, verify_cut
 from specholo.simulation.survival import survivors, verify_as_cut
 from specholo.simulation.verify import verify, view_azimuths

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from specholo.pipeline import DesignConfig, Loaded, design, verify_design
+from specholo.jobs.flat.folder import DesignConfig, Loaded, design, verify_design
 
 MODEL = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
 

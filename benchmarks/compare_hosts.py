@@ -21,7 +21,11 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from specholo.compose import design_composition, parse_composition, verify_composition
+from specholo.jobs.composition.design import (
+    design_composition,
+    parse_composition,
+    verify_composition,
+)
 from specholo.simulation.conforming import summarise
 
 BUNNY = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from specholo.spin import SpinConfig, SpinJob, design_spin, summarise, verify_spin
+from specholo.jobs.spin.design import SpinConfig, SpinJob, design_spin, summarise, verify_spin
 from specholo.toolpaths.spinning import SpinSetup, classic_circles, design_spinning, fit_grooves
 
 BUNNY = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"

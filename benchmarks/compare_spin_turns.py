@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from specholo.spin import SpinConfig, SpinJob, design_spin, summarise, verify_spin
+from specholo.jobs.spin.design import SpinConfig, SpinJob, design_spin, summarise, verify_spin
 from specholo.toolpaths.sliding import design_sliding, scene_angle
 from specholo.toolpaths.spinning import SpinSetup, rotate_z
 

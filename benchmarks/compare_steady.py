@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from specholo.jobs.steady.design import SteadyConfig, design_steady_job, light_steps, summarise
 from specholo.simulation.steady import verify_steady
-from specholo.steady import SteadyConfig, design_steady_job, light_steps, summarise
 from specholo.toolpaths.steady import SteadySetup
 
 BUNNY = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"

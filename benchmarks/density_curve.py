@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from specholo.pipeline import DesignConfig, design
+from specholo.jobs.flat.folder import DesignConfig, design
 from specholo.simulation.survival import verify_as_cut
 from specholo.simulation.verify import verify, view_azimuths
 from specholo.visibility.occlusion import visible

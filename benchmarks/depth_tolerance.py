@@ -41,8 +41,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from density_curve import SCENES, _setting  # noqa: E402
 
-from specholo.pipeline import DesignConfig, design  # noqa: E402
-from specholo.settings import DEPTH_ALLOWANCE  # noqa: E402
+from specholo.jobs.flat.folder import DesignConfig, design  # noqa: E402
+from specholo.jobs.flat.settings import DEPTH_ALLOWANCE  # noqa: E402
 from specholo.simulation.survival import verify_as_cut  # noqa: E402
 from specholo.simulation.verify import view_azimuths  # noqa: E402
 from specholo.visibility.occlusion import visible  # noqa: E402

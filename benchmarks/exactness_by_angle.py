@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from specholo.pipeline import DesignConfig, design
+from specholo.jobs.flat.folder import DesignConfig, design
 from specholo.simulation.verify import verify, view_azimuths
 from specholo.visibility.occlusion import visible
 

@@ -26,8 +26,8 @@ from scipy.spatial import cKDTree
 
 from specholo.fabrication.programs.order import order_paths
 from specholo.fabrication.programs.timing import estimate_time
-from specholo.flat import design
-from specholo.settings import DesignConfig
+from specholo.jobs.flat.design import design
+from specholo.jobs.flat.settings import DesignConfig
 from specholo.setup import Holder
 from specholo.simulation.survival import as_cut_report, eye_glints, survivors
 from specholo.simulation.verify import view_azimuths

@@ -49,7 +49,7 @@ def hours(seconds: float) -> str:
 def estimate(name: str | None, grooves: Any, depth: float) -> dict[str, Any]:
     """The grooves' time with no machine (None) or on the profile ``name``, at its feeds."""
     from specholo.fabrication.programs.timing import estimate_time
-    from specholo.settings import DesignConfig
+    from specholo.jobs.flat.settings import DesignConfig
 
     config = DesignConfig.from_dict({} if name is None else {"machine": name})
     profile = config.profile
@@ -89,7 +89,7 @@ def main() -> None:
     sys.path.insert(0, str(ROOT / "src"))
     from specholo.fabrication.programs.machines import MACHINES
     from specholo.fabrication.programs.order import order_paths
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     results = {}
     for method in args.methods:

@@ -32,9 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
+from specholo.jobs.ridged.design import load_ridged_design, ridged_views
 from specholo.optics.refraction import approximation_error
 from specholo.optics.surfaces import Source
-from specholo.ridged import load_ridged_design, ridged_views
 from specholo.setup import BackLight
 from specholo.simulation.heightfield import head_eyes
 
@@ -86,7 +86,7 @@ def main() -> None:
     if args.verify:
         if light is not setup.light:
             raise SystemExit("--verify checks the design's own light")
-        from specholo.ridged import _occlusion
+        from specholo.jobs.ridged.design import _occlusion
         from specholo.simulation.heightfield import verify_field
 
         print("| glint estimate | worst p95 (mm) | median p95 over heads (mm) | worst p95 depth "

@@ -26,7 +26,7 @@ import targets  # noqa: E402
 # kernel from its bytecode, and instrumented bytecode calls into atheris.
 with atheris.instrument_imports(include=["specholo", "specholo_cli"],
                                 exclude=targets.compiled_modules()):
-    import specholo.compose  # noqa: F401
+    import specholo.jobs.composition.design  # noqa: F401
     import specholo.readback  # noqa: F401
 
 

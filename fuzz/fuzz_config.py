@@ -23,7 +23,7 @@ import targets  # noqa: E402
 # kernel from its bytecode, and instrumented bytecode calls into atheris.
 with atheris.instrument_imports(include=["specholo", "specholo_cli"],
                                 exclude=targets.compiled_modules()):
-    import specholo.pipeline  # noqa: F401
+    import specholo.jobs.flat.folder  # noqa: F401
     import specholo.scene.stippling  # noqa: F401
     import specholo_cli.cli  # noqa: F401
 

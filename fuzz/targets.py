@@ -198,7 +198,7 @@ class _Bytes:
 def _fields() -> list[str]:
     from dataclasses import fields
 
-    from specholo.pipeline import DesignConfig
+    from specholo.jobs.flat.folder import DesignConfig
 
     return [f.name for f in fields(DesignConfig)]
 
@@ -244,7 +244,7 @@ def config_text(data: bytes) -> bytes:
 
 def check_config_file(path: str | os.PathLike[str]) -> None:
     """Read a TOML config as the CLI does; a config that is accepted must be usable."""
-    from specholo.pipeline import DesignConfig
+    from specholo.jobs.flat.folder import DesignConfig
     from specholo_cli.cli import _read_config
 
     name = Path(path).name
@@ -377,7 +377,7 @@ def base_folder() -> Path:
     """A tiny design folder (8 stipples on a tetrahedron), made once per process."""
     global _BASE
     if _BASE is None:
-        from specholo.pipeline import DesignConfig, design, write_design
+        from specholo.jobs.flat.folder import DesignConfig, design, write_design
 
         model = scratch("tet.obj")
         model.write_text(_TET)
@@ -669,7 +669,7 @@ def check_composition_file(path: str | os.PathLike[str]) -> None:
     verified, written and read back (verify's path)."""
     import shutil
 
-    from specholo.compose import (
+    from specholo.jobs.composition.design import (
         design_composition,
         load_composition_folder,
         read_composition,

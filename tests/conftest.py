@@ -114,7 +114,7 @@ def grooves_strategy() -> Callable[..., st.SearchStrategy[Grooves]]:
 @pytest.fixture(scope="session")
 def small_design(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 150-stipple design of the bundled bunny, shared by the picture tests."""
-    from specholo.pipeline import DesignConfig, design, write_design
+    from specholo.jobs.flat.folder import DesignConfig, design, write_design
 
     out = tmp_path_factory.mktemp("small") / "bunny"
     bunny = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"

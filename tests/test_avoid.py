@@ -179,7 +179,7 @@ def test_avoid_that_does_not_fit_is_refused(
 
 def test_the_placement_used_is_recorded() -> None:
     """hologram.json keeps the setting ("auto") and gives the placement used in its stats."""
-    from specholo.pipeline import DesignConfig, design, hologram_json
+    from specholo.jobs.flat.folder import DesignConfig, design, hologram_json
 
     cfg = DesignConfig(stipples=30, size=20.0)
     d = design(EXAMPLE, cfg, check_overlaps=False)
@@ -221,7 +221,7 @@ def test_auto_falls_back_to_phase_where_the_plan_outgrows_its_estimate() -> None
     """Eyes far above the plate make the glints drift far faster than the plan's
     estimate: "auto" gives the plan one larger try, then walks by phase (the
     grooves still serve every view) instead of growing the plan for minutes."""
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     bunny = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
     d = design(bunny, DesignConfig(stipples=8, eye_height=1e5), check_overlaps=False,
@@ -236,7 +236,7 @@ def test_auto_places_a_nearly_flat_trough_by_phase_at_once():
     # a few hundredths of a millimetre from its centre: the avoiding plan's
     # searches would scan that radius in cells of the walls' reach (minutes for
     # 8 stipples). "auto" places it by phase and says why.
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     bunny = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
     d = design(bunny, DesignConfig(stipples=8, size=653.0, depth=0.0001, tool="laser"),

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from specholo.compose import parse_composition
+from specholo.jobs.composition.design import parse_composition
 from specholo_cli import INTERRUPTED
 from specholo_cli.cli import FINISHED_INTERRUPTED, main
 

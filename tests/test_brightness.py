@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from specholo.pipeline import DesignConfig, design
+from specholo.jobs.flat.folder import DesignConfig, design
 from specholo.setup import Light, Tool, Viewer
 from specholo.simulation.cut import cut_surface, find_cut_glints
 from specholo.simulation.glints import FAINT_RATIO, INVISIBLE_RATIO, Engraved, Glints, find_glints

@@ -111,12 +111,21 @@ def _program(path: Path, limits: Limits, top: float = 0.0) -> Program:
 @pytest.fixture(scope="module")
 def programs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Program]:
     """Every job's kept programs, made once (each passed its job's check to be kept)."""
-    from specholo.compose import design_composition, parse_composition, write_composition
     from specholo.fabrication.programs.surface_gcode import host_top, surface_limits
-    from specholo.pipeline import DesignConfig, design, design_limits, write_design
-    from specholo.ridged import design_ridged_model, ridged_limits, write_ridged_design
-    from specholo.spin import SpinConfig, design_spin, spin_limits, write_spin
-    from specholo.steady import SteadyConfig, design_steady_job, steady_limits, write_steady
+    from specholo.jobs.composition.design import (
+        design_composition,
+        parse_composition,
+        write_composition,
+    )
+    from specholo.jobs.flat.folder import DesignConfig, design, design_limits, write_design
+    from specholo.jobs.ridged.design import design_ridged_model, ridged_limits, write_ridged_design
+    from specholo.jobs.spin.design import SpinConfig, design_spin, spin_limits, write_spin
+    from specholo.jobs.steady.design import (
+        SteadyConfig,
+        design_steady_job,
+        steady_limits,
+        write_steady,
+    )
     from specholo.toolpaths.spinning import relief_grooves
 
     tmp = tmp_path_factory.mktemp("programs")
@@ -410,7 +419,7 @@ def test_a_drag_tips_plunge_made_deep_is_refused(tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     """A drag tip's design, one plunge edited to Z -2.5: its own check and
     ``specholo check --no-spindle`` (or --tool drag) refused nothing before."""
-    from specholo.pipeline import check_written_gcode, design, design_limits
+    from specholo.jobs.flat.folder import check_written_gcode, design, design_limits
 
     code, out, err = _design(tmp_path, capsys)
     assert code == 0, err
@@ -425,7 +434,7 @@ def test_a_drag_tips_plunge_made_deep_is_refused(tmp_path: Path,
         assert _run(["check", str(bad), "--plate-width", str(width), "--plate-height",
                      str(height), "--max-depth", "0.012", "--spindle", "0", "0", *tool]) == 1
         assert f"line {k + 1}: cut to Z -2.50000, deeper than 0.012" in capsys.readouterr().out
-    from specholo.pipeline import DesignConfig
+    from specholo.jobs.flat.folder import DesignConfig
 
     d = design(BUNNY, DesignConfig(stipples=8, size=30))
     assert design_limits(d).tool == "drag"
@@ -483,7 +492,7 @@ def test_steady_cuts_no_deeper_than_its_depth_and_is_checked(
     assert meta["safety_check"]["deepest_cut_mm"] <= 0.02 + 1e-5
 
     # a program that cuts too deep is not kept
-    import specholo.steady as steady
+    import specholo.jobs.steady.design as steady
 
     writer = steady.write_path_gcode
 
@@ -501,7 +510,7 @@ def test_steady_cuts_no_deeper_than_its_depth_and_is_checked(
 
 def test_spin_programs_are_checked(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import specholo.fabrication.programs.gcode as gcode
-    from specholo.spin import SpinConfig, design_spin, write_spin
+    from specholo.jobs.spin.design import SpinConfig, design_spin, write_spin
 
     job = design_spin(BUNNY, SpinConfig(stipples=6, size=20, occlusion=False))
     writer = gcode.write_gcode
@@ -595,7 +604,7 @@ def test_inch_designs_pass_their_check(tmp_path: Path, capsys: pytest.CaptureFix
 def test_inch_designs_run_in_linuxcnc(tmp_path: Path, capsys: pytest.CaptureFixture[str]
                                       ) -> None:
     from specholo.fabrication.programs.program import GcodeOptions
-    from specholo.pipeline import load_design
+    from specholo.jobs.flat.folder import load_design
 
     # a rigid holder's program (a spring holder's is read by rs274 in test_holders.py)
     code, out, err = _design(tmp_path, capsys, "--units", "inch", "--dialect", "linuxcnc",

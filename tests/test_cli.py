@@ -222,7 +222,7 @@ def test_console_script_exit_code(tmp_path: Path):
 def test_designed_gcode_runs_in_linuxcnc(designed: Path):
     from test_gcode import check_canon, run_rs274
 
-    from specholo.pipeline import load_design
+    from specholo.jobs.flat.folder import load_design
 
     loaded = load_design(designed)
     canon = run_rs274(designed / "hologram.gcode")
@@ -262,7 +262,7 @@ def test_spacing_option(tmp_path: Path, capsys):
 def test_design_json_reads_back_as_written_with_a_stipple_a_line(stipples):
     import io
 
-    from specholo.pipeline import dump_design_json
+    from specholo.jobs.flat.folder import dump_design_json
 
     info = {"settings": {"a": 1, "name": "}, {"}, "stipples": stipples,
             "machining": {"hours": 0.5, "notes": ["x", None]}}
@@ -280,7 +280,7 @@ def test_design_json_stipples_written_a_block_at_a_time(n, monkeypatch):
 
     import numpy as np
 
-    from specholo.pipeline import StippleRows, dump_design_json
+    from specholo.jobs.flat.folder import StippleRows, dump_design_json
     from specholo.toolpaths.common import make_runs
 
     rng = np.random.default_rng(n)

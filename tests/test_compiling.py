@@ -45,7 +45,7 @@ def test_kernel_names_read_as_words():
 
 
 def _readme_config():  # type: ignore[no-untyped-def]
-    from specholo.jobs.flat import FlatJob
+    from specholo.jobs.flat.job import FlatJob
 
     values = {"size": 60.0, "center_z": -40.0, "light_elevation": 45.0,
               "view_distance": 600.0, "view_range": 45.0, "stipples": 2000}

@@ -15,10 +15,14 @@ import trimesh
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from specholo.compose import design_composition, parse_composition, verify_composition
 from specholo.errors import SpecholoError
 from specholo.fabrication.programs.surface_gcode import check_surface_program, write_surface_gcode
 from specholo.hosts.surfaces import Cylinder, HeightField, MeshHost, Panel, Panels, Plane, Sphere
+from specholo.jobs.composition.design import (
+    design_composition,
+    parse_composition,
+    verify_composition,
+)
 from specholo.simulation.conforming import find_conforming_glints, summarise
 from specholo_cli.cli import main
 
@@ -302,7 +306,7 @@ def test_any_host_and_light_put_a_point_where_it_belongs(kind: str, radius: floa
 
 
 def test_a_scene_s_pose_turns_and_moves_it_on_the_plate(tmp_path: Path) -> None:
-    from specholo.compose import prepare_scenes
+    from specholo.jobs.composition.design import prepare_scenes
 
     def points(extra: str) -> np.ndarray:
         text = (f'stipples = 30\n[[scene]]\nmodel = "{BUNNY}"\nsize = 30\ncenter_z = -25\n'

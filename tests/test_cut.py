@@ -207,7 +207,7 @@ def test_overcut_wall_does_not_glint() -> None:
 @pytest.mark.parametrize("resolution", [0.01])
 def test_cut_verification_agrees_with_ideal_grooves(small_design: Path,
                                                     resolution: float) -> None:
-    from specholo.pipeline import load_design
+    from specholo.jobs.flat.folder import load_design
 
     loaded = load_design(small_design, from_gcode=True)
     setup = loaded.config.setup()
@@ -276,7 +276,7 @@ def test_cut_in_chunks_is_the_same_plate(small_design: Path,
                                          monkeypatch: pytest.MonkeyPatch) -> None:
     """A program cut a run of paths at a time: the same field, labels, walls and glints."""
     import specholo.simulation.cut as cut_module
-    from specholo.pipeline import load_design
+    from specholo.jobs.flat.folder import load_design
 
     loaded = load_design(small_design)
     grooves, setup = loaded.grooves, loaded.config.setup()

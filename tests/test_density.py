@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from specholo.density import design_for_visibility
 from specholo.errors import SpecholoError
-from specholo.pipeline import DesignConfig
+from specholo.jobs.flat.density import design_for_visibility
+from specholo.jobs.flat.folder import DesignConfig
 from specholo.simulation.survival import verify_as_cut
 from specholo.simulation.verify import view_azimuths
 from specholo.visibility.occlusion import visible

@@ -26,8 +26,8 @@ import pytest
 
 from specholo.errors import SpecholoError
 from specholo.hosts.flat import sightline_crossing
+from specholo.jobs.flat.folder import DesignConfig, design, drop_reasons, groove_extent
 from specholo.optics.cutters import check_views
-from specholo.pipeline import DesignConfig, design, drop_reasons, groove_extent
 from specholo.simulation.glints import Engraved, find_glints
 from specholo.simulation.verify import verify
 from specholo.toolpaths.common import Runs

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from specholo.hosts.flat import sightline_crossing
-from specholo.pipeline import DesignConfig
+from specholo.jobs.flat.folder import DesignConfig
 from specholo.simulation.field_glints import LOBE, SlopeIndex, find_reflected_glints
 from specholo.toolpaths.ridged import RidgeOptions, design_ridged, view_eyes
 

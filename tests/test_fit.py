@@ -93,7 +93,7 @@ def _one_line(err: str) -> bool:
 @pytest.mark.parametrize("kind", ["steady", "spin"])
 def test_steady_and_spin_fit_put_the_cuts_on_the_plate(kind: str, tmp_path: Path,
                                                        capsys) -> None:
-    from specholo.steady import load_steady_folder
+    from specholo.jobs.steady.design import load_steady_folder
     from specholo.toolpaths.steady import tool_tips
 
     plate = ["--plate-width", "90", "--plate-height", "70"]
@@ -165,7 +165,11 @@ center_z = -25
 
 
 def test_a_composition_scene_fits_its_plane_host(tmp_path: Path, capsys) -> None:
-    from specholo.compose import fitted_scene_size, parse_composition, prepare_scenes
+    from specholo.jobs.composition.design import (
+        fitted_scene_size,
+        parse_composition,
+        prepare_scenes,
+    )
     from specholo.scene.loading import load_model
 
     toml = tmp_path / "fit.toml"

@@ -602,7 +602,7 @@ _OPTION_VALUES = st.sampled_from(["nan", "inf", "-inf", "-1", "0", "1e309", "-1e
 
 def _settings_are_validated() -> bool:
     """True once DesignConfig refuses wrong types and absurd sizes (pipeline.MAX_SETTING)."""
-    from specholo import pipeline
+    from specholo.jobs.flat import folder as pipeline
 
     return hasattr(pipeline, "MAX_SETTING")
 

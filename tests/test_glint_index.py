@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from specholo.fabrication.programs.gcode_reader import read_gcode
-from specholo.pipeline import DesignConfig, design, write_design
+from specholo.jobs.flat.folder import DesignConfig, design, write_design
 from specholo.setup import Light
 from specholo.simulation.glints import Engraved, find_glints
 from specholo.toolpaths.grooves import Grooves

@@ -35,7 +35,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from specholo.errors import SpecholoError
-from specholo.pipeline import SETTING_BOUNDS, DesignConfig, design
+from specholo.jobs.flat.folder import SETTING_BOUNDS, DesignConfig, design
 from specholo.scene import loading
 from specholo.toolpaths import striped
 from specholo_cli.cli import main

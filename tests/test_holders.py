@@ -43,7 +43,7 @@ from specholo.fabrication.programs.leveling import (
 )
 from specholo.fabrication.programs.program import GcodeOptions
 from specholo.fabrication.programs.timing import estimate_time, trapezoid_time
-from specholo.pipeline import DesignConfig
+from specholo.jobs.flat.folder import DesignConfig
 from specholo.setup import SPRING_LIFT, Holder, Machining, Tool
 from specholo.toolpaths.grooves import Grooves
 from specholo_cli.cli import main

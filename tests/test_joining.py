@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from specholo.pipeline import DesignConfig, design
+from specholo.jobs.flat.folder import DesignConfig, design
 from specholo.simulation.glints import Engraved, find_glints
 from specholo.toolpaths.grooves import Grooves
 from specholo.toolpaths.joining import SAME_X, dark, join_stripes

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from specholo.compose import parse_composition
 from specholo.errors import SpecholoError
 from specholo.fabrication.check import limits_from_header
 from specholo.fabrication.programs.surface_gcode import check_surface_program
+from specholo.jobs.composition.design import parse_composition
 from specholo_cli.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -125,7 +125,7 @@ def test_the_stock_under_the_surface_bounds_a_composition_s_check(
     head = _header(program)
     comp = parse_composition(comp_file.read_text(), tmp_path)
     assert comp.thickness == 2.5
-    from specholo.compose import load_composition_folder
+    from specholo.jobs.composition.design import load_composition_folder
 
     d = load_composition_folder(out)
     bad = _deeper(program, tmp_path / "deep.ngc", -25.0)

@@ -241,8 +241,8 @@ def test_a_laser_or_unknown_units_are_refused_in_one_line_and_no_folder(
 
 @pytest.mark.parametrize("make", ["spin", "steady"])
 def test_the_settings_refuse_a_laser_naming_the_option_and_why(make: str) -> None:
-    from specholo.spin import SpinConfig
-    from specholo.steady import SteadyConfig
+    from specholo.jobs.spin.design import SpinConfig
+    from specholo.jobs.steady.design import SteadyConfig
 
     config = {"spin": SpinConfig, "steady": SteadyConfig}[make]
     with pytest.raises(SpecholoError) as laser:

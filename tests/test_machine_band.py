@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from specholo.flat import design, stipple_spacing
-from specholo.settings import BAND, MACHINE_BAND_SHARE, DesignConfig
+from specholo.jobs.flat.design import design, stipple_spacing
+from specholo.jobs.flat.settings import BAND, MACHINE_BAND_SHARE, DesignConfig
 from specholo.simulation.verify import summarise, verify
 from specholo_cli.cli import main
 

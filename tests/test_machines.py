@@ -13,7 +13,7 @@ import pytest
 from specholo.errors import SpecholoError
 from specholo.fabrication.programs.machines import KINDS, MACHINES, MachineProfile, machine_profile
 from specholo.fabrication.programs.timing import estimate_time
-from specholo.settings import DesignConfig
+from specholo.jobs.flat.settings import DesignConfig
 from specholo.setup import Machining
 from specholo.toolpaths.grooves import Grooves
 from specholo_cli.cli import main

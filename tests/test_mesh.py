@@ -101,8 +101,8 @@ def _imported(model: Path, cache_dir: Path) -> str:
     env = {**os.environ, "SPECHOLO_CACHE_DIR": str(cache_dir), "SPECHOLO_NO_PRECOMPILE": "1"}
     script = textwrap.dedent(f"""
         import sys
-        from specholo.flat import design
-        from specholo.settings import DesignConfig
+        from specholo.jobs.flat.design import design
+        from specholo.jobs.flat.settings import DesignConfig
         design({str(model)!r}, DesignConfig(size=60.0, center_z=-40.0, stipples=30))
         print(sorted(m for m in ("trimesh", "scipy.spatial", "networkx") if m in sys.modules))
     """)

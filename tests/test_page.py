@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from specholo.jobs.flat.folder import load_design
 from specholo.jobs.page import write_page
-from specholo.pipeline import load_design
 from specholo.preview.page import ANGLE_STEP, ANGLE_STEPS, CELL, PageArcs, build_page
 from specholo.preview.render import Camera
 from specholo.setup import Light, Tool

@@ -146,7 +146,7 @@ def _render(folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
 
 def _conforming(folder: Path, eye: np.ndarray, elevation: float | None = None) -> np.ndarray:
     """A composition's glints for an eye, by its own finder and its own light."""
-    from specholo.compose import load_composition_folder
+    from specholo.jobs.composition.design import load_composition_folder
     from specholo.setup import Light
     from specholo.simulation.conforming import find_conforming_glints
 
@@ -172,8 +172,8 @@ def test_a_composition_s_still_shows_its_glints(folders: dict[str, Path], tmp_pa
 
 def test_a_turning_plate_s_still_is_its_left_eye_at_that_angle(
         folders: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from specholo.jobs.spin.design import load_spin_folder
     from specholo.simulation.spinning import find_spin_glints
-    from specholo.spin import load_spin_folder
     from specholo.toolpaths.spinning import rotate_z
 
     folder = folders["spin"]
@@ -193,8 +193,8 @@ def test_a_turning_plate_s_still_is_its_left_eye_at_that_angle(
 
 def test_a_steady_image_s_still_is_its_left_eye_under_that_light(
         folders: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from specholo.jobs.steady.design import load_steady_folder
     from specholo.simulation.steady import find_steady_glints
-    from specholo.steady import load_steady_folder
 
     folder = folders["steady"]
     design, config = load_steady_folder(folder)
@@ -210,7 +210,7 @@ def test_a_steady_image_s_still_is_its_left_eye_under_that_light(
 
 def test_a_moving_light_composition_s_still_is_its_left_eye(
         folders: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from specholo.compose import load_composition_folder
+    from specholo.jobs.composition.design import load_composition_folder
 
     folder = folders["light"]
     positions = load_composition_folder(folder).comp.motion.positions(math.radians(15.0))
@@ -261,8 +261,8 @@ def test_an_animation_moves_its_glints_along_the_motion(
         states = m.sweep(4)
         assert (np.diff(states) != 0).all()
         if kind == "spin":
+            from specholo.jobs.spin.design import load_spin_folder
             from specholo.simulation.spinning import find_spin_glints
-            from specholo.spin import load_spin_folder
             from specholo.toolpaths.spinning import rotate_z
 
             job = load_spin_folder(folder)
@@ -270,8 +270,8 @@ def test_an_animation_moves_its_glints_along_the_motion(
             points = [rotate_z(find_spin_glints(job.design, e, job.config.tool).point, p)
                       for e, p in zip(eyes, states, strict=True)]
         else:
+            from specholo.jobs.steady.design import load_steady_folder
             from specholo.simulation.steady import find_steady_glints
-            from specholo.steady import load_steady_folder
 
             design, config = load_steady_folder(folder)
             points = [find_steady_glints(design, design.setup.eyes()[0],
@@ -342,8 +342,8 @@ def test_the_page_holds_the_finder_s_glints_per_view(
 def _finder(kind: str, folder: Path, eye: np.ndarray, state: float | None) -> np.ndarray:
     """The kind's own glints for an eye (world frame) at a state, radians."""
     if kind == "spin":
+        from specholo.jobs.spin.design import load_spin_folder
         from specholo.simulation.spinning import find_spin_glints
-        from specholo.spin import load_spin_folder
         from specholo.toolpaths.spinning import rotate_z
 
         job = load_spin_folder(folder)
@@ -351,8 +351,8 @@ def _finder(kind: str, folder: Path, eye: np.ndarray, state: float | None) -> np
         return rotate_z(find_spin_glints(job.design, rotate_z(eye, -state),
                                          job.config.tool).point, state)
     if kind == "steady":
+        from specholo.jobs.steady.design import load_steady_folder
         from specholo.simulation.steady import find_steady_glints
-        from specholo.steady import load_steady_folder
 
         design, config = load_steady_folder(folder)
         return find_steady_glints(design, eye, design.setup.light(state), config.tool).point

@@ -61,7 +61,7 @@ def expected_marks(plate: Plate) -> np.ndarray:
 def test_fitted_plate_is_the_designs():
     """Without a plate the writers draw the one a design gets without a size:
     centred, whole mm, PLATE_MARGIN beyond the grooves' edges."""
-    from specholo.pipeline import DesignConfig, plate_rect
+    from specholo.jobs.flat.folder import DesignConfig, plate_rect
 
     g = Grooves(np.array([[-3.2, 1.0], [17.7, -8.1]]), np.zeros(2), np.array([0, 2]),
                 np.array([0]))

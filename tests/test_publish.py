@@ -54,7 +54,7 @@ def refused(code: int, err: str, *words: str) -> None:
 
 def test_every_file_a_job_writes_is_in_the_registry() -> None:
     from specholo.fabrication.heightmap import PLATE_FILE, RIDGED_FILES
-    from specholo.pipeline import FORMATS
+    from specholo.jobs.flat.folder import FORMATS
 
     for name in (*FORMATS.values(), *RIDGED_FILES.values(), PLATE_FILE, "scene_0.ply",
                  "scene_12.ply", *folders.VERIFY_FILES):
@@ -448,7 +448,7 @@ def test_a_failed_verify_leaves_the_old_verification(
 
 def test_a_kill_at_any_write_of_a_design_leaves_the_older_one(
         design_folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from specholo.pipeline import DesignConfig, design, write_design
+    from specholo.jobs.flat.folder import DesignConfig, design, write_design
 
     d = design(BUNNY, DesignConfig(stipples=12, seed=3))
     before = snapshot(design_folder)

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from specholo.errors import SpecholoError
+from specholo.jobs.flat.folder import DesignConfig
+from specholo.jobs.ridged.design import load_ridged_design
 from specholo.optics.refraction import back_entry
 from specholo.optics.surfaces import Kind, Source, refract
-from specholo.pipeline import DesignConfig
-from specholo.ridged import load_ridged_design
 from specholo.setup import BackLight, Light, Setup, Viewer
 from specholo.simulation.heightfield import (
     SlopeIndex,

@@ -12,7 +12,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from specholo.errors import SpecholoError
-from specholo.pipeline import Loaded, load_design
+from specholo.jobs.flat.folder import Loaded, load_design
 from specholo.preview.motion import light_sweep, sweep, turntable, write_animation
 from specholo.preview.render import (
     Camera,
@@ -294,7 +294,7 @@ def test_preview_dots_are_the_glints_each_eye_sees(small_design: Path, tmp_path:
 
     from PIL import Image
 
-    from specholo.pipeline import load_design
+    from specholo.jobs.flat.folder import load_design
     from specholo.preview.preview import PANEL, panel_transform, project, render_preview
     from specholo.preview.render import glints_seen
 

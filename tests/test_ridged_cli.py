@@ -15,9 +15,9 @@ from scipy.spatial import cKDTree
 
 from specholo.fabrication.check import Stock, check_gcode
 from specholo.fabrication.heightmap import load_ridged, read_image
+from specholo.jobs.ridged.design import load_ridged_design
 from specholo.preview.page import FieldViews
 from specholo.preview.render import Camera, field_glint_pixels, field_plate, plate_camera
-from specholo.ridged import load_ridged_design
 from specholo_cli.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -497,7 +497,7 @@ def test_bad_orientations_are_refused() -> None:
 
 
 def test_the_axes_offered_agree() -> None:
-    from specholo.settings import UP_AXES as CONFIG_AXES
+    from specholo.jobs.flat.settings import UP_AXES as CONFIG_AXES
     from specholo_cli.app import _DESIGN_OPTIONS
 
     choice = next(kind for name, kind, _ in _DESIGN_OPTIONS if name == "up")
@@ -507,7 +507,7 @@ def test_the_axes_offered_agree() -> None:
 def test_a_z_up_file_with_up_z_designs_the_y_up_model_s_plate(tmp_path: Path) -> None:
     """The bunny (y-up) written as a CAD file would hold it (z-up, front at -y) and
     designed with --up z gives the bunny's own grooves."""
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     bunny = trimesh.load(BUNNY, force="mesh")
     v = np.asarray(bunny.vertices)

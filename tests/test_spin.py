@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from test_gcode import check_canon, needs_rs274, run_rs274
 
+from specholo.jobs.spin.design import SpinConfig, design_spin, write_spin
 from specholo.optics.stereo import triangulate
 from specholo.setup import Machining, Tool
 from specholo.simulation.spinning import find_spin_glints, verify_spinning
-from specholo.spin import SpinConfig, design_spin, write_spin
 from specholo.toolpaths.spinning import (
     RELIEF_ANGLE,
     SpinSetup,
@@ -169,7 +169,7 @@ def test_occlusion_crops_hidden_views() -> None:
     closed = np.linalg.norm(g.vertices[g.offsets[1:] - 1] - g.vertices[g.offsets[:-1]],
                             axis=1) < 1e-9
     assert (~closed).sum() > 0 and closed.sum() > 0
-    from specholo.spin import verify_spin
+    from specholo.jobs.spin.design import verify_spin
 
     reps = verify_spin(job, 15.0)
     assert sum(r.stray for r in reps) == 0

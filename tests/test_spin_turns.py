@@ -12,11 +12,17 @@ import pytest
 import trimesh
 from test_gcode import check_canon, needs_rs274, run_rs274
 
+from specholo.jobs.spin.design import (
+    SpinConfig,
+    design_spin,
+    load_spin_folder,
+    verify_spin,
+    write_spin,
+)
 from specholo.scene.loading import load_model
 from specholo.scene.placement import place
 from specholo.setup import Machining, Tool
 from specholo.simulation.spinning import find_spin_glints, verify_spinning
-from specholo.spin import SpinConfig, design_spin, load_spin_folder, verify_spin, write_spin
 from specholo.toolpaths.sliding import design_sliding, eye_gap, scene_angle, slide_tracks
 from specholo.toolpaths.spinning import SpinSetup, crossings, rotate_z
 from specholo_cli.cli import main

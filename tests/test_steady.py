@@ -11,9 +11,14 @@ import numpy as np
 import pytest
 from test_gcode import needs_rs274, run_rs274
 
+from specholo.jobs.steady.design import (
+    SteadyConfig,
+    design_steady_job,
+    load_steady_folder,
+    write_steady,
+)
 from specholo.setup import Tool
 from specholo.simulation.steady import find_steady_glints, verify_steady
-from specholo.steady import SteadyConfig, design_steady_job, load_steady_folder, write_steady
 from specholo.toolpaths.steady import SteadySetup, design_steady, tool_tips, unit_half
 from specholo_cli.cli import main
 
@@ -99,7 +104,7 @@ def test_folder_gcode_cuts_the_scoops_and_reverifies(tmp_path: Path) -> None:
     assert tips[:, 2].min() >= -cfg.tool.depth - 1e-9
     assert np.all(tips[d.offsets[:-1], 2] > -1e-3)
     again, cfg2 = load_steady_folder(out)
-    from specholo.steady import light_steps, summarise
+    from specholo.jobs.steady.design import light_steps, summarise
 
     rep = summarise(verify_steady(again, cfg2.tool, light_steps(cfg2.setup, 2.5)))
     assert rep == pytest.approx(s)

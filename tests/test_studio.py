@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from specholo.errors import SpecholoError
-from specholo.pipeline import DesignConfig
+from specholo.jobs.flat.folder import DesignConfig
 from specholo.scene.loading import load_model
 from specholo.scene.placement import place
 from specholo.scene.pose import Pose

@@ -23,7 +23,7 @@ from typing import Any
 import pytest
 
 from specholo.errors import SpecholoError
-from specholo.settings import SETTING_BOUNDS
+from specholo.jobs.flat.settings import SETTING_BOUNDS
 from specholo.studio import server as studio_server
 from specholo.studio.server import (
     MAX_CONNECTIONS,

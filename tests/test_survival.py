@@ -112,7 +112,7 @@ def test_a_crossing_cut_shallower_than_the_glint_leaves_it(cutter: object) -> No
 def test_path_depths_move_each_glint_with_its_groove_and_drop_those_above_the_plate() -> None:
     """A design cut with every path at the design's depth gives the figures of
     one depth; a groove cut too shallow for a wall's tilt loses that glint."""
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     d = design("examples/bunny.obj", DesignConfig(size=20.0, center_z=-15.0, stipples=200,
                                                   seed=3), check_overlaps=False,
@@ -325,7 +325,7 @@ def test_survival_agrees_with_the_height_field_cut() -> None:
     long hyperbolae on a 20 mm bunny), the stereo visibility of the glints that
     survive matches the simulated cut plate's at 5 um resolution within two
     points per view, and so do the errors."""
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
     from specholo.visibility.occlusion import Intervals
 
     # A 0.05 mm tip: 5 um is a tenth of its radius.
@@ -356,7 +356,7 @@ def test_cutting_every_groove_deeper_removes_no_more_glints() -> None:
     however deep both are: a plate cut deeper throughout (three times the
     design's depth, far into the cone's flanks) keeps exactly the same
     glints, and the finer tip keeps more of them."""
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     az = np.radians([-30.0, 0.0, 30.0])
     kept = {}
@@ -425,7 +425,7 @@ def test_a_large_design_leaves_its_as_cut_figures_to_verify(tmp_path, capsys,
     import json
     from pathlib import Path
 
-    import specholo.flat as flat
+    import specholo.jobs.flat.design as flat
     from specholo_cli.cli import main
 
     monkeypatch.setattr(flat, "AS_CUT_MAX_STIPPLES", 10)

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from specholo.pipeline import DesignConfig, design
+from specholo.jobs.flat.folder import DesignConfig, design
 from specholo.simulation.survival import (
     EyeGlints,
     conflicts,

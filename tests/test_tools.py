@@ -94,7 +94,7 @@ def test_suggested_depth_serves_every_view():
 
 
 def test_strict_refuses_a_tool_that_loses_views_and_names_a_fix():
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     with pytest.raises(SpecholoError, match="100.0% of views lost.*ball end"):
         design(BUNNY, DesignConfig(stipples=40, tool="vbit", strict=True))
@@ -159,8 +159,8 @@ def test_striping_keeps_one_stipples_grooves_a_width_apart():
 
 
 def test_default_depth_is_just_deep_enough_for_the_views_plus_the_allowance():
-    from specholo.pipeline import TILT_MARGIN, DesignConfig, design
-    from specholo.settings import DEPTH_ALLOWANCE
+    from specholo.jobs.flat.folder import TILT_MARGIN, DesignConfig, design
+    from specholo.jobs.flat.settings import DEPTH_ALLOWANCE
 
     d = design(BUNNY, DesignConfig(stipples=60), check_overlaps=False)
     assert d.views is not None and d.views.lost == 0
@@ -173,7 +173,7 @@ def test_default_depth_is_just_deep_enough_for_the_views_plus_the_allowance():
 
 def test_cut_plate_keeps_about_exp_minus_coverage_of_the_glints():
     # Other stipples' grooves cut away glints at random: one eye keeps ~exp(-coverage).
-    from specholo.pipeline import DesignConfig, Loaded, design
+    from specholo.jobs.flat.folder import DesignConfig, Loaded, design
     from specholo.simulation.cut import cut_design, find_cut_glints
     from specholo.simulation.glints import Engraved, find_glints
 
@@ -196,7 +196,7 @@ def test_large_design_overlaps_estimated_in_windows_agree_with_the_full_count(mo
     # Past MAX_SAMPLES the crossings are counted in random windows and scaled:
     # on a design small enough to count in full the two must agree.
     import specholo.toolpaths.overlap as overlap
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     # (a 0.05 mm tip within its sphere: its wider grooves cross more than a thousand times)
     d = design(BUNNY, DesignConfig(stipples=400, size=30.0, tool_radius=0.05, depth=0.012),
@@ -219,7 +219,7 @@ def test_classic_arcs_estimated_in_windows_agree_with_the_full_count(monkeypatch
     # A classic arc is tens of mm long: the windows sample only its parts near
     # them, and the estimate must still agree with the full count.
     import specholo.toolpaths.overlap as overlap
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     d = design(BUNNY, DesignConfig(stipples=400, size=30.0, method="arc"), check_overlaps=False)
     width = d.config.cutter().section(d.config.depth_mm).width
@@ -265,7 +265,7 @@ def test_a_long_groove_is_sampled_only_where_it_passes_a_window():
 def test_a_design_states_what_survives_exactly_or_roughly():
     """The exact as-cut figure where the design finds it, the coverage's rough
     share where it leaves that to ``verify --cut``: never neither."""
-    from specholo.pipeline import DesignConfig, design
+    from specholo.jobs.flat.folder import DesignConfig, design
 
     exact = design(BUNNY, DesignConfig(stipples=60))
     assert exact.as_cut is not None and exact.overlaps is None
@@ -282,8 +282,8 @@ def test_the_automatic_depth_serves_every_view_the_cone_can():
     a cone that would serve them."""
     import math
 
+    from specholo.jobs.flat.folder import DesignConfig, design
     from specholo.optics.cutters import RoundCone
-    from specholo.pipeline import DesignConfig, design
 
     d = design(BUNNY, DesignConfig(stipples=500, size=60, center_z=-40, light_elevation=30,
                                    view_distance=600, view_range=45),

@@ -154,8 +154,8 @@ def test_which_way_a_mesh_stands():
     toward the viewer is shown as meant and hears nothing."""
     import trimesh
 
-    from specholo.flat import up_hint
-    from specholo.pipeline import DesignConfig
+    from specholo.jobs.flat.design import up_hint
+    from specholo.jobs.flat.folder import DesignConfig
     from specholo.scene.loading import Model
     from specholo.scene.mesh import Mesh
     from specholo.scene.pose import standing_up

@@ -90,7 +90,7 @@ def _run(config: Any) -> None:
 
     import numpy as np
 
-    from specholo.pipeline import AS_CUT_MAX_STIPPLES, Design, expected_as_cut, write_design
+    from specholo.jobs.flat.folder import AS_CUT_MAX_STIPPLES, Design, expected_as_cut, write_design
     from specholo.toolpaths.common import make_runs
     from specholo.toolpaths.overlap import groove_overlaps
 

@@ -46,8 +46,8 @@ def design(model: Path, out: Path, method: str | None, config_path: Path | None,
     """Design a hologram of MODEL (OBJ, STL, PLY, OFF, GLB; PLY/XYZ/CSV point clouds)."""
     from specholo.folders import check_out
     from specholo.jobs.base import WriteOptions, run
-    from specholo.jobs.flat import FlatJob
-    from specholo.jobs.ridged import RidgedJob
+    from specholo.jobs.flat.job import FlatJob
+    from specholo.jobs.ridged.job import RidgedJob
 
     # before any input is read: a config file that is the folder's own output is
     # refused as such, not read as bad TOML

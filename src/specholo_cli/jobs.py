@@ -43,7 +43,7 @@ def compose(composition: Path, out: Path, step: float, frames: int) -> None:
     """Design a hologram from a TOML composition: any host (plane, cylinder, sphere,
     height field, mesh, panels), a walking viewer or a moving light, one or more
     scenes keyed to the motion; then verify it."""
-    from specholo.jobs.composition import CompositionJob
+    from specholo.jobs.composition.job import CompositionJob
 
     _run(CompositionJob(), [composition], {}, out, WriteOptions(step_deg=step, frames=frames))
 
@@ -100,7 +100,7 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
     plate through 360 degrees. Several models (or --turns N): the view circles the
     scene N times per plate turn, each model on its own circuit (720 degrees for
     two), with stipples sliding over the turning scene on open grooves."""
-    from specholo.jobs.spin import SpinJob
+    from specholo.jobs.spin.job import SpinJob
 
     _run(SpinJob(), list(model), {
         "size": size, "center_z": center_z, "turns": turns, "stipples": stipples, "seed": seed,
@@ -151,7 +151,7 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
     """Design a hologram of MODEL for a viewer standing still whose image stays put
     while the sun moves a little in elevation: for each stipple and eye, a scoop
     whose glint does not move with the light. Then verify it over the range."""
-    from specholo.jobs.steady import SteadyJob
+    from specholo.jobs.steady.job import SteadyJob
 
     _run(SteadyJob(), [model], {
         "size": size, "center_z": center_z, "stipples": stipples, "seed": seed,
@@ -210,7 +210,7 @@ def coupon(out: Path, **options: Any) -> None:
     holder), each a few stipples of a simple target needing no model; its sheet
     (sheet.pdf) says from where each glint must show and where, so the setting
     for the long job can be chosen before it is cut."""
-    from specholo.jobs.coupon import CouponJob
+    from specholo.jobs.coupon.job import CouponJob
 
     values = {k: v for k, v in options.items() if v is not None}
     _run(CouponJob(), [], values, out, WriteOptions(command=_command_line()))

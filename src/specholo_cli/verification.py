@@ -38,7 +38,7 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: s
            resolution: float | None, stl: Path | None) -> None:
     """Simulate stereo eye pairs along the arc and measure where each stipple appears."""
     from specholo.jobs import VerifyOptions, job_of, publish_verification
-    from specholo.pipeline import cut_method as choose_cut_method
+    from specholo.jobs.flat.folder import cut_method as choose_cut_method
 
     if not (math.isfinite(step) and 0.01 <= step <= 5.0):
         raise SpecholoError(f"step must be in [0.01, 5] degrees, got {step}")

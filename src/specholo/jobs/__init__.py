@@ -3,7 +3,8 @@
 :data:`JOBS` is the registry: :func:`job_of` tells a folder's kind from its
 files, and each job verifies its own folders (:meth:`~.base.Job.verify`),
 returning what to print and the files to publish, so the command line only
-parses and prints. A new kind is one module here and a line in :data:`JOBS`.
+parses and prints. Each kind is a package here (its design and its job); a new
+kind is one package and a line in :data:`JOBS`.
 """
 
 from __future__ import annotations
@@ -12,12 +13,12 @@ from pathlib import Path
 
 from specholo.folders import register_outputs
 from specholo.jobs.base import Job, Table, Verification, VerifyOptions, publish_verification
-from specholo.jobs.composition import CompositionJob
-from specholo.jobs.coupon import CouponJob
-from specholo.jobs.flat import FlatJob
-from specholo.jobs.ridged import RidgedJob
-from specholo.jobs.spin import SpinJob
-from specholo.jobs.steady import SteadyJob
+from specholo.jobs.composition.job import CompositionJob
+from specholo.jobs.coupon.job import CouponJob
+from specholo.jobs.flat.job import FlatJob
+from specholo.jobs.ridged.job import RidgedJob
+from specholo.jobs.spin.job import SpinJob
+from specholo.jobs.steady.job import SteadyJob
 
 #: The kinds of folder, in the order they are told apart: the first whose
 #: :meth:`~.base.Job.holds` is true owns the folder; a flat design is the rest.

@@ -41,7 +41,7 @@ def composed_frames(d: Any, frames: int, size: tuple[int, int] = (512, 512),
     """Frames along the design's motion, as the left eye sees them.
 
     Args:
-        d: a :class:`~specholo.compose.ComposedDesign`.
+        d: a :class:`~specholo.jobs.composition.design.ComposedDesign`.
         frames: number of frames.
         size: (width, height) pixels.
         roughness: the specular lobe's width, radians.

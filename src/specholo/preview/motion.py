@@ -106,7 +106,7 @@ def turntable(loaded: Any, frames: int, size: tuple[int, int] = (512, 512),
     elevation 0 and the viewer's eye height; one fov frames the plate in every frame.
 
     Args:
-        loaded: a design (:class:`specholo.pipeline.Loaded`).
+        loaded: a design (:class:`specholo.jobs.flat.folder.Loaded`).
         frames: number of frames.
         size: (width, height) in pixels.
         roughness: specular lobe width, radians.

@@ -28,7 +28,7 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.programs.timing import estimate_time, plain_duration, trapezoid_time
 from specholo.hosts.flat import sightline_crossing
-from specholo.pipeline import DEFAULT_STIPPLES, DesignConfig, check_points
+from specholo.jobs.flat.folder import DEFAULT_STIPPLES, DesignConfig, check_points
 from specholo.scene.loading import Model
 from specholo.scene.placement import place
 from specholo.scene.stippling import check_memory, stipple
@@ -130,7 +130,7 @@ class Preview:
 
 
 def fast_preview(model: Model, config: DesignConfig) -> Preview:
-    """Place, stipple and crop a model as :func:`specholo.pipeline.design` does.
+    """Place, stipple and crop a model as :func:`specholo.jobs.flat.folder.design` does.
 
     Args:
         model: the loaded model, in its own units (placed here with the pose).

@@ -1,8 +1,8 @@
 """The studio's exact design: one at a time, in a background thread.
 
 The page asks for a design and polls :meth:`Runner.status`; the design and its
-files are the command line's own (:func:`specholo.pipeline.design`,
-:func:`specholo.pipeline.write_design`), written into a folder published whole,
+files are the command line's own (:func:`specholo.jobs.flat.folder.design`,
+:func:`specholo.jobs.flat.folder.write_design`), written into a folder published whole,
 so a folder the page offers is always a complete design.
 """
 
@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from specholo.errors import SpecholoError
-from specholo.pipeline import DesignConfig, design, write_design
+from specholo.jobs.flat.folder import DesignConfig, design, write_design
 
 #: The stages of a design, as the page shows them.
 STAGES = ("designing: stipples, occlusion, grooves and their as-cut figures",
@@ -41,7 +41,7 @@ def one_line(exc: BaseException) -> str:
 def summary_figures(d: Any, written: Any, out: Path) -> dict[str, Any]:
     """The design's own figures for the page: as cut, machining, hidden stipples."""
     from specholo.fabrication.programs.timing import plain_duration
-    from specholo.jobs.flat import design_summary
+    from specholo.jobs.flat.job import design_summary
 
     figures = d.as_cut.mean_and_lowest() if d.as_cut is not None else None
     mach = written.machining

@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from specholo.errors import SpecholoError
-from specholo.pipeline import DesignConfig
+from specholo.jobs.flat.folder import DesignConfig
 from specholo.scene.loading import FORMATS, Model, load_model
 from specholo.studio.preview import fast_preview
 from specholo.studio.runner import Runner, one_line

@@ -31,7 +31,7 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
     from collections import Counter
 
     from specholo.fabrication.programs.timing import describe_machining
-    from specholo.pipeline import AS_CUT_SKIPPED, drop_reasons
+    from specholo.jobs.flat.folder import AS_CUT_SKIPPED, drop_reasons
 
     lines: list[str] = []
     warnings: list[str] = []
@@ -122,8 +122,8 @@ HIDDEN_HINT = 0.6
 def band_line(d: Any) -> str:
     """The stripes' band as the eye sees it: each glint may sit up to a band off
     its place vertically, against how far apart neighbouring stipples look."""
-    from specholo.flat import stipple_spacing
-    from specholo.settings import BAND
+    from specholo.jobs.flat.design import stipple_spacing
+    from specholo.jobs.flat.settings import BAND
 
     band = float(d.config.band or BAND)
     distance = d.config.setup().viewer.distance
@@ -224,23 +224,23 @@ class FlatJob:
         "hologram.gcode", "hologram.svg", "hologram.dxf", "pattern.pdf", "preview.png"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
-        from specholo.pipeline import DesignConfig
+        from specholo.jobs.flat.folder import DesignConfig
 
         return DesignConfig.from_dict(dict(values))
 
     def check_options(self, config: Any, options: WriteOptions) -> None:
-        from specholo.pipeline import check_formats
+        from specholo.jobs.flat.folder import check_formats
 
         if options.formats is not None:
             check_formats(options.formats, config.method)
 
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
-        from specholo.pipeline import design
+        from specholo.jobs.flat.folder import design
 
         if config.visibility is None:
             status("designing...")
             return Designed(design(inputs[0], config))
-        from specholo.density import design_for_visibility
+        from specholo.jobs.flat.density import design_for_visibility
 
         notes: list[str] = []
 
@@ -254,7 +254,7 @@ class FlatJob:
 
     def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
               options: WriteOptions, status: Status) -> Summary:
-        from specholo.pipeline import DEFAULT_FORMATS, write_design
+        from specholo.jobs.flat.folder import DEFAULT_FORMATS, write_design
 
         status("writing...")
         written = write_design(designed.design, out, options.formats or DEFAULT_FORMATS,
@@ -266,7 +266,7 @@ class FlatJob:
         return True
 
     def load(self, folder: Path) -> Any:
-        from specholo.pipeline import load_design
+        from specholo.jobs.flat.folder import load_design
 
         return load_design(folder)
 
@@ -301,7 +301,7 @@ class FlatJob:
     def _verify(self, folder: Path, options: VerifyOptions, status: Status,
                 chart: ChartDrawer) -> Verification:
         from specholo.folder import write_verify_json
-        from specholo.pipeline import (
+        from specholo.jobs.flat.folder import (
             cut_method,
             default_resolution,
             load_design,
@@ -386,7 +386,7 @@ class FlatJob:
 def _as_cut_estimate(folder: Path) -> str:
     """The design's as-cut stereo visibility from its hologram.json, in words
     ('' where the design made none: a large design, or an older folder)."""
-    from specholo.pipeline import design_json
+    from specholo.jobs.flat.folder import design_json
 
     got = design_json(folder).get("expected", {})
     vis = got.get("as_cut_stereo_visibility") if isinstance(got, dict) else None

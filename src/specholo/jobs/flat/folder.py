@@ -2,8 +2,8 @@
 pattern, data, preview), read back, and verified.
 
 The library entry points behind the CLI's ``design`` and ``verify`` for a flat
-plate. The settings (:mod:`specholo.settings`) and the design itself
-(:mod:`specholo.flat`) are re-exported here, so ``from specholo.pipeline
+plate. The settings (:mod:`specholo.jobs.flat.settings`) and the design itself
+(:mod:`specholo.jobs.flat.design`) are re-exported here, so ``from specholo.jobs.flat.folder
 import DesignConfig, design, write_design`` keeps working.
 """
 
@@ -25,7 +25,7 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.plate import Plate
-from specholo.flat import (
+from specholo.jobs.flat.design import (
     AS_CUT_MAX_STIPPLES,
     AS_CUT_SKIPPED,
     AS_CUT_STEP_DEG,
@@ -47,7 +47,7 @@ from specholo.flat import (
     run_record,
     stipple_model,
 )
-from specholo.settings import (
+from specholo.jobs.flat.settings import (
     BACK_LIGHT_ELEVATION,
     BAND,
     DEFAULT_STIPPLES,
@@ -175,7 +175,7 @@ def design_limits(d: Design) -> Any:
 def flatness_line(grooves: Grooves, holder: Any) -> dict[str, str]:
     """The header line of a rigid holder's program saying how well the plate's Z
     must be known (``flatness``), or none: the grooves keep their glints cut
-    within :data:`~specholo.settings.DEPTH_ALLOWANCE` of their depth, and a
+    within :data:`~specholo.jobs.flat.settings.DEPTH_ALLOWANCE` of their depth, and a
     rigid holder cuts at the Z it is given, so the plate's height over the
     grooves must be known that well: on a hobby machine, by probing it."""
     from specholo.fabrication.exporting import drawn_extent

@@ -1,7 +1,7 @@
 """A flat plate's design: the model placed and stippled, occlusion, the tool
 check, the grooves, and what will survive the cutting (model -> stipples ->
 optics -> toolpaths). Its folder is written and read by
-:mod:`specholo.pipeline`."""
+:mod:`specholo.jobs.flat.folder`."""
 
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from specholo.toolpaths.overlap import Overlaps, groove_overlaps
 if TYPE_CHECKING:
     from specholo.simulation.survival import AsCut
 
-from specholo.settings import (
+from specholo.jobs.flat.settings import (
     BAND,
     DEFAULT_STIPPLES,
     DEPTH_ALLOWANCE,
@@ -434,7 +434,7 @@ def stipple_spacing(points: np.ndarray, distance: float) -> float | None:
 
 def machine_band(config: DesignConfig, points: np.ndarray) -> tuple[DesignConfig, str]:
     """The band a machine whose strokes lift is given (``config.band_share``, see
-    :data:`~specholo.settings.MACHINE_BAND_SHARE`): seen from the viewing
+    :data:`~specholo.jobs.flat.settings.MACHINE_BAND_SHARE`): seen from the viewing
     distance, that share of the neighbouring stipples' spacing, never finer
     than the default, to 0.01 mm. Returns the settings with that band (and no
     share left to apply) and a few words saying why, for the summary."""

@@ -1,7 +1,7 @@
 """The ridged job: a full-parallax plate, a milled height field instead of grooves.
 
 Load, place and stipple the model as the grooved designs do
-(:mod:`specholo.pipeline`), design the facets (:mod:`specholo.toolpaths.ridged`),
+(:mod:`specholo.jobs.flat.folder`), design the facets (:mod:`specholo.toolpaths.ridged`),
 write the folder (height maps, STL, raster G-code checked before it is kept,
 the data and a preview), read it back and verify it with heads over azimuth
 and elevation (:mod:`specholo.simulation.heightfield`).
@@ -23,7 +23,7 @@ import numpy as np
 from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
-from specholo.pipeline import (
+from specholo.jobs.flat.folder import (
     RASTER_RANGE,
     RIDGED_BLOCK,
     DesignConfig,

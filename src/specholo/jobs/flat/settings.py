@@ -36,7 +36,7 @@ from specholo.setup import (
 from specholo.toolpaths.striped import PLACEMENTS
 
 METHODS = ("striped", "hyperbola", "arc", "ridged")
-#: Thinning a crowded plate (see :func:`specholo.flat.thin_as_cut`).
+#: Thinning a crowded plate (see :func:`specholo.jobs.flat.design.thin_as_cut`).
 THINNING = ("auto", "on", "off")
 DEFAULT_STIPPLES = 2000
 #: Fallback groove depth (mm) and spindle speed (rpm) by tool. A design without a

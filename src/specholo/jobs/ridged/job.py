@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
 def design_summary(d: Any, written: dict[str, Any], out: Path) -> Summary:
     """What a ridged design (``ridged.RidgedDesign``) and its written folder say."""
-    from specholo.ridged import plate_edges
+    from specholo.jobs.ridged.design import plate_edges
 
     config = d.config
     s = d.plate.summary()
@@ -77,7 +77,7 @@ def budget_line(budget: Any, stipples: int) -> str:
 
 def stated_budget(folder: Path) -> str:
     """The per-head figure a ridged folder's hologram.json states ('' if none)."""
-    from specholo.pipeline import design_json
+    from specholo.jobs.flat.folder import design_json
 
     ridged = design_json(folder).get("ridged")
     budget = ridged.get("stereo_budget") if isinstance(ridged, dict) else None
@@ -104,25 +104,25 @@ class RidgedJob:
         "heightmap.tif", "heightmap.json", "hologram.stl", "hologram.gcode", "preview.png"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
-        from specholo.pipeline import DesignConfig
+        from specholo.jobs.flat.folder import DesignConfig
 
         return DesignConfig.from_dict({**values, "method": "ridged"})
 
     def check_options(self, config: Any, options: WriteOptions) -> None:
-        from specholo.pipeline import check_formats
+        from specholo.jobs.flat.folder import check_formats
 
         if options.formats is not None:
             check_formats(options.formats, "ridged")
 
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
-        from specholo.ridged import design_ridged_model
+        from specholo.jobs.ridged.design import design_ridged_model
 
         status("designing the ridged plate...")
         return Designed(design_ridged_model(inputs[0], config))
 
     def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
               options: WriteOptions, status: Status) -> Summary:
-        from specholo.ridged import DEFAULT_RIDGED_FORMATS, write_ridged_design
+        from specholo.jobs.ridged.design import DEFAULT_RIDGED_FORMATS, write_ridged_design
 
         status("writing...")
         written = write_ridged_design(designed.design, out,
@@ -130,20 +130,20 @@ class RidgedJob:
         return design_summary(designed.design, written, out)
 
     def holds(self, folder: Path) -> bool:
-        from specholo.ridged import is_ridged_folder
+        from specholo.jobs.ridged.design import is_ridged_folder
 
         return is_ridged_folder(folder)
 
     def load(self, folder: Path) -> Any:
-        from specholo.ridged import load_ridged_design
+        from specholo.jobs.ridged.design import load_ridged_design
 
         return load_ridged_design(folder)
 
     def picture_source(self, folder: Path) -> PictureSource:
         """Its exact heights (glints found on the height field, as verify finds
         them), over the heads' azimuth and elevation ranges."""
+        from specholo.jobs.ridged.design import plate_edges
         from specholo.preview.sources import FieldSource
-        from specholo.ridged import plate_edges
 
         loaded = self.load(folder)
         c = loaded.config
@@ -178,8 +178,8 @@ class RidgedJob:
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.folder import write_verify_json
+        from specholo.jobs.ridged.design import load_ridged_design, verify_ridged_design
         from specholo.preview.preview import plot_field_verification
-        from specholo.ridged import load_ridged_design, verify_ridged_design
         from specholo.simulation.heightfield import report_table
         from specholo.simulation.verify import reports_to_dicts, summarise
 

@@ -7,7 +7,7 @@ README's example, lowest over the views: 0.97 at 500 stipples, 0.87 at 2,000,
 visibility gets the most stipples whose design reaches it at every view.
 
 Each try is a whole design, its as-cut figures found from its own grooves
-(:func:`~specholo.pipeline.expected_as_cut`). The search models the lowest
+(:func:`~specholo.jobs.flat.folder.expected_as_cut`). The search models the lowest
 visibility v(n) as exp(-(n / n0)^k), a straight line in log n against
 log(-log v) (k was 1.5-1.9 on the README's example), takes the line through the
 two closest tries (k = 1.6 before there are two) and stops when the largest
@@ -23,7 +23,13 @@ import os
 from collections.abc import Callable
 
 from specholo.errors import SpecholoError
-from specholo.pipeline import AS_CUT_MAX_STIPPLES, DEFAULT_STIPPLES, Design, DesignConfig, design
+from specholo.jobs.flat.folder import (
+    AS_CUT_MAX_STIPPLES,
+    DEFAULT_STIPPLES,
+    Design,
+    DesignConfig,
+    design,
+)
 
 #: The fewest stipples tried.
 MIN_STIPPLES = 50

@@ -59,8 +59,8 @@ class SpinJob:
         "hologram.gcode", "relief.gcode", "hologram.svg", "verify.json", "preview.gif"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
+        from specholo.jobs.spin.design import SpinConfig
         from specholo.scene.pose import split_pose
-        from specholo.spin import SpinConfig
 
         pose, given = split_pose(values)
         return SpinConfig.from_options(models=len(inputs), pose=pose, **given)
@@ -69,7 +69,7 @@ class SpinJob:
         refuse_formats(self, options)
 
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
-        from specholo.spin import design_spin
+        from specholo.jobs.spin.design import design_spin
 
         if config.fit:
             status("fitting the model to the plate and designing its grooves...")
@@ -80,7 +80,7 @@ class SpinJob:
 
     def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
               options: WriteOptions, status: Status) -> Summary:
-        from specholo.spin import write_spin
+        from specholo.jobs.spin.design import write_spin
 
         step, frames = options.step_deg or 5.0, options.frames or 0
         status("verifying the turn and writing...")
@@ -88,18 +88,18 @@ class SpinJob:
         return design_summary(designed.design, summary, out, step)
 
     def holds(self, folder: Path) -> bool:
-        from specholo.spin import is_spin_folder
+        from specholo.jobs.spin.design import is_spin_folder
 
         return is_spin_folder(folder)
 
     def load(self, folder: Path) -> Any:
-        from specholo.spin import load_spin_folder
+        from specholo.jobs.spin.design import load_spin_folder
 
         return load_spin_folder(folder)
 
     def preview(self, folder: Path, status: Status) -> dict[str, Callable[[Path], object]]:
+        from specholo.jobs.spin.design import preview_frames
         from specholo.preview.motion import write_animation
-        from specholo.spin import preview_frames
 
         job = self.load(folder)
 
@@ -113,8 +113,8 @@ class SpinJob:
     def picture_source(self, folder: Path) -> PictureSource:
         """Its grooves turning under the still eyes (glints found per plate angle,
         as verify finds them), the blank its files name turning with them."""
+        from specholo.jobs.spin.design import spin_plate
         from specholo.preview.sources import SpinSource
-        from specholo.spin import spin_plate
 
         job = self.load(folder)
         c, d = job.config, job.design
@@ -140,7 +140,12 @@ class SpinJob:
         return SpinSource(d, c.tool, plate.box, model, facts)
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
-        from specholo.spin import load_spin_folder, summarise, verify_spin, write_spin_verification
+        from specholo.jobs.spin.design import (
+            load_spin_folder,
+            summarise,
+            verify_spin,
+            write_spin_verification,
+        )
 
         refuse_cut_options(self, options)
         job = load_spin_folder(folder)

@@ -36,12 +36,12 @@ def design_summary(design: Any, config: Any, s: dict[str, Any], out: Path,
                    ) -> Summary:
     """What a steady image (``toolpaths.steady.SteadyDesign`` with its
     ``steady.SteadyConfig``) and its verification over the light's range say, in
-    a flat design's words (:func:`specholo.jobs.flat.design_summary`): how many of
+    a flat design's words (:func:`specholo.jobs.flat.job.design_summary`): how many of
     the stipples asked for got scoops and why the rest did not
     (``steady.Stippling``, when known), the plate, the tool, the machining time
     (``machining``: hologram.json's figures, when known) and the verification."""
     from specholo.fabrication.programs.timing import describe_machining
-    from specholo.steady import steady_plate
+    from specholo.jobs.steady.design import steady_plate
 
     noun = "scoop" if config.shape == "scoop" else "flat groove"
     kept = len(design.points)
@@ -93,7 +93,7 @@ def _left_out(design: Any, stippling: Any, noun: str) -> list[str]:
 
 def _plate_line(plate: Any, config: Any) -> str:
     """The plate a maker prepares, in one line, as a flat design's summary words
-    it (:func:`specholo.jobs.flat.plate_line`)."""
+    it (:func:`specholo.jobs.flat.job.plate_line`)."""
     from specholo.fabrication.plate import PLATE_MARGIN
 
     thick = f", {config.stock_thickness:g} mm thick"
@@ -120,8 +120,8 @@ class SteadyJob:
         "preview.png"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
+        from specholo.jobs.steady.design import SteadyConfig
         from specholo.scene.pose import split_pose
-        from specholo.steady import SteadyConfig
 
         pose, given = split_pose(values)
         return SteadyConfig.from_options(pose=pose, **given)
@@ -130,7 +130,7 @@ class SteadyJob:
         refuse_formats(self, options)
 
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
-        from specholo.steady import design_steady_sized
+        from specholo.jobs.steady.design import design_steady_sized
 
         if len(inputs) != 1:
             raise SpecholoError(f"a steady image is of one model, got {len(inputs)}")
@@ -143,7 +143,7 @@ class SteadyJob:
               options: WriteOptions, status: Status) -> Summary:
         import json
 
-        from specholo.steady import write_steady
+        from specholo.jobs.steady.design import write_steady
 
         design, config, stippling = designed.design
         step = options.step_deg or 1.0
@@ -154,12 +154,12 @@ class SteadyJob:
         return design_summary(design, config, s, out, stippling, written["machining"])
 
     def holds(self, folder: Path) -> bool:
-        from specholo.steady import is_steady_folder
+        from specholo.jobs.steady.design import is_steady_folder
 
         return is_steady_folder(folder)
 
     def load(self, folder: Path) -> Any:
-        from specholo.steady import load_steady_folder
+        from specholo.jobs.steady.design import load_steady_folder
 
         return load_steady_folder(folder)
 
@@ -173,8 +173,8 @@ class SteadyJob:
     def picture_source(self, folder: Path) -> PictureSource:
         """Its scoops seen from the still eyes as the light moves (glints found per
         light elevation, as verify finds them), on the plate its files name."""
+        from specholo.jobs.steady.design import steady_plate
         from specholo.preview.sources import SteadySource
-        from specholo.steady import steady_plate
 
         design, config = self.load(folder)
         s = config.setup
@@ -194,7 +194,7 @@ class SteadyJob:
         return SteadySource(design, config.tool, plate.box, facts)
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
-        from specholo.steady import (
+        from specholo.jobs.steady.design import (
             light_steps,
             load_steady_folder,
             summarise,

@@ -5,10 +5,11 @@ grooves glint where they should.
 The card holds a ladder of *rungs* side by side, each cut at one setting of the
 ladder. Every rung draws the same simple target, needing no model: a column of
 3 to 5 points a few millimetres behind the card, one above the other, each
-designed with the striped method of ``specholo design`` (:func:`~specholo.flat.design_runs`)
-for its own *window* of eye azimuths, the windows spread over the design's
-viewing range. Seen with one eye moving along the viewing arc, each rung's
-glints light up one after another, each only from its window, and the windows
+designed with the striped method of ``specholo design``
+(:func:`~specholo.jobs.flat.design.design_runs`) for its own *window* of eye
+azimuths, the windows spread over the design's viewing range. Seen with one
+eye moving along the viewing arc, each rung's glints light up one after
+another, each only from its window, and the windows
 at the ends of the range need the steepest groove walls: a rung cut too
 shallow loses them first. Below each rung its number is engraved as a row of
 dots (rung 3: three dots), which glint from everywhere, so a card parted from
@@ -45,7 +46,7 @@ import numpy as np
 from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import Plate
-from specholo.settings import DesignConfig
+from specholo.jobs.flat.settings import DesignConfig
 from specholo.setup import PRELOAD_RANGE, Machining
 from specholo.toolpaths.grooves import Grooves
 
@@ -411,7 +412,7 @@ def _runs(config: CouponConfig, lay: Layout, rung: int | None = None) -> Any:
 
 def _auto_depth(config: CouponConfig) -> float:
     """The depth ``specholo design`` would choose for the coupon's windows."""
-    from specholo.flat import auto_depth
+    from specholo.jobs.flat.design import auto_depth
 
     lay = layout(config)
     design = dataclasses.replace(config.design, depth=None)
@@ -422,8 +423,8 @@ def _least_depth(config: CouponConfig) -> float:
     """The shallowest depth (mm, to the micrometre above) whose walls serve every
     window of the coupon with the design's tilt margin: a rigid rung any
     shallower would lose its steepest glints by design, not by its cut."""
+    from specholo.jobs.flat.settings import TILT_MARGIN
     from specholo.optics.cutters import depth_for, needed_tilts, steepest_wall
-    from specholo.settings import TILT_MARGIN
 
     lay = layout(config)
     runs = _runs(config, lay)
@@ -523,7 +524,7 @@ def design_coupon(config: CouponConfig) -> Coupon:
             would overlap, or a card taking longer than :data:`MAX_MINUTES`.
     """
     from specholo.fabrication.programs.order import order_paths
-    from specholo.flat import design_runs
+    from specholo.jobs.flat.design import design_runs
 
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -731,7 +732,7 @@ def machining_estimate(coupon: Coupon) -> dict[str, Any]:
 
 def coupon_limits(coupon: Coupon) -> Any:
     """What the card's program may do (:class:`~specholo.fabrication.check.Limits`),
-    from its settings as :func:`specholo.pipeline.design_limits` has a design's:
+    from its settings as :func:`specholo.jobs.flat.folder.design_limits` has a design's:
     cut inside the card less half the widest groove, every cut in X/Y at one of
     the rungs' depths (or preloads), rapids at the safe height, hops no longer
     nor lower than set (a spring holder's: no X/Y move below its lift but its

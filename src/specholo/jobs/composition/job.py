@@ -59,7 +59,7 @@ class CompositionJob:
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
         """The composition file's settings (a composition is all in its TOML)."""
-        from specholo.compose import read_composition
+        from specholo.jobs.composition.design import read_composition
 
         if len(inputs) != 1:
             raise SpecholoError(f"a design is composed from one TOML file, got {len(inputs)}")
@@ -69,7 +69,7 @@ class CompositionJob:
         refuse_formats(self, options)
 
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
-        from specholo.compose import design_composition
+        from specholo.jobs.composition.design import design_composition
 
         status("designing grooves along the motion...")
         return Designed(design_composition(config))
@@ -77,7 +77,7 @@ class CompositionJob:
     def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
               options: WriteOptions, status: Status) -> Summary:
         """The folder with its verification and previews, published together."""
-        from specholo.compose import write_composition
+        from specholo.jobs.composition.design import write_composition
         from specholo.preview.composed import write_previews
 
         d = designed.design
@@ -104,12 +104,12 @@ class CompositionJob:
         return found[0]
 
     def holds(self, folder: Path) -> bool:
-        from specholo.compose import is_composed_folder
+        from specholo.jobs.composition.design import is_composed_folder
 
         return is_composed_folder(folder)
 
     def load(self, folder: Path) -> Any:
-        from specholo.compose import load_composition_folder
+        from specholo.jobs.composition.design import load_composition_folder
 
         return load_composition_folder(folder)
 
@@ -163,8 +163,8 @@ class CompositionJob:
                               [(s.key, s.points) for s in d.scenes], facts)
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
-        from specholo.compose import load_composition_folder, verify_composition
         from specholo.folder import write_verify_json
+        from specholo.jobs.composition.design import load_composition_folder, verify_composition
         from specholo.simulation.conforming import reports_to_dicts, summarise
 
         refuse_cut_options(self, options)
