@@ -26,12 +26,30 @@ def folder_of(tmp_path: Path, design: str | None) -> Path:
     ("spin", "spin"), ("steady", "steady"), ("composition", "composition"),
     # as folders written before the kinds took their commands' names say it
     ("spinning", "spin"), ("conforming", "composition"),
-    ("ridged", "ridged"), ("striped", "flat"), ("arc", "flat"), (None, "flat")])
+    ("ridged", "ridged"), ("striped", "flat"), ("arc", "flat")])
 def test_each_folder_has_one_owner(tmp_path, design, kind):
+    """A folder written before run.json named its kind is told by its files."""
     folder = folder_of(tmp_path, design)
     owners = [job.kind for job in JOBS[:-1] if job.holds(folder)]
     assert len(owners) <= 1
     assert job_of(folder).kind == kind
+
+
+@pytest.mark.parametrize("kind", [job.kind for job in JOBS])
+def test_a_folder_is_its_run_records_kind(tmp_path, kind):
+    """A folder's run.json names its kind: the registry takes that, whatever
+    other files lie there, and nothing else."""
+    folder = folder_of(tmp_path, "striped")  # a flat plate's hologram.json
+    (folder / "coupon.json").write_text("{}")  # and a coupon's file
+    (folder / "run.json").write_text(json.dumps({"kind": kind}))
+    assert job_of(folder).kind == kind
+
+
+def test_a_folder_of_no_kind_is_refused(tmp_path):
+    """No catch-all: a folder holding no design is refused in one line."""
+    with pytest.raises(SpecholoError, match="not a design folder") as err:
+        job_of(folder_of(tmp_path, None))
+    assert "\n" not in str(err.value)
 
 
 def test_a_ridged_folder_without_settings_is_told_by_its_plate(tmp_path):
@@ -110,7 +128,7 @@ class DotsJob:
         words, depth = designed.design
         limits = Limits(Stock(-50.0, -50.0, 50.0, 50.0, 3.0), depth, 1.0, (100.0, 100.0),
                         (0.0, 0.0), tool="drag")
-        with stage_design(out, inputs) as stage:
+        with stage_design(out, inputs, kind=self.kind) as stage:
             program = ["G21", "G90", "G0 Z1"]
             for i, _ in enumerate(words):
                 program += [f"G0 X{i:.1f} Y0", f"G1 Z{-depth - self.overcut:.3f} F100", "G0 Z1"]

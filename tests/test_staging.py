@@ -29,7 +29,7 @@ def _old_folder(tmp_path: Path) -> Path:
 def test_a_program_nobody_checked_publishes_nothing(tmp_path: Path) -> None:
     out = _old_folder(tmp_path)
     with pytest.raises(SpecholoError, match="relief.gcode was written but not read back"), \
-            stage_design(out) as stage:
+            stage_design(out, kind="flat") as stage:
         write_gcode(stage.path / "hologram.gcode", hopping_example(), TOOL, MACHINING)
         stage.check("hologram.gcode", hop_limits())
         write_gcode(stage.path / "relief.gcode", hopping_example(), TOOL, MACHINING)
@@ -41,7 +41,7 @@ def test_a_program_nobody_checked_publishes_nothing(tmp_path: Path) -> None:
 
 def test_checked_programs_are_published_and_unsafe_ones_are_not(tmp_path: Path) -> None:
     out = _old_folder(tmp_path)
-    with stage_design(out) as stage:
+    with stage_design(out, kind="flat") as stage:
         write_gcode(stage.path / "hologram.gcode", hopping_example(), TOOL, MACHINING,
                     header=hop_limits().header())
         report = stage.check("hologram.gcode")  # the limits in its own header
@@ -54,14 +54,15 @@ def test_checked_programs_are_published_and_unsafe_ones_are_not(tmp_path: Path) 
     # deeper than its limits allow: refused, the folder as it was
     before = (out / "hologram.gcode").read_bytes()
     with pytest.raises(SpecholoError, match="failed its safety check"), \
-            stage_design(out) as stage:
+            stage_design(out, kind="flat") as stage:
         write_gcode(stage.path / "hologram.gcode", hopping_example(), TOOL, MACHINING)
         shallow = TOOL.depth / 2
         stage.check("hologram.gcode", dataclasses.replace(hop_limits(), max_depth=shallow,
                                                           groove_depth=shallow))
     assert (out / "hologram.gcode").read_bytes() == before
     # no limits given and none in the header: refused, not waved through
-    with pytest.raises(SpecholoError, match="names no limits"), stage_design(out) as stage:
+    with pytest.raises(SpecholoError, match="names no limits"), \
+            stage_design(out, kind="flat") as stage:
         write_gcode(stage.path / "hologram.gcode", hopping_example(), TOOL, MACHINING)
         stage.check("hologram.gcode")
 

@@ -158,8 +158,8 @@ def run_record(kind: str, command: list[str] | None, seconds: dict[str, Any],
 
 @contextlib.contextmanager
 def stage_design(out: str | os.PathLike[str],
-                 inputs: Iterable[str | os.PathLike[str] | None] = (),
-                 kind: str = "flat", command: list[str] | None = None) -> Iterator[Stage]:
+                 inputs: Iterable[str | os.PathLike[str] | None] = (), *,
+                 kind: str, command: list[str] | None = None) -> Iterator[Stage]:
     """A :class:`Stage` that replaces ``out`` whole once the block succeeds and
     every program in it has passed its check.
 
@@ -167,7 +167,8 @@ def stage_design(out: str | os.PathLike[str],
         out: the output folder.
         inputs: the job's input files, which ``out`` must not hold as files a
             design writes.
-        kind: the kind of hologram, for ``run.json``.
+        kind: the kind of hologram, for ``run.json``: what the job registry
+            tells the folder's kind by (``specholo.jobs.job_of``).
         command: the command line, for ``run.json`` (None: ``sys.argv``).
 
     Raises:

@@ -350,7 +350,7 @@ def write_design(d: Design, out: str | os.PathLike[str],
     plate = Plate.from_corners(d.plate if d.plate is not None else
                                plate_rect(d.grooves, width, d.config),
                                d.config.stock_thickness)
-    with stage_design(out, inputs) as stage:
+    with stage_design(out, inputs, kind="flat") as stage:
         tmp = stage.path
         if "gcode" in formats:
             t0 = time.perf_counter()

@@ -210,7 +210,7 @@ def next_steps(out: Path, holder: str | None = None) -> str:
 
 
 class FlatJob:
-    """A flat plate of grooves (the folders no other kind holds)."""
+    """A flat plate of grooves."""
 
     kind = "flat"
     title = "a flat-plate design"
@@ -263,7 +263,9 @@ class FlatJob:
         return Summary(designed.notes + summary.lines, summary.warnings)
 
     def holds(self, folder: Path) -> bool:
-        return True
+        # a flat plate written before run.json named its kind: the kind every
+        # other one's files leave (its loader says what else is missing)
+        return (Path(folder) / "hologram.json").is_file()
 
     def load(self, folder: Path) -> Any:
         from specholo.jobs.flat.folder import load_design
