@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from specholo.jobs.spin.design import SpinConfig, SpinJob, design_spin, summarise, verify_spin
+from specholo.jobs.spin.design import SpinConfig, SpinPlate, design_spin, summarise, verify_spin
 from specholo.toolpaths.spinning import SpinSetup, classic_circles, design_spinning, fit_grooves
 
 BUNNY = Path(__file__).resolve().parents[1] / "examples" / "bunny.obj"
@@ -47,7 +47,7 @@ def main() -> None:
             else:
                 setup = replace(cfg.setup, harmonics=(coef.shape[1] - 1) // 2)
                 d = design_spinning(job.design.points, setup, cfg.tool, keep, coef)
-            j = SpinJob(cfg, d, job.mesh, job.normals)
+            j = SpinPlate(cfg, d, job.mesh, job.normals)
             t0 = time.perf_counter()
             reps = verify_spin(j, 5.0)
             t_verify = time.perf_counter() - t0
@@ -60,7 +60,7 @@ def main() -> None:
                   f"{len(reps) * n / t_verify:.0f} stipple-angles/s")
         both = replace(cfg.setup, walls="both")
         d = design_spinning(job.design.points, both, cfg.tool, coef=job.design.coef)
-        reps = verify_spin(SpinJob(replace(cfg, setup=both), d, job.mesh, job.normals), 15.0)
+        reps = verify_spin(SpinPlate(replace(cfg, setup=both), d, job.mesh, job.normals), 15.0)
         print(f"  plain grooves (both walls): stray glints per angle "
               f"{np.mean([r.stray for r in reps]):.0f} (the mirror twin)")
 

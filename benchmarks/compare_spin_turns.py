@@ -26,14 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from specholo.jobs.spin.design import SpinConfig, SpinJob, design_spin, summarise, verify_spin
+from specholo.jobs.spin.design import SpinConfig, SpinPlate, design_spin, summarise, verify_spin
 from specholo.toolpaths.sliding import design_sliding, scene_angle
 from specholo.toolpaths.spinning import SpinSetup, rotate_z
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
-def fixed_to_scene(job: SpinJob) -> SpinJob:
+def fixed_to_scene(job: SpinPlate) -> SpinPlate:
     """The same lives, each stipple kept on the model point where it was born."""
     t = job.design.tracks
     first = t.alive.argmax(axis=1)

@@ -31,7 +31,7 @@ def main() -> None:
     print(f"load average {os.getloadavg()[0]:.1f}")
     for half in (1.0, 2.0, 5.0, 10.0):
         for shape in ("flat", "scoop"):
-            cfg = SteadyConfig(shape=shape, setup=SteadySetup(half_range=math.radians(half)))
+            cfg = SteadyConfig(shape=shape, setup=SteadySetup(light_sweep=math.radians(half)))
             t0 = time.perf_counter()
             d = design_steady_job(BUNNY, cfg, np.random.default_rng(0))
             t_design = time.perf_counter() - t0

@@ -563,8 +563,8 @@ def test_a_steady_image_folder_is_checked(steady: Path, tmp_path: Path) -> None:
         ("dropped", lambda f: _rewrite(f / "stipples.npz", _set("dropped", np.zeros(3, np.int64))),
          "'dropped' has shape (3,)"),
         ("shape", lambda f: _edit_config(f, "shape", "round"), "shape"),
-        ("range", lambda f: _edit_config(f, "half_range_deg", "wide", "setup"),
-         "half_range_deg"),
+        ("range", lambda f: _edit_config(f, "light_sweep_deg", "wide", "setup"),
+         "light_sweep_deg"),
     ]
     for label, damage, says in cases:
         folder = _copy(steady, tmp_path / label)

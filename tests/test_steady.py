@@ -78,7 +78,7 @@ def test_flat_grooves_drift_and_scoops_do_not() -> None:
 
 def test_over_the_range_no_eye_sees_the_others_scoops() -> None:
     rng = np.random.default_rng(2)
-    setup = SteadySetup(half_range=math.radians(8.0))
+    setup = SteadySetup(light_sweep=math.radians(8.0))
     d = design_steady(_points(100, rng), setup, TOOL)
     reps = verify_steady(d, TOOL, np.linspace(37.0, 53.0, 9))
     assert sum(r.stray for r in reps) == 0
@@ -234,3 +234,26 @@ def test_summary_says_what_became_of_every_stipple_asked_for_and_how_long_it_cut
     assert floor <= estimate <= floor + 0.5 * moves
     assert cutting <= 3600.0 * meta["machining"]["cutting_hours"] <= 1.2 * cutting
     assert meta["machining"]["hops"] == 0  # the program retracts after every cut
+
+
+def test_the_lights_angles_have_their_own_names_and_old_folders_read(tmp_path: Path) -> None:
+    """The steady setup's light angles are ``light_elevation`` and ``light_sweep``
+    (a viewer's ``elevation`` and ``half_range`` are the eyes'); a folder that
+    saved them under the old names reads back the same."""
+    import json
+
+    cfg = SteadyConfig(stipples=30, setup=SteadySetup(light_elevation=math.radians(50.0),
+                                                      light_sweep=math.radians(6.0)))
+    d = design_steady_job(BUNNY, cfg, np.random.default_rng(0))
+    write_steady(d, cfg, tmp_path / "out", 5.0)
+    meta_path = tmp_path / "out" / "hologram.json"
+    meta = json.loads(meta_path.read_text())
+    setup = meta["config"]["setup"]
+    assert setup["light_elevation_deg"] == pytest.approx(50.0)
+    assert setup["light_sweep_deg"] == pytest.approx(6.0)
+    setup["elevation_deg"] = setup.pop("light_elevation_deg")
+    setup["half_range_deg"] = setup.pop("light_sweep_deg")
+    meta_path.write_text(json.dumps(meta))
+    _, again = load_steady_folder(tmp_path / "out")
+    assert again.setup.light_elevation == pytest.approx(math.radians(50.0))
+    assert again.setup.light_sweep == pytest.approx(math.radians(6.0))

@@ -457,7 +457,9 @@ def test_the_exact_figures_follow_the_settings(server: StudioServer, browser: An
     # a setting moves: the figures wait for the next design, then are its own
     _slide(page, "light_elevation", 50)
     _settled(page)
-    assert "updating" in page.inner_text("#estimates")
+    # (a quick machine may have the next design done already: then it is its own)
+    assert "updating" in page.inner_text("#estimates") or \
+        page.evaluate("window.studio.exact()")["settings"]["light_elevation"] == 50
     page.wait_for_function(current, timeout=120_000)
     assert page.evaluate("window.studio.exact()")["settings"]["light_elevation"] == 50
     assert "updating" not in page.inner_text("#estimates")

@@ -1,10 +1,11 @@
 """Every kind of hologram as a job behind one interface (:class:`~.base.Job`).
 
 :data:`JOBS` is the registry: :func:`job_of` tells a folder's kind by the kind
-its ``run.json`` names (an older folder's by its files), and each job verifies its own folders (:meth:`~.base.Job.verify`),
-returning what to print and the files to publish, so the command line only
-parses and prints. Each kind is a package here (its design and its job); a new
-kind is one package and a line in :data:`JOBS`.
+its ``run.json`` names (an older folder's by its files), and each job verifies
+its own folders (:meth:`~.base.Job.verify`), returning what to print and the
+files to publish, so the command line only parses and prints. Each kind is a
+package here (its design and its job); a new kind is one package and a line in
+:data:`JOBS`.
 """
 
 from __future__ import annotations

@@ -476,11 +476,11 @@ class SteadySource(BaseSource):
         self.facts = facts or []
         viewer = Viewer(s.distance, s.height, 0.0, s.ipd)
         half = viewer.eye_half_angle
-        self.setup = Setup(Light(s.elevation), dataclasses.replace(viewer, half_range=half),
+        self.setup = Setup(Light(s.light_elevation), dataclasses.replace(viewer, half_range=half),
                            tool)
         self.eyes = (-half, half)
-        self.motion = Motion("light", "light elevation", s.elevation - s.half_range,
-                             s.elevation + s.half_range, own=s.elevation)
+        self.motion = Motion("light", "light elevation", s.light_elevation - s.light_sweep,
+                             s.light_elevation + s.light_sweep, own=s.light_elevation)
         self.bounds = np.asarray(plate, dtype=float)
 
     def glints(self, eye: np.ndarray, state: float | None) -> np.ndarray:
@@ -489,7 +489,7 @@ class SteadySource(BaseSource):
         s = self.design.setup
         if state is not None:
             Light(float(state))  # a light in the plate's plane, or behind it, is refused
-        light = s.light(s.elevation if state is None else float(state))  # as verify moves it
+        light = s.light(s.light_elevation if state is None else float(state))  # as verify moves it
         return find_steady_glints(self.design, np.asarray(eye, dtype=float), light,
                                   self.tool).point
 

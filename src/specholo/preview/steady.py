@@ -27,7 +27,7 @@ def steady_preview(design: SteadyDesign, tool: Tool, path: str | os.PathLike[str
 
     setup = design.setup
     eye = setup.eyes()[0]
-    mid, half = setup.elevation, setup.half_range
+    mid, half = setup.light_elevation, setup.light_sweep
     centres = design.centres
     lo, hi = centres[:, :2].min(axis=0), centres[:, :2].max(axis=0)
     pad = 0.05 * float(max(hi - lo)) + 1.0

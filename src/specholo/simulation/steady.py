@@ -118,7 +118,7 @@ def _seen(design: SteadyDesign, tool: Tool, elevation: float
 def verify_steady(design: SteadyDesign, tool: Tool, elevations_deg: np.ndarray
                   ) -> list[SteadyReport]:
     """Move the sun through ``elevations_deg`` and measure what the eyes see."""
-    ref, _, _ = _seen(design, tool, design.setup.elevation)
+    ref, _, _ = _seen(design, tool, design.setup.light_elevation)
     out = []
     n = len(design.points)
     for el in np.asarray(elevations_deg, dtype=float):

@@ -53,16 +53,16 @@ class SteadySetup:
         distance: plate centre to the point between the eyes, mm (the eyes on +z).
         height: the eyes' height (y), mm.
         ipd: interocular distance, mm.
-        elevation: the light's middle elevation, radians (direction (0, cos, sin)).
-        half_range: the light moves this far either way, radians.
+        light_elevation: the light's middle elevation, radians (direction (0, cos, sin)).
+        light_sweep: the light moves this far either way, radians.
         samples: path vertices per scoop.
     """
 
     distance: float = 600.0
     height: float = 0.0
     ipd: float = 64.0
-    elevation: float = math.radians(45.0)
-    half_range: float = math.radians(5.0)
+    light_elevation: float = math.radians(45.0)
+    light_sweep: float = math.radians(5.0)
     samples: int = 41
 
     def __post_init__(self) -> None:
@@ -72,7 +72,7 @@ class SteadySetup:
         if self.ipd >= self.distance:
             raise SpecholoError(f"ipd {self.ipd:g} mm must be below the viewer distance "
                                 f"{self.distance:g} mm")
-        el, hr = float(self.elevation), float(self.half_range)
+        el, hr = float(self.light_elevation), float(self.light_sweep)
         if not (math.isfinite(el) and math.radians(5.0) <= el <= math.radians(175.0)):
             raise SpecholoError(f"light elevation must be in [5, 175] degrees, got "
                                 f"{math.degrees(el):g}")
@@ -161,7 +161,7 @@ def design_steady(points: np.ndarray, setup: SteadySetup, tool: Tool,
     if len(points) and points[:, 2].max() >= setup.distance * 0.9:
         raise SpecholoError("stipples must lie well in front of the eyes")
     r_ball, d = tool.radius, tool.depth
-    mid = setup.elevation
+    mid = setup.light_elevation
     light = setup.light(mid)
     da = 1e-4
     n = len(points)
@@ -193,7 +193,7 @@ def design_steady(points: np.ndarray, setup: SteadySetup, tool: Tool,
             reach = d - r_ball * (1.0 - h[:, 2])
             h2 = unit_half(p_pt, eye, setup.light(mid + da))
             h1 = unit_half(p_pt, eye, setup.light(mid - da))
-            for hh in (unit_half(p_pt, eye, setup.light(mid + f * setup.half_range))
+            for hh in (unit_half(p_pt, eye, setup.light(mid + f * setup.light_sweep))
                        for f in (-1.0, 1.0)):
                 if np.any(d - r_ball * (1.0 - hh[:, 2]) <= 0):
                     raise SpecholoError("over the light's range the views need walls steeper "
@@ -203,7 +203,7 @@ def design_steady(points: np.ndarray, setup: SteadySetup, tool: Tool,
             centre = p_pt + r_ball * h
             raised = lift
             if shape == "scoop":
-                steps = [setup.light(mid + f * setup.half_range)
+                steps = [setup.light(mid + f * setup.light_sweep)
                          for f in (-1.0, -0.5, 0.0, 0.5, 1.0)]
                 t, rp, ok, turn = _choose_scoop(h, dh, reach, r_ball,
                                                 [unit_half(p_pt, eye, la) for la in steps],

@@ -147,7 +147,7 @@ class SpinConfig:
 
 
 @dataclass(frozen=True)
-class SpinJob:
+class SpinPlate:
     """A designed turning-plate hologram and what is needed to check it.
 
     Attributes:
@@ -181,7 +181,7 @@ def shown_at(config: SpinConfig, mesh: Any, normals: np.ndarray | None, points: 
 
 
 def design_spin(model_path: str | os.PathLike[str] | list[str | os.PathLike[str]],
-                config: SpinConfig, rng: np.random.Generator | None = None) -> SpinJob:
+                config: SpinConfig, rng: np.random.Generator | None = None) -> SpinPlate:
     """Stipple the model, crop to its visible views, and design the grooves.
 
     With ``config.turns`` > 1, ``model_path`` may list one model per circuit of
@@ -218,7 +218,7 @@ FIT_STEP_DEG = 2.0
 
 
 def _design_fitted(models: list[Any], config: SpinConfig, plate: tuple[float, float],
-                   rng: np.random.Generator | None) -> SpinJob:
+                   rng: np.random.Generator | None) -> SpinPlate:
     """:func:`design_spin` with the size fitted to the given plate."""
     import copy
     import dataclasses
@@ -243,13 +243,13 @@ def _design_fitted(models: list[Any], config: SpinConfig, plate: tuple[float, fl
     def size_with(reach: np.ndarray) -> float:
         return round_size(fit_size_from(unit, center, plate, eyes, reach, PLATE_MARGIN))
 
-    def design_at(size: float) -> SpinJob:
+    def design_at(size: float) -> SpinPlate:
         # each try from the same stippling seed: the kept design is the one a
         # design at the recorded size gives
         fresh = copy.deepcopy(rng) if rng is not None else None
         return _design_loaded(models, dataclasses.replace(config, size=size), fresh)
 
-    def spread(job: SpinJob) -> tuple[np.ndarray, np.ndarray]:
+    def spread(job: SpinPlate) -> tuple[np.ndarray, np.ndarray]:
         d = job.design
         if d.grooves.n_paths == 0:
             return np.zeros(2), np.zeros(2)
@@ -262,7 +262,7 @@ def _design_fitted(models: list[Any], config: SpinConfig, plate: tuple[float, fl
 
 
 def _design_loaded(models: list[Any], config: SpinConfig,
-                   rng: np.random.Generator | None) -> SpinJob:
+                   rng: np.random.Generator | None) -> SpinPlate:
     """:func:`design_spin` for models already loaded, at ``config.size``."""
     from specholo.scene.placement import place
     from specholo.scene.stippling import stipple
@@ -286,11 +286,11 @@ def _design_loaded(models: list[Any], config: SpinConfig,
             j = np.rint(vertex_angles(fitted[0], setup, e) / (2.0 * np.pi / setup.angles))
             keep &= np.take_along_axis(vis[e], j.astype(int) % setup.angles, axis=1)
     design = design_spinning(st.points, setup, config.tool, visible=keep, fitted=fitted)
-    return SpinJob(config, design, model.mesh, st.normals, keep)
+    return SpinPlate(config, design, model.mesh, st.normals, keep)
 
 
 def _design_sliding(models: list[Any], config: SpinConfig,
-                    rng: np.random.Generator) -> SpinJob:
+                    rng: np.random.Generator) -> SpinPlate:
     from specholo.scene.placement import place
     from specholo.toolpaths.sliding import design_sliding, slide_tracks
 
@@ -301,10 +301,10 @@ def _design_sliding(models: list[Any], config: SpinConfig,
     if not len(tracks):
         raise SpecholoError("no stipple stays in view long enough to be served: nothing to cut")
     design = design_sliding(tracks, config.setup, config.tool)
-    return SpinJob(config, design, None, None)
+    return SpinPlate(config, design, None, None)
 
 
-def verify_spin(job: SpinJob, step_deg: float = 5.0) -> list[SpinReport]:
+def verify_spin(job: SpinPlate, step_deg: float = 5.0) -> list[SpinReport]:
     """Verify over a whole turn every ``step_deg`` degrees."""
     angles = np.arange(0.0, 360.0, step_deg)
     if job.design.tracks is not None:  # sliding stipples carry when they are shown
@@ -326,7 +326,7 @@ def summarise(reports: list[SpinReport]) -> dict[str, float]:
             "stray": int(sum(r.stray for r in reports))}
 
 
-def preview_frames(job: SpinJob, frames: int, size: tuple[int, int] = (360, 360)
+def preview_frames(job: SpinPlate, frames: int, size: tuple[int, int] = (360, 360)
                    ) -> list[np.ndarray]:
     """Frames of one turn as the left eye sees it (glints found on the grooves).
 
@@ -395,7 +395,7 @@ def spin_limits(grooves: Any, depth: float, machining: Machining,
                   tool_kind("ball", m.spindle), hop_max=m.hop_max, hop=m.hop, groove_depth=depth)
 
 
-def spin_plate(job: SpinJob) -> Any:
+def spin_plate(job: SpinPlate) -> Any:
     """The plate (``fabrication.plate.Plate``) a turning plate's files name: the
     one given, centred on the axis, or the grooves' with a 5 mm border.
 
@@ -407,7 +407,7 @@ def spin_plate(job: SpinJob) -> Any:
     return job_plate(job.design.grooves.extent(), job.config.tool.width, job.config.plate)
 
 
-def write_spin(job: SpinJob, out: str | os.PathLike[str], step_deg: float = 5.0,
+def write_spin(job: SpinPlate, out: str | os.PathLike[str], step_deg: float = 5.0,
                frames: int = 48, inputs: Iterable[str | os.PathLike[str] | None] = ()
                ) -> dict[str, Any]:
     """Write the folder atomically: hologram.json, grooves.npz, stipples.npz,
@@ -536,7 +536,7 @@ def is_spin_folder(folder: str | os.PathLike[str]) -> bool:
     return design_kind(folder) in ("spin", "spinning")
 
 
-def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:
+def load_spin_folder(folder: str | os.PathLike[str]) -> SpinPlate:
     """Read a folder written by :func:`write_spin` back into a job.
 
     Raises:
@@ -611,4 +611,4 @@ def load_spin_folder(folder: str | os.PathLike[str]) -> SpinJob:
     design = SpinDesign(cfg.setup, points, coef, side, grooves, path_side, (lo, hi), relief,
                         tracks=tracks, window=window)
     mesh = read_mesh(folder / "model.ply") if (folder / "model.ply").exists() else None
-    return SpinJob(cfg, design, mesh, normals)
+    return SpinPlate(cfg, design, mesh, normals)

@@ -30,7 +30,7 @@ def _fig(v: float) -> str:
 
 
 def design_summary(job: Any, summary: dict[str, Any], out: Path, step_deg: float) -> Summary:
-    """What a turning-plate design (``spin.SpinJob``) and its verification over the
+    """What a turning-plate design (``spin.design.SpinPlate``) and its verification over the
     turn say."""
     g = job.design.grooves
     tracks = job.design.tracks

@@ -25,7 +25,9 @@ from specholo.simulation.steady import SteadyReport, verify_steady
 from specholo.toolpaths.steady import SteadyDesign, SteadySetup, design_steady, tool_tips
 
 #: The setup's angles, radians inside, saved in degrees.
-STEADY_ANGLES = ("elevation", "half_range")
+STEADY_ANGLES = ("light_elevation", "light_sweep")
+#: The names older folders saved the light's angles under.
+LEGACY_ANGLES = {"elevation_deg": "light_elevation_deg", "half_range_deg": "light_sweep_deg"}
 
 
 @dataclass(frozen=True)
@@ -92,8 +94,8 @@ class SteadyConfig:
                      units: str = "mm") -> SteadyConfig:
         """The settings from the command's names and units (degrees, converted here once)."""
         setup = SteadySetup(distance=view_distance, ipd=ipd,
-                            elevation=math.radians(light_elevation),
-                            half_range=math.radians(light_range))
+                            light_elevation=math.radians(light_elevation),
+                            light_sweep=math.radians(light_range))
         return cls(size=size, center_z=center_z, stipples=stipples, seed=seed,
                    pose=pose or Pose(), shape=shape, setup=setup, tool=Tool(tool_radius, depth),
                    plate_width=plate_width, plate_height=plate_height, fit=fit,
@@ -239,7 +241,7 @@ def _design_loaded(loaded: Any, config: SteadyConfig, rng: np.random.Generator |
 
 def light_steps(setup: SteadySetup, step_deg: float) -> np.ndarray:
     """Light elevations (degrees) over the range, every ``step_deg``, ends included."""
-    mid, half = math.degrees(setup.elevation), math.degrees(setup.half_range)
+    mid, half = math.degrees(setup.light_elevation), math.degrees(setup.light_sweep)
     k = max(int(round(2 * half / step_deg)), 1)
     return np.linspace(mid - half, mid + half, k + 1)
 
@@ -478,7 +480,13 @@ def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, St
     path = folder / "hologram.json"
     meta = table(read_json(path), str(path))
     with settings_from(path):
-        c = config_arguments(meta["config"], SteadySetup, STEADY_ANGLES,
+        saved = meta["config"]
+        setup = saved.get("setup") if isinstance(saved, dict) else None
+        if isinstance(setup, dict) and any(k in setup for k in LEGACY_ANGLES):
+            # a folder written when the light's angles shared the viewer's names
+            setup = {LEGACY_ANGLES.get(k, k): v for k, v in setup.items()}
+            saved = {**saved, "setup": setup}
+        c = config_arguments(saved, SteadySetup, STEADY_ANGLES,
                              ("stipples", "seed", "samples"))
         if c.get("shape", "scoop") not in ("scoop", "flat"):
             raise SpecholoError(f"shape must be scoop or flat, got {str(c['shape'])[:40]!r}")

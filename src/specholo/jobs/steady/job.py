@@ -45,8 +45,8 @@ def design_summary(design: Any, config: Any, s: dict[str, Any], out: Path,
 
     noun = "scoop" if config.shape == "scoop" else "flat groove"
     kept = len(design.points)
-    mid = math.degrees(config.setup.elevation)
-    half = math.degrees(config.setup.half_range)
+    mid = math.degrees(config.setup.light_elevation)
+    half = math.degrees(config.setup.light_sweep)
     if stippling is None:
         lines = [f"{kept} stipples, {design.n_cuts} {noun}s -> {out}"]
     else:
@@ -180,7 +180,7 @@ class SteadyJob:
         s = config.setup
         plate = steady_plate(design, config)
         (x0, y0), (x1, y1) = plate.box
-        mid, half = math.degrees(s.elevation), math.degrees(s.half_range)
+        mid, half = math.degrees(s.light_elevation), math.degrees(s.light_sweep)
         facts = [
             ("kind", "steady image under a moving light (specholo steady)"),
             ("stipples", f"{len(design.points):,} ({design.dropped} dropped)"),
