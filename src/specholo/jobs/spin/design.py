@@ -444,10 +444,7 @@ def write_spin(job: SpinPlate, out: str | os.PathLike[str], step_deg: float = 5.
     summary = summarise(reports)
     with stage_design(out, inputs, kind="spin") as stage:
         tmp = stage.path
-        with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
-            g = d.grooves
-            np.savez_compressed(fh, vertices=g.vertices, bulges=g.bulges, offsets=g.offsets,
-                                stipple=g.stipple)
+        d.grooves.save(str(tmp / "grooves.npz"))  # as every kind's grooves (the stage is atomic)
         extra: dict[str, Any] = {}
         if d.tracks is not None:
             t = d.tracks
