@@ -96,6 +96,15 @@ def test_every_command_runs(command: str, design: Path, tmp_path: Path, capsys) 
         written = {p.name for p in out.iterdir()}
         assert all(map(is_output, written))
         assert {n for n in written if not n.startswith("scene_")} <= job.files
+        # its main file opens with the header, naming the kind its run.json names
+        import json
+
+        from specholo.folder import HOLOGRAM_SCHEMA
+
+        main_file = out / ("coupon.json" if job.kind == "coupon" else "hologram.json")
+        head = json.loads(main_file.read_text())
+        assert (head["kind"], head["schema"]) == (job.kind, HOLOGRAM_SCHEMA)
+        assert json.loads((out / "run.json").read_text())["kind"] == job.kind
     for item in expected:
         if "." in item and " " not in item and not item.startswith("127"):
             assert (where / item).is_file(), f"{command} did not write {item}"

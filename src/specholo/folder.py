@@ -10,10 +10,21 @@ import os
 from pathlib import Path
 from typing import Any
 
+#: The version of the header every kind's ``hologram.json`` opens with
+#: (:func:`hologram_header`).
+HOLOGRAM_SCHEMA = "specholo-hologram/1"
+
+
+def hologram_header(kind: str) -> dict[str, str]:
+    """What every kind's ``hologram.json`` (a coupon's ``coupon.json``) records
+    first: the folder's kind, as its ``run.json`` names it, and the schema."""
+    return {"kind": kind, "schema": HOLOGRAM_SCHEMA}
+
 
 def design_kind(folder: str | os.PathLike[str]) -> str | None:
-    """The ``design`` named in a folder's ``hologram.json``, or None if unreadable
-    (the design's own loader then says why)."""
+    """The ``design`` named in a folder's ``hologram.json`` (the kind a folder
+    written before the header recorded there), or None if unreadable (the
+    design's own loader then says why)."""
     from specholo.errors import SpecholoError
     from specholo.readback import read_json
 

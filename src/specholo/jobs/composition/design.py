@@ -23,6 +23,7 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import STOCK_THICKNESS
+from specholo.folder import hologram_header
 from specholo.hosts.surfaces import (
     Cylinder,
     HeightField,
@@ -752,7 +753,7 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
                           "samples_beyond_3axis_reach": program.dropped_samples,
                           "cut_length_mm": program.cut_length, "check": check}}
         with atomic_open(tmp / "hologram.json") as fh:
-            json.dump(meta, fh, indent=1, sort_keys=True)
+            json.dump({**hologram_header("composition"), **meta}, fh, indent=1, sort_keys=True)
         if then is not None:
             then(tmp, check)
     return check

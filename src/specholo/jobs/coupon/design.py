@@ -46,6 +46,7 @@ import numpy as np
 from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import Plate
+from specholo.folder import hologram_header
 from specholo.jobs.flat.settings import DesignConfig
 from specholo.setup import PRELOAD_RANGE, Machining
 from specholo.toolpaths.grooves import Grooves
@@ -845,7 +846,7 @@ def write_coupon(coupon: Coupon, out: str | os.PathLike[str],
                       design.depth_mm).width) if spring else None)
         coupon.grooves.save(str(stage.path / "grooves.npz"))
         with atomic_open(stage.path / "coupon.json") as fh:
-            json.dump(info, fh, indent=1)
+            json.dump({**hologram_header("coupon"), **info}, fh, indent=1)
         write_sheet(stage.path / "sheet.pdf", info, coupon.grooves)
         timings["files"] = time.perf_counter() - t0
         with atomic_open(stage.path / "run.json") as fh:

@@ -25,6 +25,7 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.plate import Plate
+from specholo.folder import hologram_header
 from specholo.jobs.flat.design import (
     AS_CUT_MAX_STIPPLES,
     AS_CUT_SKIPPED,
@@ -399,7 +400,7 @@ def write_design(d: Design, out: str | os.PathLike[str],
         if d.model.mesh is not None:
             d.model.mesh.export(tmp / "model.ply")
         with atomic_open(tmp / "hologram.json") as fh:
-            dump_design_json(info, fh)
+            dump_design_json({**hologram_header("flat"), **info}, fh)
         timings["data"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         render_preview(d.grooves, setup, tmp / "preview.png",

@@ -23,6 +23,7 @@ import numpy as np
 from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
+from specholo.folder import hologram_header
 from specholo.jobs.flat.folder import (
     RASTER_RANGE,
     RIDGED_BLOCK,
@@ -284,7 +285,7 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
         t0 = time.perf_counter()
         info["files"] = sorted(p.name for p in tmp.iterdir()) + ["hologram.json"]
         with atomic_open(tmp / "hologram.json") as fh:
-            json.dump(info, fh, indent=1)
+            json.dump({**hologram_header("ridged"), **info}, fh, indent=1)
         timings["data"] += time.perf_counter() - t0
     return {"timings": timings, "machining": machining, "files": info["files"]}
 

@@ -21,7 +21,7 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import STOCK_THICKNESS
 from specholo.fabrication.programs.program import check_program_options, program_options
-from specholo.folder import check_job_bounds, json_ready, row_json, stock_line
+from specholo.folder import check_job_bounds, hologram_header, json_ready, row_json, stock_line
 from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.spinning import SpinReport, find_spin_glints, verify_spinning
@@ -508,7 +508,7 @@ def write_spin(job: SpinPlate, out: str | os.PathLike[str], step_deg: float = 5.
         write_svg(tmp / "hologram.svg", d.grooves, cfg.tool, plate=plate)
         write_spin_verification(reports, tmp, step_deg)
         with atomic_open(tmp / "hologram.json") as fh:
-            json.dump(meta, fh, indent=1, sort_keys=True)
+            json.dump({**hologram_header("spin"), **meta}, fh, indent=1, sort_keys=True)
         if frames:
             write_animation(preview_frames(job, frames), tmp / "preview.gif", fps=12)
     return summary

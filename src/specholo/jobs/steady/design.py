@@ -19,6 +19,7 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import STOCK_THICKNESS
+from specholo.folder import hologram_header
 from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.steady import SteadyReport, verify_steady
@@ -435,7 +436,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
         if stippling is not None:
             meta["stippling"] = stippling.as_dict()
         with atomic_open(tmp / "hologram.json") as fh:
-            json.dump(meta, fh, indent=1, sort_keys=True)
+            json.dump({**hologram_header("steady"), **meta}, fh, indent=1, sort_keys=True)
     return summary
 
 
