@@ -270,15 +270,7 @@ def _assemble(moves: _Moves) -> Grooves:
     cut_arc = (arc & vertex)[vertex] & ~path_start  # arcs between two groove vertices
     k = np.flatnonzero(cut_arc)
     if len(k):
-        c = centre[vertex][k]
-        u = verts[k - 1] - c
-        v = verts[k] - c
-        ang = np.arctan2(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0], np.sum(u * v, axis=1))
-        ccw = kind[vertex][k] == 3
-        # the direction word decides which way round the circle the arc goes
-        sweep = np.where(ccw, np.where(ang <= 0, ang + 2 * np.pi, ang),
-                         np.where(ang >= 0, ang - 2 * np.pi, ang))
-        bulges[k - 1] = np.tan(sweep / 4.0)
+        bulges[k - 1] = _bulge(kind[vertex][k], centre[vertex][k], verts[k - 1], verts[k])
     return Grooves(verts.reshape(-1, 2), bulges, offsets, stipple)
 
 
