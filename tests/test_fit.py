@@ -109,16 +109,15 @@ def test_steady_and_spin_fit_put_the_cuts_on_the_plate(kind: str, tmp_path: Path
             return np.abs(tool_tips(design, config.tool)[:, :2]).max(axis=0) \
                 + 0.5 * config.tool.width
         info = json.loads((folder / "hologram.json").read_text())
-        tool = info["config"]["tool"]
-        r, d = tool["radius"], tool["depth"]
+        r, d = info["settings"]["tool_radius"], info["settings"]["depth"]
         xy = np.load(folder / "grooves.npz")["vertices"]
         return np.abs(xy).max(axis=0) + math.sqrt(r * r - (r - d) ** 2)
 
     out = tmp_path / kind
     assert main([kind, str(BUNNY), "--out", str(out), *plate, "--fit", *extra]) == 0
     info = json.loads((out / "hologram.json").read_text())
-    size = info["config"]["size"]
-    assert info["config"]["fit"] is True and info["config"]["plate_width"] == 90.0
+    size = info["settings"]["size"]
+    assert info["settings"]["fit"] is True and info["settings"]["plate_width"] == 90.0
     assert 5.0 < size < 200.0 and size == round(size, 3)
     room = np.array([45.0 - 5.0, 35.0 - 5.0])
     assert np.all(reach(out) <= room + 1e-6)

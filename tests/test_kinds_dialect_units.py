@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from legacy import old_settings
 from test_gcode import needs_rs274, run_rs274
 from test_kinds_spin_steady_bounds import _head
 
@@ -146,8 +147,8 @@ def test_the_inch_program_passes_its_safety_check_in_mm_and_the_folder_says_so(
     kind, mm, inch = written
     meta = {k: json.loads((f / "hologram.json").read_text()) for k, f in (("mm", mm),
                                                                           ("inch", inch))}
-    where = {"spin": ("config", ("gcode", "safety_check")),
-             "steady": ("config", ("safety_check",)),
+    where = {"spin": ("settings", ("gcode", "safety_check")),
+             "steady": ("settings", ("safety_check",)),
              "compose": ("gcode", ("gcode", "check"))}[kind]
     said = {k: (m[where[0]]["dialect"], m[where[0]]["units"]) for k, m in meta.items()}
     checks = {}
@@ -182,7 +183,7 @@ def test_the_folder_reads_back_its_dialect_and_units_and_an_old_one_grbl_in_mm(
         return  # its settings are its TOML, read again
     old = tmp_path / "old"
     shutil.copytree(inch, old)
-    meta = json.loads((old / "hologram.json").read_text())
+    meta = old_settings(old)  # as written before every kind's settings had option names
     del meta["config"]["dialect"], meta["config"]["units"]
     (old / "hologram.json").write_text(json.dumps(meta))
     before = job.load(old)
@@ -251,4 +252,4 @@ def test_the_settings_refuse_a_laser_naming_the_option_and_why(make: str) -> Non
                                 "programs), got 'marlin'")
     with pytest.raises(SpecholoError, match="^--units must be mm or inch, got 'mm '$"):
         config(units="mm ")
-    assert config(dialect="linuxcnc", units="inch").as_dict()["units"] == "inch"
+    assert config(dialect="linuxcnc", units="inch").settings()["units"] == "inch"

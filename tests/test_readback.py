@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from legacy import old_settings
 
 from specholo import readback
 from specholo.errors import SpecholoError
@@ -515,13 +516,19 @@ def test_a_turning_plate_folder_is_checked(spin: Path, tmp_path: Path) -> None:
             f / "stipples.npz", lambda a: a.update(track_phi=np.zeros(4))), "disagree"),
         ("offsets", lambda f: _rewrite(f / "grooves.npz", _offsets_minus_100), "offsets"),
         ("ids", lambda f: _rewrite(f / "grooves.npz", _item("stipple", 0, 99)), "stipple ids"),
-        ("turns", lambda f: _edit_config(f, "turns", 1.5), "turns"),
-        ("samples", lambda f: _edit_config(f, "samples", "many", "setup"), "samples"),
-        ("elevation", lambda f: _edit_config(f, "elevation_deg", None, "setup"),
-         "elevation_deg"),
+        ("turns", lambda f: _edit_settings(f, "turns", 1.5), "turns"),
+        ("samples", lambda f: _edit_settings(f, "samples", "many"), "samples"),
+        ("elevation", lambda f: _edit_settings(f, "view_elevation", None), "view_elevation"),
+        ("unknown", lambda f: _edit_settings(f, "elevation_deg", 45.0), "elevation_deg"),
         ("tilts", lambda f: _edit_json(f, "tilts_deg", [1.0]), "tilts_deg"),
-        ("tool", lambda f: _edit_config(f, "tool", {"radius": -1, "depth": 0.1}), "radius"),
-        ("no config", lambda f: _edit_json(f, "config", None), "config"),
+        ("tool", lambda f: _edit_settings(f, "tool_radius", -1), "radius"),
+        ("no settings", lambda f: _edit_json(f, "settings", None), "settings"),
+        # a folder written before the settings had the command's names
+        ("old turns", lambda f: _old_config(f, "turns", 1.5), "turns"),
+        ("old samples", lambda f: _old_config(f, "samples", "many", "setup"), "samples"),
+        ("old elevation", lambda f: _old_config(f, "elevation_deg", None, "setup"),
+         "elevation_deg"),
+        ("old tool", lambda f: _old_config(f, "tool", {"radius": -1, "depth": 0.1}), "radius"),
     ]
     for label, damage, says in cases:
         folder = _copy(spin, tmp_path / label)
@@ -536,11 +543,25 @@ def _edit_json(folder: Path, key: str, value: object) -> None:
     meta.write_text(json.dumps(info))
 
 
-def _edit_config(folder: Path, key: str, value: object, table: str | None = None) -> None:
+def _del_json(folder: Path, key: str) -> None:
     meta = folder / "hologram.json"
     info = json.loads(meta.read_text())
-    (info["config"] if table is None else info["config"][table])[key] = value
+    del info[key]
     meta.write_text(json.dumps(info))
+
+
+def _edit_settings(folder: Path, key: str, value: object) -> None:
+    meta = folder / "hologram.json"
+    info = json.loads(meta.read_text())
+    info["settings"][key] = value
+    meta.write_text(json.dumps(info))
+
+
+def _old_config(folder: Path, key: str, value: object, table: str | None = None) -> None:
+    """As a folder written before the settings had the command's names, one value changed."""
+    info = old_settings(folder)
+    (info["config"] if table is None else info["config"][table])[key] = value
+    (folder / "hologram.json").write_text(json.dumps(info))
 
 
 def test_a_steady_image_folder_is_checked(steady: Path, tmp_path: Path) -> None:
@@ -562,8 +583,10 @@ def test_a_steady_image_folder_is_checked(steady: Path, tmp_path: Path) -> None:
          "disagree"),
         ("dropped", lambda f: _rewrite(f / "stipples.npz", _set("dropped", np.zeros(3, np.int64))),
          "'dropped' has shape (3,)"),
-        ("shape", lambda f: _edit_config(f, "shape", "round"), "shape"),
-        ("range", lambda f: _edit_config(f, "light_sweep_deg", "wide", "setup"),
+        ("shape", lambda f: _edit_settings(f, "shape", "round"), "shape"),
+        ("range", lambda f: _edit_settings(f, "light_range", "wide"), "light_range"),
+        ("old shape", lambda f: _old_config(f, "shape", "round"), "shape"),
+        ("old range", lambda f: _old_config(f, "light_sweep_deg", "wide", "setup"),
          "light_sweep_deg"),
     ]
     for label, damage, says in cases:
@@ -583,9 +606,13 @@ def test_a_composed_folder_is_checked(composed: Path, tmp_path: Path) -> None:
         ("NaN", lambda f: _rewrite(f / "grooves.npz", _item("point", (0, 1), np.nan)), "NaN"),
         ("short", lambda f: _rewrite(f / "grooves.npz",
                                      lambda a: a.update(state=a["state"][1:])), "lengths"),
-        ("text", lambda f: _edit_json(f, "composition", {"text": 5, "base": "."}), "strings"),
-        ("bad text", lambda f: _edit_json(f, "composition", {"text": "x = [", "base": "."}),
+        ("text", lambda f: _edit_json(f, "settings", {"text": 5, "base": "."}), "strings"),
+        ("bad text", lambda f: _edit_json(f, "settings", {"text": "x = [", "base": "."}),
          "TOML"),
+        # a folder written before every kind's settings were "settings"
+        ("old text", lambda f: (_edit_json(f, "settings", None), _del_json(f, "settings"),
+                                _edit_json(f, "composition", {"text": 5, "base": "."})),
+         "strings"),
         ("truncated", lambda f: (f / "stipples.npz").write_bytes(b"PK\x03\x04"), "npz"),
     ]
     for label, damage, says in cases:

@@ -151,7 +151,7 @@ def test_folder_gcode_parses_and_reverifies(tmp_path: Path) -> None:
     reps = verify_spin(again, 30.0)
     assert max(r.p95_mm for r in reps) == pytest.approx(summary["worst_p95_mm"], abs=1e-12)
     meta = json.loads((out / "hologram.json").read_text())
-    assert meta["sliding"]["scenes"] == 2 and meta["config"]["turns"] == 2
+    assert meta["sliding"]["scenes"] == 2 and meta["settings"]["turns"] == 2
 
 
 def test_cli_two_models(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from legacy import old_settings
 from test_gcode import needs_rs274, run_rs274
 
 from specholo.jobs.steady.design import (
@@ -247,7 +248,7 @@ def test_the_lights_angles_have_their_own_names_and_old_folders_read(tmp_path: P
     d = design_steady_job(BUNNY, cfg, np.random.default_rng(0))
     write_steady(d, cfg, tmp_path / "out", 5.0)
     meta_path = tmp_path / "out" / "hologram.json"
-    meta = json.loads(meta_path.read_text())
+    meta = old_settings(tmp_path / "out")
     setup = meta["config"]["setup"]
     assert setup["light_elevation_deg"] == pytest.approx(50.0)
     assert setup["light_sweep_deg"] == pytest.approx(6.0)

@@ -91,23 +91,13 @@ def read_verify_figures(path: str | os.PathLike[str]) -> dict[str, Any]:
     return verify_figures(record["summary"], len(rows))
 
 
-def saved_config(config: Any, angles: tuple[str, ...]) -> dict[str, Any]:
-    """A job's config as its ``hologram.json`` records it: a table of tables, the
-    setup's ``angles`` (radians inside) saved in degrees as ``<name>_deg``."""
-    import math
-    from dataclasses import asdict
-
-    saved = asdict(config)
-    for name in angles:
-        saved["setup"][f"{name}_deg"] = math.degrees(saved["setup"].pop(name))
-    return saved
-
-
 def config_arguments(saved: Any, setup_type: Any, angles: tuple[str, ...],
                      whole: tuple[str, ...]) -> dict[str, Any]:
-    """The keyword arguments of a job's config from what :func:`saved_config`
-    recorded: the setup rebuilt with its angles back in radians, the tool, the
-    machining and the pose (the default pose in folders written before poses).
+    """The keyword arguments of a job's config from what a folder written before
+    :func:`shared_settings` recorded (``config``: the config's fields, the
+    setup's angles as ``<name>_deg``): the setup rebuilt with its angles back in
+    radians, the tool, the machining and the pose (the default pose in folders
+    written before poses).
     Call it inside :func:`specholo.readback.settings_from`, which names the file
     in the one-line error a bad value gives.
 
@@ -138,6 +128,64 @@ def config_arguments(saved: Any, setup_type: Any, angles: tuple[str, ...],
     c["tool"] = Tool(**table(c.pop("tool"), "tool"))
     c["machining"] = Machining(**table(c.pop("machining"), "machining"))
     return c
+
+
+#: The machining settings every kind records under the design command's names
+#: (:class:`~specholo.setup.Machining`'s fields, in mm/min, mm and rpm).
+MACHINING_SETTINGS = ("feed", "plunge", "safe_z", "spindle", "hop", "hop_max")
+
+
+def shared_settings(config: Any) -> dict[str, Any]:
+    """The settings a turning plate and a steady image (``SpinConfig``,
+    ``SteadyConfig``) share, as ``hologram.json`` records them: by the command's
+    option names (underscores for dashes) and in its units (mm, degrees), as a
+    flat design's ``settings`` are. Each kind adds its own (:func:`split_settings`
+    reads them back)."""
+    from dataclasses import asdict
+
+    pose = config.pose
+    return {"size": config.size, "center_z": config.center_z, "stipples": config.stipples,
+            "seed": config.seed, "up": pose.up,
+            **dict(zip(("rotate_x", "rotate_y", "rotate_z"), pose.rotate_deg, strict=True)),
+            **dict(zip(("offset_x", "offset_y"), pose.offset, strict=True)),
+            "tool_radius": config.tool.radius, "depth": config.tool.depth,
+            "plate_width": config.plate_width, "plate_height": config.plate_height,
+            "fit": config.fit, "stock_thickness": config.stock_thickness,
+            "dialect": config.dialect, "units": config.units, **asdict(config.machining)}
+
+
+def from_settings(saved: Any, options: Any, own: tuple[str, ...]) -> tuple[Any, Any,
+                                                                          dict[str, Any]]:
+    """A turning plate's or a steady image's config from what
+    :func:`shared_settings` and the kind's own settings recorded: (the config
+    its ``options`` (``from_options``) builds, the machining, and the setup's
+    settings named in ``own`` that the command does not take, for the caller to
+    put in). A missing setting takes its default; an unknown one, a null where
+    the command takes a value, or text where it takes a number is refused in one
+    line naming it. Call it inside :func:`specholo.readback.settings_from`,
+    which names the file."""
+    import inspect
+
+    from specholo.errors import SpecholoError
+    from specholo.readback import table
+    from specholo.scene.pose import POSE_OPTIONS, Pose
+    from specholo.setup import Machining
+
+    given = dict(table(saved, "settings"))
+    pose = Pose.from_options(**{k: given.pop(k) for k in POSE_OPTIONS if k in given})
+    machining = Machining(**{k: given.pop(k) for k in MACHINING_SETTINGS if k in given})
+    extra = {k: given.pop(k) for k in own if k in given}
+    takes = inspect.signature(options).parameters
+    for key, value in given.items():
+        if key not in takes or key == "pose":
+            raise SpecholoError(f"unknown setting {key!r}")
+        default = takes[key].default
+        if value is None and default is not None:
+            raise SpecholoError(f"{key} must be given, got null")
+        if isinstance(default, int | float) and not isinstance(default, bool) and \
+                (isinstance(value, bool) or not isinstance(value, int | float)):
+            raise SpecholoError(f"{key} must be a number, got {str(value)[:40]!r}")
+    return options(pose=pose, **given), machining, extra
 
 
 #: Seeds a design takes: the whole numbers numpy's generator is seeded with

@@ -743,7 +743,8 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
         # read back by the safety check every program passes, before it is kept
         check = stage.check("hologram.gcode", check=lambda path: check_surface_program(
             path, d.grooves, comp.host, comp.tool, comp.machining, comp.axes, comp.thickness))
-        meta = {"design": "composition", "composition": comp.settings,
+        # its settings are what the command took: the composition's TOML text
+        meta = {"design": "composition", "settings": comp.settings,
                 "host": comp.host.describe(), "mode": comp.motion.mode,
                 "tool": {"radius": comp.tool.radius, "depth": comp.tool.depth,
                          "width": comp.tool.width},
@@ -780,7 +781,9 @@ def load_composition_folder(folder: str | os.PathLike[str]) -> ComposedDesign:
     path = folder / "hologram.json"
     meta = table(read_json(path), str(path))
     with settings_from(path):
-        comp = table(meta["composition"], "composition")
+        # "composition": where folders written before every kind's "settings" kept it
+        key = "settings" if "settings" in meta else "composition"
+        comp = table(meta[key], key)
         text, base = comp["text"], comp["base"]
         if not (isinstance(text, str) and isinstance(base, str)):
             raise SpecholoError("composition text and base must be strings")

@@ -8,6 +8,7 @@ the README's "Rotating plates" for the figures.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -41,6 +42,8 @@ if TYPE_CHECKING:
 
 #: The setup's angles, radians inside, saved in degrees.
 SPIN_ANGLES = ("elevation",)
+#: The fit's own settings, which the command leaves at their defaults.
+SPIN_FIT = ("harmonics", "angles", "samples")
 
 
 #: The drawings a turning plate writes beside its programs (hologram.svg; no
@@ -139,11 +142,26 @@ class SpinConfig:
             return None
         return (float(self.plate_width), float(self.plate_height))
 
-    def as_dict(self) -> dict[str, Any]:
-        """The settings as ``hologram.json`` records them (angles in degrees)."""
-        from specholo.folder import saved_config
+    def settings(self) -> dict[str, Any]:
+        """The settings as ``hologram.json`` records them: by ``specholo spin``'s
+        option names, in its units (mm, degrees), as every kind's."""
+        from specholo.folder import shared_settings
 
-        return saved_config(self, SPIN_ANGLES)
+        s = self.setup
+        return {**shared_settings(self), "turns": self.turns, "occlusion": self.occlusion,
+                "view_distance": s.distance, "view_elevation": math.degrees(s.elevation),
+                "ipd": s.ipd, "light_height": s.light_height, "walls": s.walls,
+                **{k: getattr(s, k) for k in SPIN_FIT}}
+
+    @classmethod
+    def from_settings(cls, saved: Any) -> SpinConfig:
+        """The settings :meth:`settings` recorded (inside
+        :func:`~specholo.readback.settings_from`)."""
+        from specholo.folder import from_settings
+
+        config, machining, fit = from_settings(saved, cls.from_options, SPIN_FIT)
+        return dataclasses.replace(config, machining=machining,
+                                   setup=dataclasses.replace(config.setup, **fit))
 
 
 @dataclass(frozen=True)
@@ -469,7 +487,7 @@ def write_spin(job: SpinPlate, out: str | os.PathLike[str], step_deg: float = 5.
                              plate=plate, drawings=SPIN_DRAWINGS)
         safety = stage.check("hologram.gcode", limits)
         meta: dict[str, Any] = {
-            "design": "spin", "config": cfg.as_dict(),
+            "design": "spin", "settings": cfg.settings(),
             "tilts_deg": [math.degrees(t) for t in d.tilts],
             "relief_tilt_deg": math.degrees(d.relief_tilt),
             "paths": d.grooves.n_paths, "groove_length_mm": d.grooves.total_length(),
@@ -548,6 +566,7 @@ def load_spin_folder(folder: str | os.PathLike[str]) -> SpinPlate:
         read_json,
         settings_from,
         table,
+        whole,
     )
     from specholo.scene.loading import read_mesh
     from specholo.toolpaths.grooves import MAX_COORDINATE, Grooves
@@ -556,9 +575,15 @@ def load_spin_folder(folder: str | os.PathLike[str]) -> SpinPlate:
     path = folder / "hologram.json"
     meta = table(read_json(path), str(path))
     with settings_from(path):
-        cfg = SpinConfig(**config_arguments(meta["config"], SpinSetup, SPIN_ANGLES,
-                                            ("stipples", "seed", "turns", "harmonics",
-                                             "angles", "samples")))
+        if "settings" in meta:
+            saved = table(meta["settings"], "settings")
+            for key in ("stipples", "seed", "turns", *SPIN_FIT):
+                if key in saved:
+                    whole(saved[key], key)
+            cfg = SpinConfig.from_settings(saved)
+        else:  # a folder written before every kind recorded its settings by option names
+            cfg = SpinConfig(**config_arguments(meta["config"], SpinSetup, SPIN_ANGLES,
+                                                ("stipples", "seed", "turns", *SPIN_FIT)))
         tilts = meta["tilts_deg"]
         if not (isinstance(tilts, list) and len(tilts) == 2):
             raise SpecholoError("tilts_deg must be 2 numbers")

@@ -7,6 +7,7 @@ image under a moving light" for the figures.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -109,11 +110,28 @@ class SteadyConfig:
             return None
         return (float(self.plate_width), float(self.plate_height))
 
-    def as_dict(self) -> dict[str, Any]:
-        """The settings as ``hologram.json`` records them (angles in degrees)."""
-        from specholo.folder import saved_config
+    def settings(self) -> dict[str, Any]:
+        """The settings as ``hologram.json`` records them: by ``specholo steady``'s
+        option names, in its units (mm, degrees), as every kind's."""
+        from specholo.folder import shared_settings
 
-        return saved_config(self, STEADY_ANGLES)
+        s = self.setup
+        return {**shared_settings(self), "shape": self.shape, "view_distance": s.distance,
+                "eye_height": s.height, "ipd": s.ipd,
+                "light_elevation": math.degrees(s.light_elevation),
+                "light_range": math.degrees(s.light_sweep), "samples": s.samples}
+
+    @classmethod
+    def from_settings(cls, saved: Any) -> SteadyConfig:
+        """The settings :meth:`settings` recorded (inside
+        :func:`~specholo.readback.settings_from`)."""
+        from specholo.folder import from_settings
+
+        config, machining, own = from_settings(saved, cls.from_options, ("eye_height", "samples"))
+        if "eye_height" in own:
+            own["height"] = own.pop("eye_height")
+        return dataclasses.replace(config, machining=machining,
+                                   setup=dataclasses.replace(config.setup, **own))
 
 
 @dataclass(frozen=True)
@@ -424,7 +442,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
         write_verification(reports, tmp, step_deg)
         steady_preview(design, config.tool, tmp / "preview.png")
         meta: dict[str, Any] = {
-            "design": "steady", "config": config.as_dict(), "cuts": design.n_cuts,
+            "design": "steady", "settings": config.settings(), "cuts": design.n_cuts,
             "stipples": len(design.points), "stipples_dropped": design.dropped,
             "gcode_lines": lines, "verify": json_ready(summary),
             "machining": steady_machining(design, config),
@@ -473,6 +491,7 @@ def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, St
         read_json,
         settings_from,
         table,
+        whole,
         within,
     )
     from specholo.toolpaths.grooves import MAX_COORDINATE
@@ -481,17 +500,24 @@ def load_steady_folder(folder: str | os.PathLike[str]) -> tuple[SteadyDesign, St
     path = folder / "hologram.json"
     meta = table(read_json(path), str(path))
     with settings_from(path):
-        saved = meta["config"]
-        setup = saved.get("setup") if isinstance(saved, dict) else None
-        if isinstance(setup, dict) and any(k in setup for k in LEGACY_ANGLES):
-            # a folder written when the light's angles shared the viewer's names
-            setup = {LEGACY_ANGLES.get(k, k): v for k, v in setup.items()}
-            saved = {**saved, "setup": setup}
-        c = config_arguments(saved, SteadySetup, STEADY_ANGLES,
-                             ("stipples", "seed", "samples"))
+        if "settings" in meta:
+            c = dict(table(meta["settings"], "settings"))
+            for key in ("stipples", "seed", "samples"):
+                if key in c:
+                    whole(c[key], key)
+        else:  # a folder written before every kind recorded its settings by option names
+            saved = meta["config"]
+            setup = saved.get("setup") if isinstance(saved, dict) else None
+            if isinstance(setup, dict) and any(k in setup for k in LEGACY_ANGLES):
+                # a folder written when the light's angles shared the viewer's names
+                setup = {LEGACY_ANGLES.get(k, k): v for k, v in setup.items()}
+                saved = {**saved, "setup": setup}
+            c = config_arguments(saved, SteadySetup, STEADY_ANGLES,
+                                 ("stipples", "seed", "samples"))
         if c.get("shape", "scoop") not in ("scoop", "flat"):
             raise SpecholoError(f"shape must be scoop or flat, got {str(c['shape'])[:40]!r}")
-        config = SteadyConfig(**c)
+        config = (SteadyConfig.from_settings(c) if "settings" in meta
+                  else SteadyConfig(**c))
     stipples = folder / "stipples.npz"
     a = load_arrays(stipples, {
         "points": ArraySpec((None, 3), finite=True), "centres": ArraySpec((None, 3), finite=True),
