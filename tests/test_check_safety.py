@@ -119,6 +119,7 @@ def programs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Program]:
     )
     from specholo.jobs.flat.folder import DesignConfig, design, design_limits, write_design
     from specholo.jobs.ridged.design import design_ridged_model, ridged_limits, write_ridged_design
+    from specholo.jobs.ridged.settings import RidgedConfig
     from specholo.jobs.spin.design import SpinConfig, design_spin, spin_limits, write_spin
     from specholo.jobs.steady.design import (
         SteadyConfig,
@@ -147,8 +148,8 @@ def programs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Program]:
                             d.config, dialect=dialect, units=units))
                         write_design(dd, tmp / name, ("gcode",), command=["test"])
                         out[name] = _program(tmp / name / "hologram.gcode", design_limits(dd))
-    ridged = design_ridged_model(BUNNY, DesignConfig.from_dict(
-        {"method": "ridged", "stipples": 6, "size": 10, "raster": 0.1, "view_range": 10,
+    ridged = design_ridged_model(BUNNY, RidgedConfig.from_dict(
+        {"stipples": 6, "size": 10, "raster": 0.1, "view_range": 10,
          "elevation_range": 5, "tool_radius": 0.2}))
     write_ridged_design(ridged, tmp / "ridged", ("gcode",))
     out["ridged"] = _program(tmp / "ridged" / "hologram.gcode", ridged_limits(ridged))

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from specholo.hosts.flat import sightline_crossing
-from specholo.jobs.flat.folder import DesignConfig
+from specholo.jobs.ridged.settings import RidgedConfig
 from specholo.simulation.field_glints import LOBE, SlopeIndex, find_reflected_glints
 from specholo.toolpaths.ridged import RidgeOptions, design_ridged, view_eyes
 
@@ -19,8 +19,7 @@ from specholo.toolpaths.ridged import RidgeOptions, design_ridged, view_eyes
 def _seen(depth: float) -> tuple[int, int, float]:
     """Views (of a grid) that see the one stipple's glint, the views, and the
     farthest glint from its sightline's crossing, mm."""
-    setup = DesignConfig.from_dict({"method": "ridged", "view_range": 10,
-                                    "elevation_range": 4}).setup()
+    setup = RidgedConfig.from_dict({"view_range": 10, "elevation_range": 4}).setup()
     points = np.array([[0.0, 0.0, -depth]])
     plate = design_ridged(points, None, None, setup,
                           RidgeOptions(delta=0.1, resolution=0.02, block=0.2,

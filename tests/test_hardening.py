@@ -111,7 +111,7 @@ def test_the_bounds_themselves_are_valid() -> None:
                 values.update(tool="ball", tool_radius=25.0, stock_thickness=1000.0)
                 values["depth"] = min(value, 25.0)
             if name == "stock_thickness" and value < 0.1:
-                values.update(depth=value / 2, shell=value / 4)
+                values.update(depth=value / 2)
             if name == "safe_z":
                 values["depth"] = 0.01
             if name == "hop":  # a hop stays below the safe height

@@ -26,7 +26,9 @@ LAYERS: list[set[str]] = [
     {"specholo.simulation"},
     {"specholo.preview"},
     {"specholo.folder", "specholo.folders", "specholo.staging"},
-    {"specholo.jobs.flat.settings"},
+    {"specholo.jobs.plate_settings"},
+    {"specholo.jobs.plate_common"},
+    {"specholo.jobs.flat.settings", "specholo.jobs.ridged.settings"},
     {"specholo.jobs.flat.design"},
     {"specholo.jobs.flat.folder"},
     {"specholo.jobs.flat.density", "specholo.jobs.ridged.design",
@@ -156,10 +158,11 @@ def test_programs_and_drawings_stand_apart():
 
 #: The kinds of hologram, one package each under ``specholo.jobs``.
 KINDS = ("flat", "ridged", "composition", "spin", "steady", "coupon")
-#: Kinds built on another's design today: a ridged plate takes the flat design's
-#: settings (its own are to come), and a test coupon is cut for the flat
-#: design's long job, with its striping and settings.
-BUILT_ON = {("ridged", "flat"), ("coupon", "flat")}
+#: Kinds built on another's design today: a test coupon is cut for the flat
+#: design's long job, with its striping and settings. (A ridged plate shares
+#: with the flat one only what lies below the kinds: ``jobs.plate_settings``
+#: and ``jobs.plate_common``.)
+BUILT_ON = {("coupon", "flat")}
 
 
 def _kind(module: str) -> str | None:

@@ -14,6 +14,7 @@ from specholo.errors import SpecholoError
 from specholo.fabrication.programs.machines import KINDS, MACHINES, MachineProfile, machine_profile
 from specholo.fabrication.programs.timing import estimate_time
 from specholo.jobs.flat.settings import DesignConfig
+from specholo.jobs.ridged.settings import RidgedConfig
 from specholo.setup import Machining
 from specholo.toolpaths.grooves import Grooves
 from specholo_cli.cli import main
@@ -166,10 +167,11 @@ def test_design_settings_take_the_machines_feeds_and_refuse_its_excess():
         ({"machine": "pen-plotter", "tool": "ball"}, "carries --tool drag or scriber, not ball"),
         ({"machine": "co2-laser", "tool": "drag"}, "carries --tool laser, not drag"),
         ({"machine": "nope"}, "unknown machine 'nope': one of grbl-router"),
-        ({"machine": "grbl-router", "method": "ridged"}, "--machine times a grooved design"),
     ]:
         with pytest.raises(SpecholoError, match=message.replace("'", ".")):
             DesignConfig.from_dict(values)
+    with pytest.raises(SpecholoError, match="--machine times a grooved design"):
+        RidgedConfig.from_dict({"machine": "grbl-router"})
 
 
 def test_unknown_machine_on_the_command_line_is_one_line(tmp_path, capsys):

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from specholo.errors import SpecholoError
-from specholo.jobs.flat.folder import DesignConfig
 from specholo.jobs.ridged.design import load_ridged_design
+from specholo.jobs.ridged.settings import RidgedConfig
 from specholo.optics.refraction import back_entry
 from specholo.optics.surfaces import Kind, Source, refract
 from specholo.setup import BackLight, Light, Setup, Viewer
@@ -332,4 +332,4 @@ def test_library_refuses_a_light_on_the_wrong_side():
         design_ridged(POINTS, None, None, Setup(light=Light(math.radians(45.0)),
                                                 viewer=VIEWER), refraction="exact")
     with pytest.raises(SpecholoError, match="lit from behind"):
-        DesignConfig(method="ridged", tool="ball", optic="refract")
+        RidgedConfig(optic="refract")

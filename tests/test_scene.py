@@ -497,7 +497,7 @@ def test_bad_orientations_are_refused() -> None:
 
 
 def test_the_axes_offered_agree() -> None:
-    from specholo.jobs.flat.settings import UP_AXES as CONFIG_AXES
+    from specholo.jobs.plate_settings import UP_AXES as CONFIG_AXES
     from specholo_cli.app import _DESIGN_OPTIONS
 
     choice = next(kind for name, kind, _ in _DESIGN_OPTIONS if name == "up")

@@ -21,7 +21,8 @@ from specholo.fabrication.drawings.stroke_pattern import (
     stroke_path,
     write_stroke_pattern,
 )
-from specholo.jobs.flat.folder import BAND, HAND_BAND, DesignConfig, check_formats
+from specholo.jobs.flat.folder import BAND, HAND_BAND, DesignConfig
+from specholo.jobs.plate_common import check_formats
 from specholo.setup import Setup
 from specholo.toolpaths.common import make_runs
 from specholo.toolpaths.grooves import Grooves

@@ -91,7 +91,7 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
      "its rates; a laser profile cuts with --tool laser [none: every axis at 250 mm/s^2, rapids at "
      "3000 mm/min]."),
     ("elevation-range", float, "Ridged design: heads' elevation within +- this many degrees "
-     "[15]."),
+     "[8]."),
     ("shell", float, "Ridged design: half-thickness Delta of the shell; the facets lie within "
      "2 Delta of the surface, mm [0.1]."),
     ("raster", float, "Ridged design: height-field sample spacing, mm [0.02]."),

@@ -28,7 +28,10 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.programs.timing import estimate_time, plain_duration, trapezoid_time
 from specholo.hosts.flat import sightline_crossing
-from specholo.jobs.flat.folder import DEFAULT_STIPPLES, DesignConfig, check_points
+from specholo.jobs.flat.settings import DesignConfig
+from specholo.jobs.plate_common import check_points
+from specholo.jobs.plate_settings import DEFAULT_STIPPLES
+from specholo.jobs.ridged.settings import RidgedConfig
 from specholo.scene.loading import Model
 from specholo.scene.placement import place
 from specholo.scene.stippling import check_memory, stipple
@@ -129,7 +132,12 @@ class Preview:
         }
 
 
-def fast_preview(model: Model, config: DesignConfig) -> Preview:
+#: Why the studio makes no ridged plate.
+NO_RIDGED = ("the studio designs grooved plates; a ridged plate is made by "
+             "`specholo design --method ridged`")
+
+
+def fast_preview(model: Model, config: DesignConfig | RidgedConfig) -> Preview:
     """Place, stipple and crop a model as :func:`specholo.jobs.flat.folder.design` does.
 
     Args:
@@ -140,9 +148,8 @@ def fast_preview(model: Model, config: DesignConfig) -> Preview:
         SpecholoError: settings the design would refuse (a model too close to
             the eyes, a count over :data:`MAX_PREVIEW_STIPPLES`, a spacing).
     """
-    if config.method == "ridged":
-        raise SpecholoError("the studio designs grooved plates; a ridged plate is made by "
-                            "`specholo design --method ridged`")
+    if isinstance(config, RidgedConfig):
+        raise SpecholoError(NO_RIDGED)
     if config.spacing is not None:
         raise SpecholoError("the studio counts stipples: give stipples, not spacing")
     count = int(config.stipples or DEFAULT_STIPPLES)

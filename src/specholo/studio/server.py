@@ -47,7 +47,7 @@ from typing import Any
 from specholo.errors import SpecholoError
 from specholo.jobs.flat.folder import DesignConfig
 from specholo.scene.loading import FORMATS, Model, load_model
-from specholo.studio.preview import fast_preview
+from specholo.studio.preview import NO_RIDGED, fast_preview
 from specholo.studio.runner import Runner, one_line
 
 #: The only address the studio listens on.
@@ -109,6 +109,9 @@ def config_of(settings: Any) -> DesignConfig:
     """The design's settings from the page's (the option names of ``specholo design``)."""
     if not isinstance(settings, dict):
         raise SpecholoError("settings must be a table of options")
+    if settings.get("method") == "ridged":
+        # refused as such, before the page's grooved settings would be refused one by one
+        raise SpecholoError(NO_RIDGED)
     return DesignConfig.from_dict(settings)
 
 

@@ -166,7 +166,7 @@ class CouponConfig:
         ladder = s["ladder_mm"]
         if not isinstance(ladder, list):
             raise SpecholoError("settings.ladder_mm must be a list of numbers")
-        config = cls(DesignConfig.from_dict(dict(table(s["design"], "settings.design"))),
+        config = cls(DesignConfig.from_saved(dict(table(s["design"], "settings.design"))),
                      tuple(number(v, "ladder_mm") for v in ladder),
                      whole(s["stipples"], "stipples"), number(s["window_deg"], "window_deg"),
                      number(s["behind_mm"], "behind_mm"))

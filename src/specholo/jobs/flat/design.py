@@ -39,11 +39,11 @@ if TYPE_CHECKING:
 
 from specholo.jobs.flat.settings import (
     BAND,
-    DEFAULT_STIPPLES,
     DEPTH_ALLOWANCE,
     TILT_MARGIN,
     DesignConfig,
 )
+from specholo.jobs.plate_common import stipple_model
 
 
 @dataclass
@@ -179,16 +179,6 @@ def plate_rect(grooves: Grooves, width: float, config: DesignConfig,
     return np.stack([-0.5 * size, 0.5 * size])
 
 
-def check_points(points: np.ndarray, setup: Setup) -> None:
-    """Refuse points the viewer could not look at through the plate."""
-    v = setup.viewer
-    nearest_eye = v.distance * math.cos(v.design_range)
-    if len(points) and points[:, 2].max() >= 0.9 * nearest_eye:
-        raise SpecholoError(
-            f"model reaches z = {points[:, 2].max():.1f} mm, too close to the eyes "
-            f"(nearest eye depth {nearest_eye:.1f} mm); move it back with --center-z")
-
-
 def auto_depth(cutter: Cutter, config: DesignConfig, points: np.ndarray, runs: Runs,
                tilts: np.ndarray | None = None) -> float:
     """Shallowest depth whose walls serve every view with :data:`TILT_MARGIN` to
@@ -242,42 +232,6 @@ def design_runs(runs: Runs, config: DesignConfig,
     return design_classic(runs, setup), np.zeros(0, dtype=np.int64)
 
 
-def stipple_model(model_path: str | os.PathLike[str], config: DesignConfig,
-                  rng: np.random.Generator | None, timings: dict[str, float]
-                  ) -> tuple[Any, Any, DesignConfig]:
-    """Load and place the model and stipple it; refuse what would not fit in memory or
-    could not be seen through the plate.
-
-    Returns:
-        The placed model, its stipples (``timings["stippling"]`` is set) and the
-        config, whose size is the fitted one with ``config.fit``.
-    """
-    from specholo.scene.loading import load_model
-    from specholo.scene.placement import place
-    from specholo.scene.stippling import check_memory, stipple
-
-    setup = config.setup()
-    rng = rng if rng is not None else np.random.default_rng(config.seed)
-    count = None if config.spacing is not None else (config.stipples or DEFAULT_STIPPLES)
-    if count is not None:
-        check_memory(count)  # stipples = 10**9 is refused before any work
-    t0 = time.perf_counter()
-    pose = config.pose()
-    loaded = load_model(model_path)
-    if config.fit:
-        config = dataclasses.replace(config, size=fitted_size(loaded, config))
-    model = place(loaded, config.size, config.center_z, pose.rotation(), pose.offset)
-    st = stipple(model, rng, count=count, spacing=config.spacing)
-    check_points(st.points, setup)
-    mesh = model.mesh
-    check_memory(len(st.points), 0 if mesh is None else len(mesh.faces),
-                 0 if mesh is None else len(mesh.vertices),
-                 request=None if count is not None else
-                 f"spacing = {config.spacing:g} mm ({len(st.points)} stipples)")
-    timings["stippling"] = time.perf_counter() - t0
-    return model, st, config
-
-
 def up_hint(model: Any, config: DesignConfig) -> str:
     """Where a placed mesh stands on a flat base that is not its bottom on the
     plate (a z-up CAD or slicer file read y-up lies on its back), the ``--up``
@@ -301,23 +255,6 @@ def up_hint(model: Any, config: DesignConfig) -> str:
     return (f"the model stands on a flat base with its {name} axis up (as CAD and slicer "
             f"files place a part), and is placed with {config.up} up, lying on its side or "
             f"back: add --up {name}")
-
-
-def fitted_size(model: Any, config: DesignConfig) -> float:
-    """The largest size (mm) at which the model's grooves, as posed, lie on the
-    plate ``config`` gives, within its blank border (:mod:`specholo.scene.fit`)."""
-    from specholo.scene.fit import fit_size
-    from specholo.scene.placement import place
-
-    pose = config.pose()
-    unit = place(model, 1.0, 0.0, pose.rotation())  # size 1 about its box centre
-    half_width = 0.5 * config.cutter().section(config.depth_mm).width
-    reach = (half_width, half_width + (config.band or 0.0))
-    size = fit_size(unit.points, np.array([*pose.offset, config.center_z]),
-                    (float(config.plate_width or 0.0), float(config.plate_height or 0.0)),
-                    config.setup().viewer, reach, PLATE_MARGIN)
-    # Recorded with the design, so rounded (down: the rounded size still fits).
-    return math.floor(min(size, 10_000.0) * 1e3) / 1e3
 
 
 def design(model_path: str | os.PathLike[str], config: DesignConfig,
@@ -619,12 +556,11 @@ def hologram_json(d: Design) -> dict[str, Any]:
 
 def run_record(config: DesignConfig, command: list[str] | None,
                seconds: dict[str, Any]) -> dict[str, Any]:
-    """What a flat or ridged design's ``run.json`` records
+    """What a flat design's ``run.json`` records
     (:func:`specholo.staging.run_record`), with its settings."""
     from specholo.staging import run_record as record
 
-    return record("ridged" if config.method == "ridged" else "flat", command, seconds,
-                  asdict(config))
+    return record("flat", command, seconds, asdict(config))
 
 
 def drop_reasons(points: np.ndarray, dropped: np.ndarray, setup: Setup) -> dict[str, str]:

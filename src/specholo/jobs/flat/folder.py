@@ -35,46 +35,40 @@ from specholo.jobs.flat.design import (
     StippleRows,
     as_cut_json,
     auto_depth,
-    check_points,
     coverage,
     design,
     design_runs,
     drop_reasons,
     expected_as_cut,
-    fitted_size,
     groove_extent,
     hologram_json,
     plate_rect,
     run_record,
-    stipple_model,
 )
 from specholo.jobs.flat.settings import (
-    BACK_LIGHT_ELEVATION,
     BAND,
-    DEFAULT_STIPPLES,
     DEPTH_ALLOWANCE,
     HAND_BAND,
-    MAX_ELEVATION_RANGE,
-    MAX_SETTING,
     METHODS,
-    OPTICS,
-    RASTER_RANGE,
-    REFRACTION_MODELS,
-    RIDGED_BALL_RADIUS,
-    RIDGED_BLOCK,
     SETTING_BOUNDS,
     TILT_MARGIN,
-    TOOL_DEFAULTS,
     DesignConfig,
 )
-from specholo.toolpaths.grooves import MAX_COORDINATE, Grooves
+from specholo.jobs.plate_common import (
+    FORMATS,
+    check_formats,
+    design_json,
+    load_stipples,
+    settings_of,
+)
+from specholo.jobs.plate_settings import DEFAULT_STIPPLES, MAX_SETTING, TOOL_DEFAULTS
+from specholo.toolpaths.grooves import Grooves
 
 #: The settings and the design are re-exported: callers import them from here.
 __all__ = [
     "AS_CUT_MAX_STIPPLES",
     "AS_CUT_SKIPPED",
     "AS_CUT_STEP_DEG",
-    "BACK_LIGHT_ELEVATION",
     "BAND",
     "CUT_METHODS",
     "Coverage",
@@ -86,15 +80,8 @@ __all__ = [
     "FORMATS",
     "HAND_BAND",
     "Loaded",
-    "MAX_ELEVATION_RANGE",
     "MAX_SETTING",
     "METHODS",
-    "OPTICS",
-    "PATTERN_METHODS",
-    "RASTER_RANGE",
-    "REFRACTION_MODELS",
-    "RIDGED_BALL_RADIUS",
-    "RIDGED_BLOCK",
     "SETTING_BOUNDS",
     "StippleRows",
     "TILT_MARGIN",
@@ -102,40 +89,29 @@ __all__ = [
     "Written",
     "as_cut_json",
     "auto_depth",
-    "check_formats",
-    "check_points",
     "check_written_gcode",
     "coverage",
     "cut_method",
     "design",
-    "design_json",
     "design_limits",
     "design_runs",
     "drop_reasons",
     "dump_design_json",
     "expected_as_cut",
-    "fitted_size",
     "groove_extent",
     "hologram_json",
     "load_design",
-    "load_stipples",
     "plate_rect",
     "run_record",
-    "settings_of",
-    "stipple_model",
     "verify_cut_design",
     "verify_design",
     "write_design",
 ]
 
 
-#: Files ``write_design`` can add besides the design data, by format name.
-FORMATS = {"gcode": "hologram.gcode", "svg": "hologram.svg", "dxf": "hologram.dxf",
-           "pdf": "pattern.pdf"}
+#: The files ``write_design`` adds besides the design data by default
+#: (:data:`~specholo.jobs.plate_common.FORMATS`).
 DEFAULT_FORMATS = ("gcode", "svg")
-#: Designs ``pattern.pdf`` is drawn for: an `arc` design's compass pattern, the
-#: others' stroke pattern.
-PATTERN_METHODS = ("striped", "hyperbola", "arc")
 
 
 def design_limits(d: Design) -> Any:
@@ -202,24 +178,6 @@ def check_written_gcode(path: str | os.PathLike[str], d: Design) -> Any:
     from specholo.fabrication.check import check_program
 
     return check_program(path, design_limits(d))
-
-
-def check_formats(formats: tuple[str, ...], method: str) -> None:
-    """Refuse unknown formats, and a hand pattern of a design that has no grooves."""
-    if method == "ridged":
-        from specholo.fabrication.heightmap import RIDGED_FILES
-
-        for f in formats:
-            if f not in RIDGED_FILES:
-                raise SpecholoError(f"a ridged design's formats are among "
-                                    f"{', '.join(RIDGED_FILES)}, got {f!r}")
-        return
-    for f in formats:
-        if f not in FORMATS:
-            raise SpecholoError(f"format must be among {', '.join(FORMATS)}, got {f!r}")
-    if "pdf" in formats and method not in PATTERN_METHODS:
-        raise SpecholoError(f"the pdf pattern is for scribing by hand a design of "
-                            f"{', '.join(PATTERN_METHODS)} (got {method!r})")
 
 
 @dataclass(frozen=True)
@@ -440,10 +398,12 @@ def load_design(folder: str | os.PathLike[str], from_gcode: bool = False) -> Loa
     if info.get("design") in ("composition", "conforming"):
         raise SpecholoError(f"{folder} holds a composed design (specholo compose): verify "
                             "reads it, and its pictures are preview.png and preview.gif")
-    config = settings_of(folder, info)
-    if config.method == "ridged":
+    settings = info.get("settings")
+    if info.get("design") == "ridged" or (isinstance(settings, dict)
+                                          and settings.get("method") == "ridged"):
         raise SpecholoError(f"{folder} holds a ridged design (a height field, no "
                             "grooves): render, verify and view read it")
+    config = settings_of(folder, info, DesignConfig.from_saved)
     points, normals = load_stipples(folder / "stipples.npz")
     if from_gcode:
         from specholo.fabrication.programs.gcode_reader import read_gcode
@@ -473,42 +433,6 @@ def plate_of(info: dict[str, Any]) -> np.ndarray | None:
     if got.shape != (2, 2) or not np.isfinite(got).all() or not (got[0] < got[1]).all():
         return None
     return got
-
-
-def design_json(folder: Path) -> dict[str, Any]:
-    """A design folder's hologram.json, a JSON object."""
-    from specholo.readback import read_json, table
-
-    meta = folder / "hologram.json"
-    if not meta.exists():
-        raise SpecholoError(f"{folder} holds no hologram.json: not a design folder")
-    return table(read_json(meta), str(meta))
-
-
-def settings_of(folder: Path, info: dict[str, Any]) -> DesignConfig:
-    """The settings a design's hologram.json records, checked as any config is."""
-    meta = folder / "hologram.json"
-    if "settings" not in info:
-        raise SpecholoError(f"{meta} holds no settings: not a design folder")
-    try:
-        return DesignConfig.from_dict(info["settings"])
-    except SpecholoError as exc:
-        raise SpecholoError(f"{meta}: {exc}") from exc
-
-
-def load_stipples(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
-    """A design's stipples.npz: the points (n, 3) and their normals (n, 3), or None
-    where the model was a point cloud (stored as (0, 3))."""
-    from specholo.readback import ArraySpec, load_arrays, within
-
-    a = load_arrays(path, {"points": ArraySpec((None, 3), finite=True),
-                           "normals": ArraySpec((None, 3), finite=True)})
-    points, normals = a["points"], a["normals"]
-    if not within(points, -MAX_COORDINATE, MAX_COORDINATE):
-        raise SpecholoError(f"{path}: points must lie within {MAX_COORDINATE:g} mm")
-    if len(normals) not in (0, len(points)):
-        raise SpecholoError(f"{path}: {len(normals)} normals for {len(points)} points")
-    return points, normals if len(normals) else None
 
 
 def _visibility(loaded: Loaded) -> Any:

@@ -229,7 +229,7 @@ class FlatJob:
         return DesignConfig.from_dict(dict(values))
 
     def check_options(self, config: Any, options: WriteOptions) -> None:
-        from specholo.jobs.flat.folder import check_formats
+        from specholo.jobs.plate_common import check_formats
 
         if options.formats is not None:
             check_formats(options.formats, config.method)
@@ -388,7 +388,7 @@ class FlatJob:
 def _as_cut_estimate(folder: Path) -> str:
     """The design's as-cut stereo visibility from its hologram.json, in words
     ('' where the design made none: a large design, or an older folder)."""
-    from specholo.jobs.flat.folder import design_json
+    from specholo.jobs.plate_common import design_json
 
     got = design_json(folder).get("expected", {})
     vis = got.get("as_cut_stereo_visibility") if isinstance(got, dict) else None

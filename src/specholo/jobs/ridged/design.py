@@ -1,7 +1,7 @@
 """The ridged job: a full-parallax plate, a milled height field instead of grooves.
 
 Load, place and stipple the model as the grooved designs do
-(:mod:`specholo.jobs.flat.folder`), design the facets (:mod:`specholo.toolpaths.ridged`),
+(:mod:`specholo.jobs.plate_common`), design the facets (:mod:`specholo.toolpaths.ridged`),
 write the folder (height maps, STL, raster G-code checked before it is kept,
 the data and a preview), read it back and verify it with heads over azimuth
 and elevation (:mod:`specholo.simulation.heightfield`).
@@ -24,19 +24,15 @@ from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.folder import hologram_header
-from specholo.jobs.flat.folder import (
-    RASTER_RANGE,
-    RIDGED_BLOCK,
-    DesignConfig,
+from specholo.jobs.plate_common import (
     check_formats,
     design_json,
     load_stipples,
     settings_of,
     stipple_model,
 )
-from specholo.setup import (
-    BackLight,
-)
+from specholo.jobs.ridged.settings import RASTER_RANGE, RIDGED_BLOCK, RidgedConfig
+from specholo.setup import BackLight
 from specholo.toolpaths.grooves import MAX_COORDINATE
 
 #: A ridged design's fabrication files by default (see
@@ -62,7 +58,7 @@ class RidgedDesign:
             (``toolpaths.ridged.StereoBudget``).
     """
 
-    config: DesignConfig
+    config: RidgedConfig
     model: Any
     points: np.ndarray
     normals: np.ndarray | None
@@ -71,7 +67,7 @@ class RidgedDesign:
     budget: Any = None
 
 
-def ridge_options(config: DesignConfig) -> Any:
+def ridge_options(config: RidgedConfig) -> Any:
     """The ridged construction's settings (``toolpaths.ridged.RidgeOptions``) of a config.
 
     The plate is shared out in blocks of about :data:`RIDGED_BLOCK` (a whole number
@@ -92,7 +88,7 @@ def ridge_options(config: DesignConfig) -> Any:
                         max_cells=cells)
 
 
-def _ridged_plate_rect(config: DesignConfig) -> np.ndarray | None:
+def _ridged_plate_rect(config: RidgedConfig) -> np.ndarray | None:
     """The plate's corners (2, 2) from plate_width and plate_height, or None to fit."""
     if config.plate_width is None or config.plate_height is None:
         return None
@@ -100,13 +96,13 @@ def _ridged_plate_rect(config: DesignConfig) -> np.ndarray | None:
     return np.stack([-half, half])
 
 
-def design_ridged_model(model_path: str | os.PathLike[str], config: DesignConfig,
+def design_ridged_model(model_path: str | os.PathLike[str], config: RidgedConfig,
                         rng: np.random.Generator | None = None) -> RidgedDesign:
     """Load, place and stipple a model, then design its ridged full-parallax plate.
 
     Args:
         model_path: mesh or point-cloud file.
-        config: the options (``method`` "ridged").
+        config: the options.
         rng: random generator for stippling; default seeded from ``config.seed``.
 
     Raises:
@@ -114,8 +110,9 @@ def design_ridged_model(model_path: str | os.PathLike[str], config: DesignConfig
     """
     from specholo.toolpaths.ridged import design_ridged, stereo_budget
 
-    if config.method != "ridged":
-        raise SpecholoError(f"design_ridged_model needs method ridged, got {config.method!r}")
+    if not isinstance(config, RidgedConfig):
+        raise SpecholoError(f"design_ridged_model needs a ridged design's settings "
+                            f"(RidgedConfig), got {type(config).__name__}")
     setup = config.setup()
     options = ridge_options(config)
     plate_rect = _ridged_plate_rect(config)
@@ -184,7 +181,7 @@ def ridged_json(d: RidgedDesign) -> dict[str, Any]:
     }
 
 
-def refraction_json(config: DesignConfig) -> dict[str, Any]:
+def refraction_json(config: RidgedConfig) -> dict[str, Any]:
     """A refraction plate's optics, for ``hologram.json``."""
     light = config.setup().light
     assert isinstance(light, BackLight)
@@ -319,7 +316,7 @@ class LoadedRidged:
         mesh: the placed model, or None for a point cloud.
     """
 
-    config: DesignConfig
+    config: RidgedConfig
     points: np.ndarray
     normals: np.ndarray | None
     heights: Any
@@ -333,9 +330,12 @@ def load_ridged_design(folder: str | os.PathLike[str]) -> LoadedRidged:
     from specholo.scene.loading import read_mesh
 
     folder = Path(folder)
-    config = settings_of(folder, design_json(folder))
-    if config.method != "ridged":
-        raise SpecholoError(f"{folder} holds a {config.method} design, not a ridged one")
+    info = design_json(folder)
+    settings = info.get("settings")
+    method = settings.get("method") if isinstance(settings, dict) else None
+    if method is not None and method != "ridged":
+        raise SpecholoError(f"{folder} holds a {method} design, not a ridged one")
+    config = settings_of(folder, info, RidgedConfig.from_saved)
     heights = load_ridged(folder)
     # The raster's cells are found from positions by dividing by the spacing:
     # a spacing of 1e-300 mm, or heights of 1e300, would overflow the indices.
@@ -367,7 +367,7 @@ def _occlusion(mesh: Any, normals: np.ndarray | None) -> Any:
     return vis
 
 
-def ridged_views(config: DesignConfig, max_step_deg: float) -> tuple[np.ndarray, np.ndarray]:
+def ridged_views(config: RidgedConfig, max_step_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """Head azimuths and elevations (radians) over the design's ranges, at most
     ``max_step_deg`` apart."""
     from specholo.simulation.verify import view_azimuths

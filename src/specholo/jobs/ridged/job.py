@@ -77,7 +77,7 @@ def budget_line(budget: Any, stipples: int) -> str:
 
 def stated_budget(folder: Path) -> str:
     """The per-head figure a ridged folder's hologram.json states ('' if none)."""
-    from specholo.jobs.flat.folder import design_json
+    from specholo.jobs.plate_common import design_json
 
     ridged = design_json(folder).get("ridged")
     budget = ridged.get("stereo_budget") if isinstance(ridged, dict) else None
@@ -104,12 +104,12 @@ class RidgedJob:
         "heightmap.tif", "heightmap.json", "hologram.stl", "hologram.gcode", "preview.png"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
-        from specholo.jobs.flat.folder import DesignConfig
+        from specholo.jobs.ridged.settings import RidgedConfig
 
-        return DesignConfig.from_dict({**values, "method": "ridged"})
+        return RidgedConfig.from_dict({**values, "method": "ridged"})
 
     def check_options(self, config: Any, options: WriteOptions) -> None:
-        from specholo.jobs.flat.folder import check_formats
+        from specholo.jobs.plate_common import check_formats
 
         if options.formats is not None:
             check_formats(options.formats, "ridged")
