@@ -280,8 +280,10 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     """
     from specholo.visibility.occlusion import visible_intervals
 
-    if config.method == "ridged":
-        raise SpecholoError("a ridged design is made by design_ridged_model, not design")
+    if not isinstance(config, DesignConfig):
+        raise SpecholoError(f"design takes a grooved design's settings (DesignConfig), got "
+                            f"{type(config).__name__}: a ridged design is made by "
+                            "design_ridged_model")
     setup = config.setup()
     timings: dict[str, float] = {}
     model, st, config = stipple_model(model_path, config, rng, timings)
