@@ -73,6 +73,56 @@ class Stage:
         self.checked[name] = found
         return found
 
+    def save_grooves(self, grooves: Any) -> None:
+        """``grooves.npz``: any kind's grooves (``Grooves``, ``ConformingGrooves``),
+        through their own ``save``."""
+        from specholo.fabrication.atomic import atomic_open
+
+        with atomic_open(self.path / "grooves.npz", "wb", encoding=None) as fh:
+            grooves.save(fh)
+
+    def save_arrays(self, name: str, **arrays: Any) -> None:
+        """A compressed ``.npz`` of named arrays (``stipples.npz``); read back
+        with :func:`specholo.readback.load_arrays`."""
+        import numpy as np
+
+        from specholo.fabrication.atomic import atomic_open
+
+        with atomic_open(self.path / name, "wb", encoding=None) as fh:
+            np.savez_compressed(fh, **arrays)
+
+    def save_model(self, mesh: Any, name: str = "model.ply") -> None:
+        """The placed model (a ``trimesh.Trimesh``) as PLY, read back by
+        :func:`specholo.scene.loading.read_mesh`."""
+        from specholo.fabrication.atomic import atomic_open
+
+        with atomic_open(self.path / name, "wb", encoding=None) as fh:
+            fh.write(mesh.export(file_type="ply"))
+
+    def save_record(self, kind: str, record: dict[str, Any], name: str = "hologram.json",
+                    sort_keys: bool = True,
+                    dump: Callable[[dict[str, Any], Any], None] | None = None) -> None:
+        """The design's record (``hologram.json``), opening with the header every
+        kind's has (:func:`specholo.folder.hologram_header`): its kind and schema.
+
+        Args:
+            kind: the kind, as ``run.json`` names it.
+            record: the rest, the settings under ``settings``.
+            name: the file's name (a coupon's is ``coupon.json``).
+            sort_keys: keys after the header in sorted order.
+            dump: writes the record to the open file itself (a flat design
+                streams its stipples); default ``json.dump`` with indent 1.
+        """
+        from specholo.fabrication.atomic import atomic_open
+        from specholo.folder import hologram_header
+
+        with atomic_open(self.path / name) as fh:
+            whole = {**hologram_header(kind), **record}
+            if dump is not None:
+                dump(whole, fh)
+            else:
+                json.dump(whole, fh, indent=1, sort_keys=sort_keys)
+
     def unchecked(self) -> list[str]:
         """The programs in the stage that no check has read, by name."""
         return sorted(p.name for p in self.path.iterdir()

@@ -10,10 +10,12 @@ dot: a plunge that leaves a spherical dimple.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import zipfile
 from dataclasses import dataclass, field
+from typing import BinaryIO
 
 import numba as nb
 import numpy as np
@@ -363,16 +365,19 @@ class Grooves:
                        np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
                        self.stipple[paths])
 
-    def save(self, path: str) -> None:
-        """Write to an ``.npz`` file (the caller makes the write atomic).
+    def save(self, path: str | os.PathLike[str] | BinaryIO) -> None:
+        """Write to an ``.npz`` file, or an open binary file (the caller makes the
+        write atomic).
 
         The vertices and bulges are stored as they are: doubles that deflate by
         only 5% and 17%, at 40 MB/s (4.5 of the 19 s a design of 2 x 10^4
         stipples took, minutes at 10^6). The offsets and stipple ids deflate to
         a fifth, at the fastest level, which does as well here as the default.
         """
-        with open(path, "wb") as fh, zipfile.ZipFile(fh, "w", zipfile.ZIP_DEFLATED,
-                                                     compresslevel=1) as zf:
+        with contextlib.ExitStack() as files:
+            fh = path if hasattr(path, "write") else files.enter_context(open(path, "wb"))
+            zf = files.enter_context(zipfile.ZipFile(fh, "w", zipfile.ZIP_DEFLATED,
+                                                     compresslevel=1))
             for name, arr, deflate in (("vertices", self.vertices, False),
                                        ("bulges", self.bulges, False),
                                        ("offsets", self.offsets, True),

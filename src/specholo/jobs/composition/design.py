@@ -11,7 +11,6 @@ animation and moving lights".
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Callable, Iterable
@@ -23,7 +22,6 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import STOCK_THICKNESS
-from specholo.folder import hologram_header
 from specholo.hosts.surfaces import (
     Cylinder,
     HeightField,
@@ -729,15 +727,12 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
                                   comp.thickness, comp.gcode_options())
     with stage_design(out, inputs, kind="composition") as stage:
         tmp = stage.path
-        with atomic_open(tmp / "grooves.npz", "wb", encoding=None) as fh:
-            d.grooves.save(fh)
-        with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
-            np.savez_compressed(fh, points=all_points(d.scenes), scene=np.concatenate(
-                [np.full(len(s.points), k) for k, s in enumerate(d.scenes)]))
+        stage.save_grooves(d.grooves)
+        stage.save_arrays("stipples.npz", points=all_points(d.scenes), scene=np.concatenate(
+            [np.full(len(s.points), k) for k, s in enumerate(d.scenes)]))
         for k, s in enumerate(d.scenes):
             if s.mesh is not None:
-                with atomic_open(tmp / f"scene_{k}.ply", "wb", encoding=None) as fh:
-                    fh.write(s.mesh.export(file_type="ply"))
+                stage.save_model(s.mesh, f"scene_{k}.ply")
         with atomic_open(tmp / "hologram.gcode") as fh:
             fh.write(program.text)
         # read back by the safety check every program passes, before it is kept
@@ -753,8 +748,7 @@ def write_composition(d: ComposedDesign, out: str | os.PathLike[str],
                           "paths": program.paths,
                           "samples_beyond_3axis_reach": program.dropped_samples,
                           "cut_length_mm": program.cut_length, "check": check}}
-        with atomic_open(tmp / "hologram.json") as fh:
-            json.dump({**hologram_header("composition"), **meta}, fh, indent=1, sort_keys=True)
+        stage.save_record("composition", meta)
         if then is not None:
             then(tmp, check)
     return check

@@ -9,7 +9,6 @@ the README's "Rotating plates" for the figures.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 from collections.abc import Iterable
@@ -22,7 +21,7 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import STOCK_THICKNESS
 from specholo.fabrication.programs.program import check_program_options, program_options
-from specholo.folder import check_job_bounds, hologram_header, json_ready, row_json, stock_line
+from specholo.folder import check_job_bounds, json_ready, row_json, stock_line
 from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.spinning import SpinReport, find_spin_glints, verify_spinning
@@ -436,7 +435,6 @@ def write_spin(job: SpinPlate, out: str | os.PathLike[str], step_deg: float = 5.
     Returns:
         The summary of the verification.
     """
-    from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.drawings.svg import write_svg
     from specholo.fabrication.programs.gcode import write_gcode
     from specholo.folders import check_out
@@ -462,7 +460,7 @@ def write_spin(job: SpinPlate, out: str | os.PathLike[str], step_deg: float = 5.
     summary = summarise(reports)
     with stage_design(out, inputs, kind="spin") as stage:
         tmp = stage.path
-        d.grooves.save(str(tmp / "grooves.npz"))  # as every kind's grooves (the stage is atomic)
+        stage.save_grooves(d.grooves)
         extra: dict[str, Any] = {}
         if d.tracks is not None:
             t = d.tracks
@@ -470,13 +468,11 @@ def write_spin(job: SpinPlate, out: str | os.PathLike[str], step_deg: float = 5.
                      "track_alive": t.alive, "track_scene": t.scene,
                      "track_shown": t.alive if t.shown is None else t.shown,
                      "window": d.window if d.window is not None else np.zeros((0, 2))}
-        with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
-            extra.update(points=d.points, coef=d.coef, side=d.side, path_side=d.path_side,
-                         normals=np.zeros((0, 3)) if job.normals is None else job.normals)
-            np.savez_compressed(fh, **extra)
+        stage.save_arrays("stipples.npz", **extra, points=d.points, coef=d.coef, side=d.side,
+                          path_side=d.path_side, normals=np.zeros((0, 3))
+                          if job.normals is None else job.normals)
         if job.mesh is not None:
-            with atomic_open(tmp / "model.ply", "wb", encoding=None) as fh:
-                fh.write(job.mesh.export(file_type="ply"))
+            stage.save_model(job.mesh)
         header = {"design": "turning plate, closed grooves" if d.tracks is None else
                   f"turning plate, open grooves: the view circles the scene {cfg.turns} "
                   "times per turn", "walls": cfg.setup.walls, "stock": stock_line(cfg)}
@@ -525,8 +521,7 @@ def write_spin(job: SpinPlate, out: str | os.PathLike[str], step_deg: float = 5.
                                   math.degrees(d.relief_tilt)}
         write_svg(tmp / "hologram.svg", d.grooves, cfg.tool, plate=plate)
         write_spin_verification(reports, tmp, step_deg)
-        with atomic_open(tmp / "hologram.json") as fh:
-            json.dump({**hologram_header("spin"), **meta}, fh, indent=1, sort_keys=True)
+        stage.save_record("spin", meta)
         if frames:
             write_animation(preview_frames(job, frames), tmp / "preview.gif", fps=12)
     return summary

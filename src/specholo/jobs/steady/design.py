@@ -8,7 +8,6 @@ image under a moving light" for the figures.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 from collections.abc import Iterable
@@ -20,7 +19,6 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import STOCK_THICKNESS
-from specholo.folder import hologram_header
 from specholo.scene.pose import Pose
 from specholo.setup import Machining, Tool
 from specholo.simulation.steady import SteadyReport, verify_steady
@@ -407,7 +405,6 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
     read back by the safety check (:func:`steady_limits`) before anything is kept.
     hologram.json records the program's machining time (:func:`steady_machining`)
     and, given ``stippling``, what became of the stipples asked for."""
-    from specholo.fabrication.atomic import atomic_open
     from specholo.fabrication.programs.program import program_options
     from specholo.folder import json_ready, stock_line
     from specholo.folders import check_out
@@ -434,11 +431,9 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
                                   **limits.header()}, plate=plate,
                                  options=program_options(config))
         safety = stage.check("hologram.gcode", limits)
-        with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
-            np.savez_compressed(fh, points=design.points, centres=design.centres,
-                                offsets=design.offsets, stipple=design.stipple,
-                                eye=design.eye, radius=design.radius,
-                                dropped=np.array(design.dropped))
+        stage.save_arrays("stipples.npz", points=design.points, centres=design.centres,
+                          offsets=design.offsets, stipple=design.stipple, eye=design.eye,
+                          radius=design.radius, dropped=np.array(design.dropped))
         write_verification(reports, tmp, step_deg)
         steady_preview(design, config.tool, tmp / "preview.png")
         meta: dict[str, Any] = {
@@ -453,8 +448,7 @@ def write_steady(design: SteadyDesign, config: SteadyConfig, out: str | os.PathL
             if design.shape == "scoop" else None}
         if stippling is not None:
             meta["stippling"] = stippling.as_dict()
-        with atomic_open(tmp / "hologram.json") as fh:
-            json.dump({**hologram_header("steady"), **meta}, fh, indent=1, sort_keys=True)
+        stage.save_record("steady", meta)
     return summary
 
 
