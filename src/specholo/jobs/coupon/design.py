@@ -46,7 +46,6 @@ import numpy as np
 from specholo import __version__
 from specholo.errors import SpecholoError
 from specholo.fabrication.plate import Plate
-from specholo.folder import hologram_header
 from specholo.jobs.flat.settings import DesignConfig
 from specholo.setup import PRELOAD_RANGE, Machining
 from specholo.toolpaths.grooves import Grooves
@@ -844,9 +843,8 @@ def write_coupon(coupon: Coupon, out: str | os.PathLike[str],
         write_svg(stage.path / "hologram.svg", coupon.grooves, rung_tool(middle), plate=plate,
                   depths=depths, cut=(design.depth_mm, design.cutter().section(
                       design.depth_mm).width) if spring else None)
-        coupon.grooves.save(str(stage.path / "grooves.npz"))
-        with atomic_open(stage.path / "coupon.json") as fh:
-            json.dump({**hologram_header("coupon"), **info}, fh, indent=1)
+        stage.save_grooves(coupon.grooves)
+        stage.save_record("coupon", info, "coupon.json", sort_keys=False)
         write_sheet(stage.path / "sheet.pdf", info, coupon.grooves)
         timings["files"] = time.perf_counter() - t0
         with atomic_open(stage.path / "run.json") as fh:

@@ -25,7 +25,6 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.plate import Plate
-from specholo.folder import hologram_header
 from specholo.jobs.flat.design import (
     AS_CUT_MAX_STIPPLES,
     AS_CUT_SKIPPED,
@@ -351,14 +350,12 @@ def write_design(d: Design, out: str | os.PathLike[str],
             write(tmp / "pattern.pdf", grooves)
             timings["pdf"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        d.grooves.save(str(tmp / "grooves.npz"))
-        with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
-            np.savez_compressed(fh, points=d.points,
-                                normals=d.normals if d.normals is not None else np.zeros((0, 3)))
+        stage.save_grooves(d.grooves)
+        stage.save_arrays("stipples.npz", points=d.points,
+                          normals=d.normals if d.normals is not None else np.zeros((0, 3)))
         if d.model.mesh is not None:
-            d.model.mesh.export(tmp / "model.ply")
-        with atomic_open(tmp / "hologram.json") as fh:
-            dump_design_json({**hologram_header("flat"), **info}, fh)
+            stage.save_model(d.model.mesh)
+        stage.save_record("flat", info, dump=dump_design_json)
         timings["data"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         render_preview(d.grooves, setup, tmp / "preview.png",

@@ -9,7 +9,6 @@ and elevation (:mod:`specholo.simulation.heightfield`).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
@@ -22,8 +21,6 @@ import numpy as np
 
 from specholo import __version__
 from specholo.errors import SpecholoError
-from specholo.fabrication.atomic import atomic_open
-from specholo.folder import hologram_header
 from specholo.jobs.plate_common import (
     check_formats,
     design_json,
@@ -270,19 +267,17 @@ def write_ridged_design(d: RidgedDesign, out: str | os.PathLike[str],
                          "safety_check": {"moves": safety.moves, "violations": 0}}
             info["machining"] = machining
         t0 = time.perf_counter()
-        with atomic_open(tmp / "stipples.npz", "wb", encoding=None) as fh:
-            np.savez_compressed(fh, points=d.points,
-                                normals=d.normals if d.normals is not None else np.zeros((0, 3)))
+        stage.save_arrays("stipples.npz", points=d.points,
+                          normals=d.normals if d.normals is not None else np.zeros((0, 3)))
         if d.model.mesh is not None:
-            d.model.mesh.export(tmp / "model.ply")
+            stage.save_model(d.model.mesh)
         timings["data"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         render_field_preview(d.plate.heights, d.config.setup(), tmp / "preview.png")
         timings["preview"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         info["files"] = sorted(p.name for p in tmp.iterdir()) + ["hologram.json"]
-        with atomic_open(tmp / "hologram.json") as fh:
-            json.dump({**hologram_header("ridged"), **info}, fh, indent=1)
+        stage.save_record("ridged", info, sort_keys=False)
         timings["data"] += time.perf_counter() - t0
     return {"timings": timings, "machining": machining, "files": info["files"]}
 
