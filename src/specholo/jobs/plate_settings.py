@@ -79,6 +79,12 @@ def _check_setting(config: Any, name: str, kind: str) -> None:
             raise SpecholoError(f"{option} {value!r} is out of range (at most {MAX_SETTING:g})")
 
 
+#: Cutters made from settings, by the settings' kind and the values they are
+#: made from: each is made once however many settings share it.
+_CUTTERS: dict[tuple[Any, ...], Cutter] = {}
+_MAX_CUTTERS = 64
+
+
 @dataclass(frozen=True)
 class PlateConfig:
     """The design command's options every plate takes, in the units of the
@@ -120,6 +126,8 @@ class PlateConfig:
     #: line, naming the option); folders written before each kind had settings
     #: of its own recorded them all (:meth:`from_saved`).
     FOREIGN: ClassVar[dict[str, str]] = {}
+    #: The settings the cutter is made from (:meth:`cutter`).
+    CUTTER_SETTINGS: ClassVar[tuple[str, ...]] = ("tool", "tool_radius")
 
     def _check_types(self) -> None:
         for f in fields(self):
@@ -225,15 +233,23 @@ class PlateConfig:
                          float(self.spindle or 0.0))
 
     def cutter(self) -> Cutter:
-        """The cutting tool, built once per settings (they are frozen, and so is it)."""
+        """The cutting tool, built once for its settings (:attr:`CUTTER_SETTINGS`):
+        settings that differ in anything else (a design choosing its depth makes
+        new ones) share it, as it is frozen too."""
         built = self.__dict__.get("_cutter")
         if built is None:
-            try:
-                built = self._build_cutter()
-            except (TypeError, ValueError) as exc:
-                if isinstance(exc, SpecholoError):
-                    raise
-                raise SpecholoError(f"bad setting: {exc}") from exc
+            key = (type(self), *(getattr(self, name) for name in self.CUTTER_SETTINGS))
+            built = _CUTTERS.get(key)
+            if built is None:
+                try:
+                    built = self._build_cutter()
+                except (TypeError, ValueError) as exc:
+                    if isinstance(exc, SpecholoError):
+                        raise
+                    raise SpecholoError(f"bad setting: {exc}") from exc
+                if len(_CUTTERS) >= _MAX_CUTTERS:  # a long-running page's designs
+                    _CUTTERS.clear()
+                _CUTTERS[key] = built
             # a frozen dataclass refuses setattr; its __dict__ holds the one copy
             self.__dict__["_cutter"] = built
         return built

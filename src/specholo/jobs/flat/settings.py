@@ -92,6 +92,8 @@ class DesignConfig(PlateConfig):
     machine: str | None = None
 
     FOREIGN: ClassVar[dict[str, str]] = RIDGED_SETTINGS
+    CUTTER_SETTINGS: ClassVar[tuple[str, ...]] = ("tool", "tool_radius", "tool_angle",
+                                                  "tip_flat", "spot")
 
     def __post_init__(self) -> None:
         self._check_types()
