@@ -186,7 +186,7 @@ def test_the_card_is_small_and_named_in_its_header(card: Path) -> None:
 
 def test_it_takes_at_most_15_minutes_on_the_router(card: Path) -> None:
     from specholo.fabrication.programs.timing import estimate_time
-    from specholo.jobs.coupon.design import CouponConfig
+    from specholo.jobs.flat.coupon import CouponConfig
     from specholo.toolpaths.grooves import Grooves
 
     info = info_of(card)
@@ -260,7 +260,7 @@ def handing_over(track: np.ndarray, azimuth: float, step: float) -> bool:
 
 def test_the_glints_show_from_where_the_sheet_says(card: Path) -> None:
     from specholo.fabrication.programs.gcode_reader import read_gcode
-    from specholo.jobs.coupon.design import CouponConfig
+    from specholo.jobs.flat.coupon import CouponConfig
     from specholo.simulation.glints import Engraved, find_glints
 
     info = info_of(card)
@@ -315,7 +315,7 @@ def test_the_sheet_places_glints_on_the_sightline(card: Path) -> None:
     """Each track row lies where the eye's sightline through the stipple's
     point crosses the card: exactly across, within the stripes' band up and
     down (the striped design's promise)."""
-    from specholo.jobs.coupon.design import CouponConfig
+    from specholo.jobs.flat.coupon import CouponConfig
 
     info = info_of(card)
     config = CouponConfig.from_saved(info["settings"])

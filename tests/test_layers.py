@@ -33,7 +33,7 @@ LAYERS: list[set[str]] = [
     {"specholo.jobs.flat.folder"},
     {"specholo.jobs.flat.density", "specholo.jobs.ridged.design",
      "specholo.jobs.composition.design", "specholo.jobs.spin.design",
-     "specholo.jobs.steady.design", "specholo.jobs.coupon.design", "specholo._precompile"},
+     "specholo.jobs.steady.design", "specholo.jobs.flat.coupon", "specholo._precompile"},
     {"specholo.jobs"},
     {"specholo.studio"},
     {"specholo_cli"},
@@ -156,13 +156,11 @@ def test_programs_and_drawings_stand_apart():
     assert crossing == []
 
 
-#: The kinds of hologram, one package each under ``specholo.jobs``.
-KINDS = ("flat", "ridged", "composition", "spin", "steady", "coupon")
-#: Kinds built on another's design today: a test coupon is cut for the flat
-#: design's long job, with its striping and settings. (A ridged plate shares
-#: with the flat one only what lies below the kinds: ``jobs.plate_settings``
-#: and ``jobs.plate_common``.)
-BUILT_ON = {("coupon", "flat")}
+#: The kinds of hologram, one package each under ``specholo.jobs`` (a flat
+#: plate's test coupon, cut for its long job with its striping and settings, is
+#: in the flat plate's package; a ridged plate shares with the flat one only
+#: what lies below the kinds: ``jobs.plate_settings`` and ``jobs.plate_common``).
+KINDS = ("flat", "ridged", "composition", "spin", "steady")
 
 
 def _kind(module: str) -> str | None:
@@ -176,6 +174,5 @@ def test_a_kind_imports_no_other_kind():
     graph = import_graph()
     assert {_kind(m) for m in graph} >= set(KINDS)
     crossing = sorted(f"{a} -> {b}" for a in graph for b in graph[a]
-                      if _kind(a) and _kind(b) and _kind(a) != _kind(b)
-                      and (_kind(a), _kind(b)) not in BUILT_ON)
+                      if _kind(a) and _kind(b) and _kind(a) != _kind(b))
     assert crossing == []

@@ -171,7 +171,7 @@ def test_an_old_flat_folder_still_verifies(flat: Path, tmp_path: Path,
 
 
 def test_an_old_coupons_design_settings_still_read():
-    from specholo.jobs.coupon.design import CouponConfig
+    from specholo.jobs.flat.coupon import CouponConfig
 
     config = CouponConfig.from_options({})
     saved = config.saved()

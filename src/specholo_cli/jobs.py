@@ -210,7 +210,7 @@ def coupon(out: Path, **options: Any) -> None:
     holder), each a few stipples of a simple target needing no model; its sheet
     (sheet.pdf) says from where each glint must show and where, so the setting
     for the long job can be chosen before it is cut."""
-    from specholo.jobs.coupon.job import CouponJob
+    from specholo.jobs.flat.coupon_job import CouponJob
 
     values = {k: v for k, v in options.items() if v is not None}
     _run(CouponJob(), [], values, out, WriteOptions(command=_command_line()))

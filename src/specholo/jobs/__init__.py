@@ -15,7 +15,7 @@ from pathlib import Path
 from specholo.folders import register_outputs
 from specholo.jobs.base import Job, Table, Verification, VerifyOptions, publish_verification
 from specholo.jobs.composition.job import CompositionJob
-from specholo.jobs.coupon.job import CouponJob
+from specholo.jobs.flat.coupon_job import CouponJob
 from specholo.jobs.flat.job import FlatJob
 from specholo.jobs.ridged.job import RidgedJob
 from specholo.jobs.spin.job import SpinJob

@@ -52,7 +52,7 @@ def coupon_summary(coupon: Any, checks: list[Any], out: Path) -> Summary:
 
 def check_line(checks: list[Any]) -> str:
     """What simulated eyes found against the sheet, in one line."""
-    from specholo.jobs.coupon.design import ON_THE_SHEET
+    from specholo.jobs.flat.coupon import ON_THE_SHEET
 
     inside = sum(k.inside for k in checks)
     found = sum(k.found for k in checks)
@@ -82,7 +82,7 @@ class CouponJob:
                                        "hologram.svg", "grooves.npz", "run.json"})
 
     def configure(self, values: Mapping[str, Any], inputs: Sequence[Path]) -> Any:
-        from specholo.jobs.coupon.design import CouponConfig
+        from specholo.jobs.flat.coupon import CouponConfig
 
         return CouponConfig.from_options(values)
 
@@ -90,14 +90,14 @@ class CouponJob:
         refuse_formats(self, options)
 
     def design(self, inputs: Sequence[Path], config: Any, status: Status) -> Designed:
-        from specholo.jobs.coupon.design import design_coupon
+        from specholo.jobs.flat.coupon import design_coupon
 
         status("designing the rungs...")
         return Designed(design_coupon(config))
 
     def write(self, designed: Designed, out: Path, inputs: Sequence[Path | None],
               options: WriteOptions, status: Status) -> Summary:
-        from specholo.jobs.coupon.design import load_coupon, verify_coupon, write_coupon
+        from specholo.jobs.flat.coupon import load_coupon, verify_coupon, write_coupon
 
         status("writing the card and its sheet...")
         write_coupon(designed.design, out, inputs, options.command)
@@ -106,12 +106,12 @@ class CouponJob:
         return coupon_summary(designed.design, checks, out)
 
     def holds(self, folder: Path) -> bool:
-        from specholo.jobs.coupon.design import is_coupon_folder
+        from specholo.jobs.flat.coupon import is_coupon_folder
 
         return is_coupon_folder(folder)
 
     def load(self, folder: Path) -> Any:
-        from specholo.jobs.coupon.design import load_coupon
+        from specholo.jobs.flat.coupon import load_coupon
 
         return load_coupon(folder)
 
@@ -134,7 +134,7 @@ class CouponJob:
 
     def verify(self, folder: Path, options: VerifyOptions, status: Status) -> Verification:
         from specholo.folder import write_verify_json
-        from specholo.jobs.coupon.design import LETTERS, load_coupon, verify_coupon
+        from specholo.jobs.flat.coupon import LETTERS, load_coupon, verify_coupon
 
         if options.cut:
             from specholo.errors import SpecholoError
