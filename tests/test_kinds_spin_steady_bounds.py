@@ -31,7 +31,7 @@ OPTIONS = {
              "rotate-x": ["400"], "offset-x": ["2e4"]},
     "steady": {"size": ["0", "1e5"], "center-z": ["2e4"], "view-distance": ["0", "5"],
                "ipd": ["0", "0.1"], "light-elevation": ["0", "180"],
-               "light-range": ["0", "20"], "tool-radius": ["0", "30"], "depth": ["0"],
+               "light-sweep": ["0", "20"], "tool-radius": ["0", "30"], "depth": ["0"],
                "stock-thickness": ["0", "2000"], "rotate-x": ["400"], "offset-x": ["2e4"]},
 }
 CASES = [(command, f"--{option}", value) for command, options in OPTIONS.items()

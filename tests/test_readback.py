@@ -584,7 +584,7 @@ def test_a_steady_image_folder_is_checked(steady: Path, tmp_path: Path) -> None:
         ("dropped", lambda f: _rewrite(f / "stipples.npz", _set("dropped", np.zeros(3, np.int64))),
          "'dropped' has shape (3,)"),
         ("shape", lambda f: _edit_settings(f, "shape", "round"), "shape"),
-        ("range", lambda f: _edit_settings(f, "light_range", "wide"), "light_range"),
+        ("sweep", lambda f: _edit_settings(f, "light_sweep", "wide"), "light_sweep"),
         ("old shape", lambda f: _old_config(f, "shape", "round"), "shape"),
         ("old range", lambda f: _old_config(f, "light_sweep_deg", "wide", "setup"),
          "light_sweep_deg"),

@@ -34,7 +34,7 @@ def configs() -> dict[str, object]:
             units="inch"), machining),
         "steady": _replace(SteadyConfig.from_options(
             size=30.0, center_z=-15.0, stipples=90, seed=3, view_distance=700.0, ipd=62.0,
-            light_elevation=50.0, light_range=7.0, shape="flat", tool_radius=0.06,
+            light_elevation=50.0, light_sweep=7.0, shape="flat", tool_radius=0.06,
             depth=0.025, pose=pose, plate_width=60.0, plate_height=50.0,
             stock_thickness=2.5, dialect="linuxcnc", units="inch"), machining),
     }
@@ -57,7 +57,7 @@ def test_the_settings_read_back_to_the_same_configuration(kind: str) -> None:
         assert saved["view_elevation"] == pytest.approx(40.0)
         assert again.setup.elevation == pytest.approx(math.radians(40.0))
     else:
-        assert (saved["light_elevation"], saved["light_range"]) == pytest.approx((50.0, 7.0))
+        assert (saved["light_elevation"], saved["light_sweep"]) == pytest.approx((50.0, 7.0))
 
 
 @pytest.mark.parametrize("kind", ["spin", "steady"])
@@ -72,7 +72,7 @@ def test_the_settings_are_named_as_the_command_names_its_options(kind: str) -> N
 @pytest.mark.parametrize(("kind", "key", "value", "says"), [
     ("spin", "view_elevation", None, "view_elevation must be given"),
     ("spin", "elevation_deg", 45.0, "unknown setting 'elevation_deg'"),
-    ("steady", "light_range", "wide", "light_range must be a number"),
+    ("steady", "light_sweep", "wide", "light_sweep must be a number"),
 ])
 def test_a_bad_setting_is_refused_naming_it(kind: str, key: str, value: object,
                                             says: str) -> None:

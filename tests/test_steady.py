@@ -114,10 +114,13 @@ def test_folder_gcode_cuts_the_scoops_and_reverifies(tmp_path: Path) -> None:
 def test_cli_writes_a_verified_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]
                                       ) -> None:
     out = tmp_path / "steady"
+    # --light-range: the older name of --light-sweep, still taken
     assert main(["steady", str(BUNNY), "--out", str(out), "--stipples", "60",
                  "--light-range", "3"]) == 0
     ver = json.loads((out / "verify.json").read_text())
     assert len(ver["elevations"]) == 7 and ver["summary"]["stray"] == 0
+    settings = json.loads((out / "hologram.json").read_text())["settings"]
+    assert settings["light_sweep"] == pytest.approx(3.0)
     assert ver["summary"]["worst_drift_p95_mm"] < 0.5
     # the preview: three panels of the left eye's glints as the light moves
     from PIL import Image
@@ -136,7 +139,7 @@ def test_cli_writes_a_verified_folder(tmp_path: Path, capsys: pytest.CaptureFixt
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--light-range", "30"], "light range"),
+    (["--light-sweep", "30"], "light sweep"),
     (["--light-elevation", "0"], "light elevation"),
     (["--depth", "0.001"], "cut deeper"),
     (["--step", "0"], "step"),
@@ -205,7 +208,7 @@ def test_summary_says_what_became_of_every_stipple_asked_for_and_how_long_it_cut
     # a high, wide light: some visible stipples find no scoop that keeps the other
     # eye's glint off it over the range
     assert main(["steady", str(BUNNY), "--out", str(out), "--stipples", "60",
-                 "--light-elevation", "70", "--light-range", "15", "--step", "5"]) == 0
+                 "--light-elevation", "70", "--light-sweep", "15", "--step", "5"]) == 0
     lines = capsys.readouterr().out.splitlines()
     meta = json.loads((out / "hologram.json").read_text())
     kept, dropped, st = meta["stipples"], meta["stipples_dropped"], meta["stippling"]
@@ -217,7 +220,7 @@ def test_summary_says_what_became_of_every_stipple_asked_for_and_how_long_it_cut
     left = next(ln for ln in lines if ln.startswith("not cut:"))
     assert left.startswith(f"not cut: {60 - kept} of the 60: ")
     assert f"{st['hidden_both_eyes']} hidden from both eyes" in left
-    assert f"{dropped} with no scoop" in left and "--light-range" in left
+    assert f"{dropped} with no scoop" in left and "--light-sweep" in left
     assert (f"{st['hidden_one_eye']} hidden from one eye" in left) == (st["hidden_one_eye"] > 0)
     (x0, y0), (x1, y1) = meta["plate_mm"]
     assert any(ln.startswith(f"plate: {x1 - x0:.0f} x {y1 - y0:.0f} mm, 3 mm thick (fitted "

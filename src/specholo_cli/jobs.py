@@ -129,8 +129,9 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
               help="Interocular distance, mm.")
 @click.option("--light-elevation", type=float, default=45.0, show_default=True,
               help="The sun's middle elevation, degrees.")
-@click.option("--light-range", type=float, default=5.0, show_default=True,
-              help="The sun moves this far either way, degrees.")
+@click.option("--light-sweep", "--light-range", "light_sweep", type=float, default=5.0,
+              show_default=True, help="The sun moves this far either way, degrees "
+              "(--light-range: its older name).")
 @click.option("--shape", type=click.Choice(["scoop", "flat"]), default="scoop",
               show_default=True, help="scoop: steady; flat: plain grooves, to compare.")
 @click.option("--tool-radius", type=float, default=0.05, show_default=True,
@@ -144,7 +145,7 @@ def spin(model: tuple[Path, ...], out: Path, size: float, center_z: float, turns
 @_plate_options
 @_pose_options
 def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, seed: int,
-           view_distance: float, ipd: float, light_elevation: float, light_range: float,
+           view_distance: float, ipd: float, light_elevation: float, light_sweep: float,
            shape: str, tool_radius: float, depth: float, step: float, stock_thickness: float,
            dialect: str, units: str, plate_width: float | None, plate_height: float | None,
            fit: bool, **pose: Any) -> None:
@@ -156,7 +157,7 @@ def steady(model: Path, out: Path, size: float, center_z: float, stipples: int, 
     _run(SteadyJob(), [model], {
         "size": size, "center_z": center_z, "stipples": stipples, "seed": seed,
         "view_distance": view_distance, "ipd": ipd, "light_elevation": light_elevation,
-        "light_range": light_range, "shape": shape, "tool_radius": tool_radius,
+        "light_sweep": light_sweep, "shape": shape, "tool_radius": tool_radius,
         "depth": depth, "plate_width": plate_width, "plate_height": plate_height, "fit": fit,
         "stock_thickness": stock_thickness, "dialect": dialect, "units": units, **pose}, out,
         WriteOptions(step_deg=step))

@@ -77,7 +77,7 @@ class SteadySetup:
             raise SpecholoError(f"light elevation must be in [5, 175] degrees, got "
                                 f"{math.degrees(el):g}")
         if not (math.isfinite(hr) and 0.0 < hr <= math.radians(15.0)):
-            raise SpecholoError(f"light range must be in (0, 15] degrees either way, got "
+            raise SpecholoError(f"light sweep must be in (0, 15] degrees either way, got "
                                 f"{math.degrees(hr):g}")
         if not 5 <= int(self.samples) <= 1001:
             raise SpecholoError(f"samples must be in [5, 1001], got {self.samples}")

@@ -86,7 +86,7 @@ class SteadyConfig:
     @classmethod
     def from_options(cls, size: float = 40.0, center_z: float = -20.0, stipples: int = 300,
                      seed: int = 0, view_distance: float = 600.0, ipd: float = 64.0,
-                     light_elevation: float = 45.0, light_range: float = 5.0,
+                     light_elevation: float = 45.0, light_sweep: float = 5.0,
                      shape: str = "scoop", tool_radius: float = 0.05, depth: float = 0.02,
                      pose: Pose | None = None, plate_width: float | None = None,
                      plate_height: float | None = None, fit: bool = False,
@@ -95,7 +95,7 @@ class SteadyConfig:
         """The settings from the command's names and units (degrees, converted here once)."""
         setup = SteadySetup(distance=view_distance, ipd=ipd,
                             light_elevation=math.radians(light_elevation),
-                            light_sweep=math.radians(light_range))
+                            light_sweep=math.radians(light_sweep))
         return cls(size=size, center_z=center_z, stipples=stipples, seed=seed,
                    pose=pose or Pose(), shape=shape, setup=setup, tool=Tool(tool_radius, depth),
                    plate_width=plate_width, plate_height=plate_height, fit=fit,
@@ -117,7 +117,7 @@ class SteadyConfig:
         return {**shared_settings(self), "shape": self.shape, "view_distance": s.distance,
                 "eye_height": s.height, "ipd": s.ipd,
                 "light_elevation": math.degrees(s.light_elevation),
-                "light_range": math.degrees(s.light_sweep), "samples": s.samples}
+                "light_sweep": math.degrees(s.light_sweep), "samples": s.samples}
 
     @classmethod
     def from_settings(cls, saved: Any) -> SteadyConfig:

@@ -87,7 +87,7 @@ def _left_out(design: Any, stippling: Any, noun: str) -> list[str]:
     if design.dropped:
         why.append(f"{design.dropped} with no {noun} of radius up to {RADIUS_RANGE[1]:g} mm "
                    "that keeps the other eye's glint off it and its own inside the cut over "
-                   "the light's range (a narrower --light-range keeps more)")
+                   "the light's range (a narrower --light-sweep keeps more)")
     return why
 
 
