@@ -357,7 +357,9 @@ def test_the_page_poses_redraws_and_designs_a_plate_that_verifies(
     assert page.inner_text("#model-name") == "bunny"
     page.uncheck("#follow")  # designed on the button only (the next test follows)
 
-    # drag on the model: the pose turns about the plate's y and x axes
+    # drag on the model: the pose turns about the plate's y and x axes (the
+    # canvas brought back into view: unticking "follow" may have scrolled it away)
+    page.locator("#model").scroll_into_view_if_needed()
     box = page.locator("#model").bounding_box()
     cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
     asked = page.evaluate("window.studio.previews()")

@@ -22,7 +22,18 @@ from specholo.jobs.flat.folder import DesignConfig, design, write_design
 
 #: The stages of a design, as the page shows them.
 STAGES = ("designing: stipples, occlusion, grooves and their as-cut figures",
-          "writing the G-code, SVG and data")
+          "writing the G-code, SVG, DXF and data")
+
+
+#: The files the studio's designs write (the PDF pattern is made when asked for:
+#: :meth:`Runner.export`).
+STUDIO_FORMATS = ("gcode", "svg", "dxf")
+#: The files the page exports one by one: file name -> (its ``--formats`` name,
+#: its media type).
+EXPORTS = {"hologram.gcode": ("gcode", "text/plain"),
+           "hologram.svg": ("svg", "image/svg+xml"),
+           "hologram.dxf": ("dxf", "application/dxf"),
+           "pattern.pdf": ("pdf", "application/pdf")}
 
 
 def one_line(exc: BaseException) -> str:
@@ -75,6 +86,7 @@ class Runner:
         self._state: dict[str, Any] = {"state": "idle"}
         self._started = 0.0
         self._thread: threading.Thread | None = None
+        self._export_lock = threading.Lock()
 
     def start(self, model: Path, name: str, config: DesignConfig,
               on_done: Callable[[], None] | None = None, model_id: int = 0) -> bool:
@@ -119,7 +131,7 @@ class Runner:
                 self._set(stage=STAGES[1])
                 out.parent.mkdir(parents=True, exist_ok=True)
                 written = write_design(d, out, command=["specholo", "studio", str(model)],
-                                       inputs=[model])
+                                       inputs=[model], formats=STUDIO_FORMATS)
             self._set(state="done", stage="done", summary=summary_figures(d, written, out))
         except BaseException as exc:  # noqa: BLE001 - the page shows one line, never a trace
             self._set(state="failed", stage="failed", error=one_line(exc))
@@ -154,11 +166,8 @@ class Runner:
         if thread is not None:
             thread.join(timeout)
 
-    def zip_bytes(self, model_id: int | None = None) -> tuple[str, bytes]:
-        """The finished design's folder as a zip, made in memory: (file name, bytes).
-
-        Args:
-            model_id: the model the design must be of (None: whatever model).
+    def finished_folder(self, model_id: int | None = None) -> Path:
+        """The finished design's folder (of ``model_id``'s model; None: any).
 
         Raises:
             SpecholoError: no finished design (of that model), or its folder is gone.
@@ -169,6 +178,42 @@ class Runner:
         folder = Path(state["folder"])
         if not folder.is_dir():
             raise SpecholoError(f"the design folder {folder} is gone")
+        return folder
+
+    def export(self, name: str, model_id: int | None = None) -> Path:
+        """One file of the finished design (:data:`EXPORTS`). The paper pattern
+        takes about a minute at 100,000 strokes, so it is made only when asked
+        for: written atomically into the design's folder from the folder
+        itself, as ``specholo design --formats pdf`` would have written it.
+
+        Raises:
+            SpecholoError: an unknown file, or no finished design.
+        """
+        if name not in EXPORTS:
+            raise SpecholoError(f"no such file to export: {name[:40]!r} "
+                                f"(one of {', '.join(EXPORTS)})")
+        folder = self.finished_folder(model_id)
+        path = folder / name
+        if not path.exists():
+            if name != "pattern.pdf":
+                raise SpecholoError(f"this design was written without {name}")
+            with self._export_lock:  # two clicks write it once
+                if not path.exists():
+                    from specholo.jobs.flat.folder import write_paper_pattern
+
+                    write_paper_pattern(folder)
+        return path
+
+    def zip_bytes(self, model_id: int | None = None) -> tuple[str, bytes]:
+        """The finished design's folder as a zip, made in memory: (file name, bytes).
+
+        Args:
+            model_id: the model the design must be of (None: whatever model).
+
+        Raises:
+            SpecholoError: no finished design (of that model), or its folder is gone.
+        """
+        folder = self.finished_folder(model_id)
         buf = io.BytesIO()
         with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
             for f in sorted(folder.rglob("*")):

@@ -23,6 +23,8 @@ Endpoints (JSON unless said otherwise):
   streamed to disk, at most :data:`MAX_UPLOAD` bytes (:data:`MAX_TEXT_UPLOAD` for text).
 - ``POST /api/design``: start the exact design; ``GET /api/design``: its status.
 - ``GET /api/design.zip``: the finished design's folder, zipped.
+- ``GET /api/design/file?name=hologram.gcode``: one of its files (:data:`EXPORTS`:
+  the G-code, SVG, DXF, and the PDF pattern, made when first asked for).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ import hmac
 import json
 import re
 import secrets
+import shlex
 import shutil
 import socket
 import sys
@@ -45,10 +48,14 @@ from pathlib import Path
 from typing import Any
 
 from specholo.errors import SpecholoError
+from specholo.fabrication.programs.machines import MACHINES
 from specholo.jobs.flat.folder import DesignConfig
+from specholo.optics.cutters import KINDS as CUTTER_KINDS
 from specholo.scene.loading import FORMATS, Model, load_model
+from specholo.scene.pose import UP_AXES
+from specholo.setup import HOLDERS, PRELOAD_RANGE, SETTING_BOUNDS
 from specholo.studio.preview import NO_RIDGED, fast_preview
-from specholo.studio.runner import Runner, one_line
+from specholo.studio.runner import EXPORTS, STUDIO_FORMATS, Runner, one_line
 
 #: The only address the studio listens on.
 HOST = "127.0.0.1"
@@ -106,13 +113,56 @@ def safe_name(name: str) -> str:
 
 
 def config_of(settings: Any) -> DesignConfig:
-    """The design's settings from the page's (the option names of ``specholo design``)."""
+    """The design's settings from the page's (the option names of ``specholo design``;
+    a setting the page leaves blank, null, takes the command's default)."""
     if not isinstance(settings, dict):
         raise SpecholoError("settings must be a table of options")
     if settings.get("method") == "ridged":
         # refused as such, before the page's grooved settings would be refused one by one
         raise SpecholoError(NO_RIDGED)
-    return DesignConfig.from_dict(settings)
+    return DesignConfig.from_dict({k: v for k, v in settings.items() if v is not None})
+
+
+#: The settings the page offers a choice of, beyond its sliders: each a
+#: ``specholo design`` option (a ridged plate is the command's, not the page's).
+CHOICES: dict[str, tuple[str, ...]] = {
+    "up": tuple(UP_AXES), "method": ("striped", "hyperbola", "arc"), "tool": CUTTER_KINDS,
+    "holder": HOLDERS, "machine": tuple(MACHINES)}
+#: Flags of ``specholo design`` whose setting is their opposite.
+NEGATED = {"order": "--no-order"}
+
+
+def settings_schema() -> dict[str, Any]:
+    """What the page needs to offer every setting as the command does: the
+    command's defaults, each number's bounds and unit (:data:`SETTING_BOUNDS`),
+    the spring preload's range and each choice's values."""
+    lo, hi = PRELOAD_RANGE
+    return {"defaults": asdict(DesignConfig()),
+            "bounds": {**{k: list(v) for k, v in SETTING_BOUNDS.items()},
+                       "preload": [lo, hi, "mm"], "visibility": [0.0, 1.0, "share"]},
+            "choices": {k: list(v) for k, v in CHOICES.items()}}
+
+
+def command_for(model: str, out: Path, settings: dict[str, Any]) -> str:
+    """The ``specholo design`` command that designs what the page designs with
+    ``settings`` (the page's; a blank, null, is the command's default): each
+    setting the page gives away from the command's default, by its option name.
+
+    Raises:
+        SpecholoError: settings the design refuses (the same line).
+    """
+    config_of(settings)  # refused as the design would refuse them
+    defaults = asdict(DesignConfig())
+    words = ["specholo", "design", model, "--out", str(out), "--formats", ",".join(STUDIO_FORMATS)]
+    for key, value in settings.items():
+        if value is None or key not in defaults or value == defaults[key]:
+            continue
+        flag = "--" + key.replace("_", "-")
+        if isinstance(value, bool):
+            words.append(flag if value else NEGATED.get(key, f"--no-{key}"))
+        else:
+            words += [flag, str(value)]
+    return shlex.join(words)
 
 
 def looks_like_text(head: bytes) -> bool:
@@ -238,6 +288,20 @@ class Studio:
             model_id = self.model_id
         return self.runner.status(model_id)
 
+    def command(self, settings: dict[str, Any]) -> str:
+        """The command line that designs the open model as the page would
+        (:func:`command_for`): the model as it was given (an upload by its
+        name), into the folder the studio writes it to."""
+        _, path, name, _ = self.current()
+        given = path.name if self.uploads in path.parents else str(path)
+        return command_for(given, self.runner.out_root / name, settings)
+
+    def export(self, name: str) -> Path:
+        """One file of the open model's finished design (see :meth:`Runner.export`)."""
+        with self._lock:
+            model_id = self.model_id
+        return self.runner.export(name, model_id)
+
     def zip_bytes(self) -> tuple[str, bytes]:
         """The open model's finished design, zipped (see :meth:`Runner.zip_bytes`)."""
         with self._lock:
@@ -250,7 +314,7 @@ class Studio:
             model = self.name if self.model is not None else None
             model_id = self.model_id
         return {"model": model, "model_id": model_id,
-                "settings": {**asdict(DesignConfig()), **START},
+                "settings": {**asdict(DesignConfig()), **START}, **settings_schema(),
                 "formats": list(FORMATS), "design": self.design_status()}
 
     def close(self) -> None:
@@ -539,6 +603,13 @@ class _Handler(BaseHTTPRequestHandler):
                 name, data = studio.zip_bytes()
                 self._send(200, data, "application/zip",
                            {"Content-Disposition": f'attachment; filename="{name}"'})
+            elif path == "/api/design/file":
+                query = urllib.parse.parse_qs(urllib.parse.urlsplit(self.path).query)
+                name = (query.get("name") or [""])[0]
+                found = studio.export(name)
+                self._send(200, found.read_bytes(), EXPORTS[name][1],
+                           {"Content-Disposition":
+                            f'attachment; filename="{found.parent.name}-{name}"'})
             else:
                 self._error(404, f"no such page: {path}")
         except Exception as exc:  # noqa: BLE001 - one line to the page, the server goes on
@@ -572,7 +643,8 @@ class _Handler(BaseHTTPRequestHandler):
                 model = studio.current()[0]
                 with studio.preview_lock:
                     preview = fast_preview(model, config)
-                self._json(200, preview.as_json())
+                self._json(200, {**preview.as_json(),
+                                 "command": studio.command(request["settings"])})
             elif studio.design(config):
                 self._json(202, studio.design_status())
             else:

@@ -74,15 +74,91 @@ function setAzimuth(a) {
 }
 
 function sent() {
-  // What the server designs from: the design's option names.
+  // What the server designs from: the design's option names; a blank is null,
+  // the command's default.
   const s = {};
-  for (const k of [...SLIDERS, "up", "rotate_x", "rotate_y", "seed"]) s[k] = S.settings[k];
+  for (const k of [...SLIDERS, "up", "rotate_x", "rotate_y", "seed", ...moreKeys()])
+    s[k] = S.settings[k] === undefined ? null : S.settings[k];
   s.stipples = Math.round(s.stipples);
+  // a target visibility chooses the count itself
+  if (s.visibility !== null) s.stipples = null;
   return s;
 }
 
+// ---------------------------------------------------------------- more settings
+// Each control of #more is a `specholo design` option by its id: a number
+// (blank: the default), a choice (the first entry: the default) or a flag.
+function moreKeys() {
+  return [...document.querySelectorAll("#more [data-setting]")].map((el) => el.id);
+}
+
+function setupMore(st) {
+  // The command's bounds and choices, as the server states them.
+  for (const el of document.querySelectorAll("#more [data-setting]")) {
+    const k = el.id, kind = el.dataset.setting, dflt = st.defaults[k];
+    if (kind === "number") {
+      const b = st.bounds[k];
+      if (b) { el.min = b[0]; el.max = b[1]; el.title += ` [${b[0]}, ${b[1]}] ${b[2]}`; }
+      el.placeholder = dflt === null || dflt === undefined ? "default" : dflt;
+    } else if (kind === "choice") {
+      el.innerHTML = "";
+      const none = document.createElement("option");
+      none.value = ""; none.textContent = dflt === null || dflt === undefined ?
+        "default" : `${dflt} (default)`;
+      el.appendChild(none);
+      for (const v of st.choices[k]) {
+        if (v === dflt) continue;
+        const o = document.createElement("option");
+        o.value = o.textContent = v; el.appendChild(o);
+      }
+    }
+  }
+}
+
+function showMore() {
+  for (const el of document.querySelectorAll("#more [data-setting]")) {
+    const v = S.settings[el.id];
+    if (el.dataset.setting === "flag") el.checked = !!v;
+    else el.value = v === null || v === undefined ? "" : v;
+  }
+}
+
+function bindMore() {
+  for (const el of document.querySelectorAll("#more [data-setting]")) {
+    el.addEventListener("change", () => {
+      const kind = el.dataset.setting;
+      S.settings[el.id] = kind === "flag" ? el.checked :
+        el.value === "" ? null : kind === "number" ? +el.value : el.value;
+      changed();
+    });
+  }
+  $("copy-command").addEventListener("click", () => {
+    navigator.clipboard?.writeText($("command").textContent);
+  });
+}
+
+// The settings stay in this browser, for this model: a reload (or the studio
+// started again on the same model) picks up where the maker left off.
+const SAVED = "specholo-studio-settings";
+
+function saveSettings() {
+  if (!S.model) return;
+  try {
+    localStorage.setItem(SAVED, JSON.stringify({model: S.model, settings: S.settings}));
+  } catch (e) { /* storage full or refused: the page works without it */ }
+}
+
+function savedSettings(model) {
+  try {
+    const saved = JSON.parse(localStorage.getItem(SAVED) || "null");
+    return saved && saved.model === model ? saved.settings : null;
+  } catch (e) {
+    return null;
+  }
+}
+
 // ---------------------------------------------------------------- preview
-function changed() { S.dirty = true; if (!S.inFlight) askPreview(); }
+function changed() { S.dirty = true; saveSettings(); if (!S.inFlight) askPreview(); }
 
 async function askPreview() {
   if (!S.model) return;
@@ -92,6 +168,7 @@ async function askPreview() {
     S.preview = await call("POST", "/api/preview", {settings: sent()});
     S.preview.ms = performance.now() - t0;
     S.asked += 1;
+    $("command").textContent = S.preview.command;
     showError("");
   } catch (e) {
     showError(e.message);
@@ -301,7 +378,11 @@ function bindInputs() {
     });
   }
   $("up").addEventListener("change", (ev) => { setSetting("up", ev.target.value); changed(); });
-  $("zip").addEventListener("click", download);
+  $("zip").addEventListener("click", () => download("/api/design.zip", "design.zip"));
+  for (const b of document.querySelectorAll("button.file"))
+    b.addEventListener("click", () => download(
+      `/api/design/file?name=${encodeURIComponent(b.dataset.file)}`, b.dataset.file, b));
+  bindMore();
   $("azimuth").addEventListener("input", (ev) => setAzimuth(+ev.target.value));
   $("reset").addEventListener("click", () => {
     for (const k of ["rotate_x", "rotate_y", "offset_x", "offset_y"]) setSetting(k, 0);
@@ -368,15 +449,19 @@ function setModel(name, id) {
   showEstimates();
 }
 
-async function download() {
-  // A plain link cannot carry the secret's header: the zip is fetched with it,
+async function download(url, fallback, button) {
+  // A plain link cannot carry the secret's header: the file is fetched with it,
   // then saved from memory.
   let reply;
+  if (button) { button.disabled = true; button.dataset.label = button.textContent;
+                button.textContent = "making\u2026"; }
   try {
-    reply = await fetch("/api/design.zip", {headers: {"X-Specholo-Token": TOKEN}});
+    reply = await fetch(url, {headers: {"X-Specholo-Token": TOKEN}});
   } catch (e) {
     showError("the studio server does not answer (was it stopped?)");
     return;
+  } finally {
+    if (button) { button.disabled = false; button.textContent = button.dataset.label; }
   }
   if (!reply.ok) {
     const data = await reply.json().catch(() => ({error: "bad answer from the server"}));
@@ -384,7 +469,7 @@ async function download() {
     return;
   }
   const name = (/filename="([^"]+)"/.exec(reply.headers.get("Content-Disposition") || "") ||
-                [null, "design.zip"])[1];
+                [null, fallback])[1];
   const a = document.createElement("a");
   a.href = URL.createObjectURL(await reply.blob());
   a.download = name;
@@ -402,7 +487,13 @@ async function start() {
   }
   try {
     const st = await call("GET", "/api/state");
-    for (const [k, v] of Object.entries(st.settings)) setSetting(k, v);
+    setupMore(st);
+    // The options of #more start blank, the command's defaults (a holder or a
+    // spindle the tool implies is the design's to choose), unless saved.
+    const blank = Object.fromEntries(moreKeys().map((k) => [k, k === "fit" ? false : null]));
+    const settings = Object.assign({}, st.settings, blank, savedSettings(st.model) || {});
+    for (const [k, v] of Object.entries(settings)) setSetting(k, v);
+    showMore();
     setAzimuth(0);
     setModel(st.model, st.model_id);
     showDesign(st.design);
@@ -426,5 +517,6 @@ window.studio = {
   exact: () => S.done && {settings: JSON.parse(S.done.key), summary: S.done.summary,
                           current: S.done.key === key()},
   azimuth: () => S.azimuth,
+  command: () => $("command").textContent,
 };
 start();

@@ -367,6 +367,20 @@ def write_design(d: Design, out: str | os.PathLike[str],
     return Written(timings, info["machining"], plate)
 
 
+def write_paper_pattern(folder: str | os.PathLike[str]) -> Path:
+    """Write a design folder's printable pattern (``pattern.pdf``) from the folder,
+    atomically, as ``--formats pdf`` writes it with the design: an arc design's
+    compass pattern, else its strokes. Returns its path."""
+    from specholo.fabrication.drawings.pattern import write_pattern
+    from specholo.fabrication.drawings.stroke_pattern import write_stroke_pattern
+
+    loaded = load_design(folder)
+    path = Path(folder) / "pattern.pdf"
+    write = write_pattern if loaded.config.method == "arc" else write_stroke_pattern
+    write(path, loaded.grooves)
+    return path
+
+
 @dataclass
 class Loaded:
     """A design read back from its output folder."""

@@ -1,0 +1,130 @@
+"""The studio offers every setting a maker changes, as ``specholo design`` takes
+it: the page's controls are the command's options with its bounds and
+choices, the page shows the command that designs what it designs (run, it
+gives the same files), each file downloads in one click, and the settings
+survive a reload."""
+
+from __future__ import annotations
+
+import json
+import re
+import shlex
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from test_studio import BUNNY, _settled, request
+
+from specholo.studio.server import StudioServer, make_server
+from specholo_cli.cli import cli, main
+
+PAGE = Path(__file__).resolve().parents[1] / "src" / "specholo" / "studio" / "page.html"
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[StudioServer]:
+    s = make_server(BUNNY, tmp_path_factory.mktemp("studio-out"), 0)
+    thread = threading.Thread(target=s.serve_forever, daemon=True)
+    thread.start()
+    yield s
+    s.shutdown()
+    s.server_close()
+    s.studio.runner.wait(120)
+
+
+def _design(server: StudioServer, settings: dict[str, Any]) -> dict[str, Any]:
+    code, reply = request(server, "/api/design", {"settings": settings})
+    assert code == 202, reply
+    server.studio.runner.wait(180)
+    code, status = request(server, "/api/design")
+    assert status["state"] == "done", status
+    return status
+
+
+def test_every_control_of_the_page_is_a_design_option_with_its_choices(server: StudioServer):
+    options = {p.name: p for p in cli.commands["design"].params}
+    ids = re.findall(r'id="([a-z_]+)" data-setting', PAGE.read_text())
+    assert len(ids) >= 15
+    assert set(ids) <= set(options), set(ids) - set(options)
+    code, state = request(server, "/api/state")
+    assert code == 200
+    for name, values in state["choices"].items():
+        choices = set(options[name].type.choices)  # type: ignore[attr-defined]
+        # a ridged plate is `specholo design --method ridged`'s, not the page's
+        assert set(values) == choices - {"ridged"}, name
+    for name in ids:
+        if name in state["bounds"]:
+            lo, hi, _ = state["bounds"][name]
+            assert lo < hi
+
+
+def test_the_pages_command_makes_the_same_design(server: StudioServer, tmp_path: Path):
+    settings = {"stipples": 120, "size": 50, "center_z": -30, "rotate_x": 10,
+                "rotate_y": 25, "rotate_z": 15, "up": "y", "offset_x": 0, "offset_y": 0,
+                "light_elevation": 50, "view_range": 40, "view_distance": 600, "seed": 0,
+                "tool": "drag", "tool_radius": 0.03, "holder": "rigid", "depth": None,
+                "machine": "grbl-router", "method": None, "ipd": None}
+    code, preview = request(server, "/api/preview", {"settings": settings})
+    assert code == 200, preview
+    words = shlex.split(preview["command"])
+    assert words[:2] == ["specholo", "design"]
+    for flag in ("--tool-radius", "--holder", "--machine", "--rotate-z"):
+        assert flag in words, words
+    assert "--ipd" not in words and "--method" not in words  # left to their defaults
+    status = _design(server, settings)
+    assert words[2] == str(BUNNY)  # the model as the studio was given it
+    words[words.index("--out") + 1] = str(tmp_path / "cli")
+    assert main(words[1:]) == 0
+    page, cli_folder = Path(status["folder"]), tmp_path / "cli"
+    ours = json.loads((page / "hologram.json").read_text())["settings"]
+    theirs = json.loads((cli_folder / "hologram.json").read_text())["settings"]
+    assert ours == theirs
+    for name in ("grooves.npz", "hologram.gcode", "hologram.svg", "hologram.dxf"):
+        assert (page / name).read_bytes() == (cli_folder / name).read_bytes(), name
+
+
+def test_each_file_downloads_in_one_request(server: StudioServer):
+    status = _design(server, {"stipples": 60, "size": 40, "center_z": -20})
+    folder = Path(status["folder"])
+    code, body = request(server, "/api/design/file?name=hologram.gcode")
+    assert code == 200 and body == (folder / "hologram.gcode").read_bytes()
+    code, body = request(server, "/api/design/file?name=hologram.dxf")
+    assert code == 200 and body == (folder / "hologram.dxf").read_bytes()
+    assert not (folder / "pattern.pdf").exists()  # made when first asked for
+    code, body = request(server, "/api/design/file?name=pattern.pdf")
+    assert code == 200 and body.startswith(b"%PDF") and (folder / "pattern.pdf").exists()
+    code, reply = request(server, "/api/design/file?name=..%2Fhologram.json")
+    assert code == 400 and "no such file to export" in reply["error"]
+    code, _ = request(server, "/api/design/file?name=hologram.gcode",
+                      headers={"X-Specholo-Token": "wrong"})
+    assert code == 403
+
+
+def test_the_settings_survive_a_reload(server: StudioServer, browser: Any):
+    context = browser.new_context(bypass_csp=True, viewport={"width": 1400, "height": 1000})
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(server.url)
+    _settled(page)
+    page.uncheck("#follow")
+    page.click("#more-box summary")  # the options beyond the sliders, folded away at first
+    page.fill("#tool_radius", "0.03")
+    page.dispatch_event("#tool_radius", "change")
+    page.select_option("#holder", "rigid")
+    page.select_option("#up", "z")
+    page.dispatch_event("#up", "change")
+    page.wait_for_function("window.studio.command().includes('--tool-radius 0.03')")
+    _settled(page)
+    command = page.evaluate("window.studio.command()")
+    assert "--holder rigid" in command and "--up z" in command, command
+    page.reload()
+    _settled(page)
+    assert page.input_value("#tool_radius") == "0.03"
+    assert page.input_value("#holder") == "rigid" and page.input_value("#up") == "z"
+    page.wait_for_function("window.studio.command().includes('--tool-radius 0.03')")
+    assert page.evaluate("window.studio.settings()")["up"] == "z"  # the model stays upright
+    context.close()
+    assert errors == []
