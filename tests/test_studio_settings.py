@@ -120,6 +120,13 @@ def test_the_settings_survive_a_reload(server: StudioServer, browser: Any):
     _settled(page)
     command = page.evaluate("window.studio.command()")
     assert "--holder rigid" in command and "--up z" in command, command
+    # designed, the page sets the design beside the classic arcs of its settings
+    page.click("#design")
+    page.wait_for_selector("#compare:not([hidden])", timeout=120_000)
+    rows = page.locator("#compare tbody tr")
+    assert rows.count() == 2
+    assert rows.nth(0).inner_text().startswith("exact (striped)")
+    assert rows.nth(1).inner_text().startswith("classic arcs")
     page.reload()
     _settled(page)
     assert page.input_value("#tool_radius") == "0.03"
@@ -128,3 +135,21 @@ def test_the_settings_survive_a_reload(server: StudioServer, browser: Any):
     assert page.evaluate("window.studio.settings()")["up"] == "z"  # the model stays upright
     context.close()
     assert errors == []
+
+
+def test_the_design_stands_beside_the_classic_arcs(server: StudioServer, tmp_path: Path):
+    """The page sets each design beside the arcs of the same settings: the
+    exact grooves' worst error is a fraction of the arcs' (right at every view,
+    where the arcs are right only near the straight-on one), and its figures
+    are what `specholo verify` finds on the folder."""
+    status = _design(server, {"stipples": 200, "size": 50, "center_z": -30})
+    exact, arcs = status["summary"]["compared"]
+    assert exact["label"] == "exact (striped)" and arcs["label"] == "classic arcs"
+    assert exact["strokes"] > 10 * arcs["strokes"]  # what exact costs...
+    assert exact["worst_p95_mm"] < 0.05 * arcs["worst_p95_mm"]  # ...and what it buys
+    assert exact["as_cut_lowest"] > arcs["as_cut_lowest"]
+    folder = Path(status["folder"])
+    assert main(["verify", str(folder), "--step", "5"]) == 0
+    figures = json.loads((folder / "verify.json").read_text())["figures"]
+    assert exact["worst_p95_mm"] == pytest.approx(figures["worst_p95_mm"], rel=1e-9)
+    assert exact["lowest_visibility"] == pytest.approx(figures["lowest_visibility"], rel=1e-9)

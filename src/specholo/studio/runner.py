@@ -22,7 +22,8 @@ from specholo.jobs.flat.folder import DesignConfig, design, write_design
 
 #: The stages of a design, as the page shows them.
 STAGES = ("designing: stipples, occlusion, grooves and their as-cut figures",
-          "writing the G-code, SVG, DXF and data")
+          "writing the G-code, SVG, DXF and data",
+          "comparing with the classic arcs of the same settings")
 
 
 #: The files the studio's designs write (the PDF pattern is made when asked for:
@@ -73,15 +74,69 @@ def summary_figures(d: Any, written: Any, out: Path) -> dict[str, Any]:
     }
 
 
+#: The views the comparison with the classic arcs verifies, at most this far apart.
+COMPARE_STEP = math.radians(5.0)
+
+
+def design_figures(d: Any, label: str) -> dict[str, Any]:
+    """What a maker weighs a design by, on the same scene: its strokes and
+    groove length, its worst 95th-percentile error and lowest share of
+    stipples shown to both eyes on the ideal grooves (both eyes simulated at
+    every view at most :data:`COMPARE_STEP` apart, as ``specholo verify``), and
+    the share it expects to show as cut."""
+    from specholo.simulation.verify import summarise, verify, view_azimuths
+    from specholo.visibility.occlusion import visible
+
+    setup = d.config.setup()
+    mesh, normals = d.model.mesh, d.normals
+    shown = None
+    if mesh is not None and normals is not None:
+        def shown(points: Any, eyes: Any) -> Any:
+            return visible(mesh, points, normals, eyes)
+
+    reports = verify(d.grooves, d.points, setup, shown,
+                     view_azimuths(setup.viewer.half_range, COMPARE_STEP))
+    worst = summarise(reports)
+    figures = d.as_cut.mean_and_lowest() if d.as_cut is not None else None
+
+    def number(v: float) -> float | None:
+        return None if math.isnan(v) else float(v)
+
+    return {"label": label, "strokes": int(d.grooves.n_paths),
+            "groove_length_mm": float(d.grooves.total_length()),
+            "worst_p95_mm": number(worst["worst_p95_error"]),
+            "lowest_visibility": number(worst["min_visibility"]),
+            "as_cut_mean": None if figures is None else float(figures[0]),
+            "as_cut_lowest": None if figures is None else float(figures[1])}
+
+
+def compare_with_arcs(model: Path, d: Any) -> list[dict[str, Any]]:
+    """The design beside the classic arcs of the same settings (``--method arc``:
+    one circular arc a stipple, right only near the straight-on view), each by
+    :func:`design_figures`; an arc design alone is itself the arcs."""
+    import dataclasses
+
+    method = d.config.method
+    rows = [design_figures(d, "classic arcs" if method == "arc" else f"exact ({method})")]
+    if method != "arc":
+        arcs = design(model, dataclasses.replace(d.config, method="arc"))
+        rows.append(design_figures(arcs, "classic arcs"))
+    return rows
+
+
 class Runner:
     """At most one exact design at a time, its stage and its result.
 
     Args:
         out_root: the folder designs are written under (one subfolder a model).
+        compare: set each design beside the classic arcs of its settings
+            (:func:`compare_with_arcs`) before it is done.
     """
 
-    def __init__(self, out_root: Path) -> None:
+    def __init__(self, out_root: Path, compare: bool = True) -> None:
         self.out_root = Path(out_root)
+        # each design is set beside the classic arcs (compare_with_arcs)
+        self.compare = compare
         self._lock = threading.Lock()
         self._state: dict[str, Any] = {"state": "idle"}
         self._started = 0.0
@@ -132,7 +187,12 @@ class Runner:
                 out.parent.mkdir(parents=True, exist_ok=True)
                 written = write_design(d, out, command=["specholo", "studio", str(model)],
                                        inputs=[model], formats=STUDIO_FORMATS)
-            self._set(state="done", stage="done", summary=summary_figures(d, written, out))
+                summary = summary_figures(d, written, out)
+                if self.compare:
+                    stage[0] = STAGES[2]
+                    self._set(stage=STAGES[2])
+                    summary["compared"] = compare_with_arcs(model, d)
+            self._set(state="done", stage="done", summary=summary)
         except BaseException as exc:  # noqa: BLE001 - the page shows one line, never a trace
             self._set(state="failed", stage="failed", error=one_line(exc))
         finally:

@@ -17,7 +17,8 @@ that hangs up is no traceback on the terminal.
 Endpoints (JSON unless said otherwise):
 
 - ``GET /``, ``/studio.js``, ``/studio.css``: the page, from this package (no secret in them).
-- ``GET /api/state``: the model, the default settings, the design's status.
+- ``GET /api/state``: the model, the default settings, the command's defaults,
+  bounds and choices (:func:`settings_schema`), the design's status.
 - ``POST /api/preview``: ``{"settings": {...}}`` -> :meth:`Preview.as_json`.
 - ``POST /api/model``: a model file's bytes (its name in ``X-Specholo-Name``),
   streamed to disk, at most :data:`MAX_UPLOAD` bytes (:data:`MAX_TEXT_UPLOAD` for text).

@@ -358,7 +358,7 @@ function showDesign(st) {
     st.state === "failed" ? `failed: ${st.error}` : `${st.stage}${secs}`;
   const t = $("result"); t.innerHTML = "";
   $("export").hidden = st.state !== "done";
-  if (st.state !== "done") return;
+  if (st.state !== "done") { showCompared([]); return; }
   const f = st.summary, pct = (v) => v === null ? "\u2014" : `${Math.round(100 * v)}%`;
   row(t, "as-cut visibility", `${pct(f.as_cut_mean)} mean, ${pct(f.as_cut_lowest)} lowest`);
   row(t, "machining", `about ${f.machining} (${f.machining_hours.toFixed(2)} h)`);
@@ -366,6 +366,22 @@ function showDesign(st) {
   row(t, "groove length", `${(f.groove_length_mm / 1000).toFixed(2)} m, ${f.paths} paths`);
   for (const w of f.warnings) row(t, "warning", w);
   $("folder").textContent = st.folder;
+  showCompared(f.compared || []);
+}
+
+function showCompared(rows) {
+  // Why exact is worth its strokes: the arcs' error away from the straight-on view.
+  const body = $("compare").tBodies[0]; body.innerHTML = "";
+  $("compare").hidden = rows.length === 0;
+  const pct = (v) => v === null ? "\u2014" : `${Math.round(100 * v)}%`;
+  for (const r of rows) {
+    const tr = body.insertRow();
+    for (const text of [r.label, r.strokes.toLocaleString("en"),
+                        r.worst_p95_mm === null ? "\u2014" : `${r.worst_p95_mm.toFixed(2)} mm`,
+                        pct(r.lowest_visibility),
+                        `${pct(r.as_cut_mean)} / ${pct(r.as_cut_lowest)}`])
+      tr.insertCell().textContent = text;
+  }
 }
 
 // ---------------------------------------------------------------- input
