@@ -120,6 +120,11 @@ def test_the_settings_survive_a_reload(server: StudioServer, browser: Any):
     _settled(page)
     command = page.evaluate("window.studio.command()")
     assert "--holder rigid" in command and "--up z" in command, command
+    # before any exact design, the figures a maker decides on are estimates, so labelled
+    page.wait_for_function("window.studio.estimate() !== null", timeout=60_000)
+    quick = page.evaluate("window.studio.estimate()")
+    table = page.inner_text("#estimates")
+    assert f"about {quick['machining']}" in table and "estimate:" in table, table
     # designed, the page sets the design beside the classic arcs of its settings
     page.click("#design")
     page.wait_for_selector("#compare:not([hidden])", timeout=120_000)
@@ -153,3 +158,28 @@ def test_the_design_stands_beside_the_classic_arcs(server: StudioServer, tmp_pat
     figures = json.loads((folder / "verify.json").read_text())["figures"]
     assert exact["worst_p95_mm"] == pytest.approx(figures["worst_p95_mm"], rel=1e-9)
     assert exact["lowest_visibility"] == pytest.approx(figures["lowest_visibility"], rel=1e-9)
+
+
+def test_the_estimate_is_the_exact_design_of_a_strip_at_full_density(server: StudioServer):
+    """The page's quick figures come from designing a strip of the plate: a
+    design small enough to design whole gives the exact design's figures, and
+    a larger one's fall near them (docs/studio.md states the margin)."""
+    small = {"stipples": 150, "size": 50, "center_z": -30}
+    code, quick = request(server, "/api/estimate", {"settings": small})
+    assert code == 200, quick
+    assert (quick["sample"], quick["of"]) == (150, 150)  # designed whole
+    exact = _design(server, small)["summary"]
+    assert quick["strokes"] == exact["paths"]
+    assert quick["as_cut_mean"] == pytest.approx(exact["as_cut_mean"], abs=1e-12)
+    assert quick["as_cut_lowest"] == pytest.approx(exact["as_cut_lowest"], abs=1e-12)
+    assert quick["machining_hours"] == pytest.approx(exact["machining_hours"], rel=1e-9)
+    larger = {"stipples": 1000}
+    code, quick = request(server, "/api/estimate", {"settings": larger})
+    assert code == 200 and quick["sample"] == 200 and quick["of"] == 1000
+    exact = _design(server, larger)["summary"]
+    assert abs(quick["as_cut_mean"] - exact["as_cut_mean"]) <= 0.04
+    assert abs(quick["as_cut_lowest"] - exact["as_cut_lowest"]) <= 0.1
+    assert quick["strokes"] == pytest.approx(exact["paths"], rel=0.4)
+    assert quick["machining_hours"] == pytest.approx(exact["machining_hours"], rel=0.4)
+    code, reply = request(server, "/api/estimate", {"settings": {"visibility": 0.8}})
+    assert code == 200 and "chosen by the design" in reply["why"]

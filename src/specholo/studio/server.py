@@ -20,6 +20,8 @@ Endpoints (JSON unless said otherwise):
 - ``GET /api/state``: the model, the default settings, the command's defaults,
   bounds and choices (:func:`settings_schema`), the design's status.
 - ``POST /api/preview``: ``{"settings": {...}}`` -> :meth:`Preview.as_json`.
+- ``POST /api/estimate``: ``{"settings": {...}}`` -> the design's figures from a
+  sample of it (:func:`specholo.studio.estimate.estimate`), one at a time.
 - ``POST /api/model``: a model file's bytes (its name in ``X-Specholo-Name``),
   streamed to disk, at most :data:`MAX_UPLOAD` bytes (:data:`MAX_TEXT_UPLOAD` for text).
 - ``POST /api/design``: start the exact design; ``GET /api/design``: its status.
@@ -55,6 +57,7 @@ from specholo.optics.cutters import KINDS as CUTTER_KINDS
 from specholo.scene.loading import FORMATS, Model, load_model
 from specholo.scene.pose import UP_AXES
 from specholo.setup import HOLDERS, PRELOAD_RANGE, SETTING_BOUNDS
+from specholo.studio.estimate import estimate
 from specholo.studio.preview import NO_RIDGED, fast_preview
 from specholo.studio.runner import EXPORTS, STUDIO_FORMATS, Runner, one_line
 
@@ -204,6 +207,8 @@ class Studio:
         self._lock = threading.Lock()
         # One preview at a time: the page asks again with its latest state.
         self.preview_lock = threading.Lock()
+        # One estimate at a time (each designs a sample: a second or two)
+        self.estimate_lock = threading.Lock()
 
     def open(self, path: Path, name: str | None = None) -> None:
         """Load a model file; the studio keeps its previous model if this one is bad."""
@@ -627,7 +632,7 @@ class _Handler(BaseHTTPRequestHandler):
             if path == "/api/model":
                 self._upload()
                 return
-            if path not in ("/api/preview", "/api/design"):
+            if path not in ("/api/preview", "/api/design", "/api/estimate"):
                 self._error(404, f"no such action: {path}")
                 return
             raw = self._body(MAX_JSON)
@@ -646,6 +651,15 @@ class _Handler(BaseHTTPRequestHandler):
                     preview = fast_preview(model, config)
                 self._json(200, {**preview.as_json(),
                                  "command": studio.command(request["settings"])})
+            elif path == "/api/estimate":
+                model_path = studio.current()[1]
+                if not studio.estimate_lock.acquire(blocking=False):
+                    self._error(409, "an estimate is already running; ask again after it")
+                    return
+                try:
+                    self._json(200, estimate(model_path, config))
+                finally:
+                    studio.estimate_lock.release()
             elif studio.design(config):
                 self._json(202, studio.design_status())
             else:

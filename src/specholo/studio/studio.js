@@ -9,7 +9,12 @@ const S = {settings: {}, azimuth: 0, preview: null, model: null, modelId: 0, spa
            asked: 0, inFlight: false, dirty: false, glintDraws: 0, lastGlints: [],
            // The exact design: the settings it was asked for (their JSON), whether
            // one runs, whether the current settings wait for it, the last one done.
-           designing: null, running: false, pending: false, done: null, followTimer: 0};
+           designing: null, running: false, pending: false, done: null, followTimer: 0,
+           // The quick figures from a sample design: for which settings, and
+           // whether one is being made.
+           estimate: null, estimating: false, estimateTimer: 0};
+//: How long the settings stay still before the sample design estimates them, ms.
+const ESTIMATE_MS = 250;
 //: How long the settings stay still before the exact design follows them, ms.
 const FOLLOW_MS = 1200;
 //: This run's secret, from the address the studio printed (?token=...): every
@@ -175,7 +180,30 @@ async function askPreview() {
   }
   S.inFlight = false;
   fit(); drawModel(); drawGlints(); showEstimates();
-  if (S.dirty) askPreview(); else follow();
+  if (S.dirty) askPreview(); else { follow(); askEstimate(); }
+}
+
+function askEstimate() {
+  // The sample design's figures, once the settings rest a moment; one at a
+  // time, the latest settings asked again when it is done.
+  clearTimeout(S.estimateTimer);
+  S.estimateTimer = setTimeout(async () => {
+    S.estimateTimer = 0;
+    const k = key(), model = S.modelId;
+    if (S.estimating || (S.estimate && S.estimate.key === k) || !S.model) return;
+    S.estimating = true; showEstimates();
+    let figures;
+    try {
+      figures = await call("POST", "/api/estimate", {settings: JSON.parse(k)});
+    } catch (e) {
+      figures = {why: e.message};
+    }
+    S.estimating = false;
+    // (an estimate of the model the page had when it asked, or none)
+    if (model === S.modelId) S.estimate = {key: k, figures};
+    showEstimates();
+    if (!S.estimate || S.estimate.key !== key()) askEstimate();
+  }, ESTIMATE_MS);
 }
 
 function key() { return JSON.stringify(sent()); }
@@ -296,11 +324,23 @@ function showEstimates() {
         "the exact design's, for these settings: both eyes, the plate as cut");
   } else {
     const coming = S.followTimer || S.pending || S.designing === key();
-    const why = coming ? "the exact design of these settings is on its way" :
-      "the exact design's: press Design exactly (or keep it to the settings)";
-    const wait = coming ? "updating\u2026" : "\u2014";
-    row(t, "machining, whole job", wait, why);
-    row(t, "as-cut visibility", wait, coming ? why : e.as_cut_why);
+    const q = S.estimate && S.estimate.key === key() ? S.estimate.figures : null;
+    const pct = (v) => v === null ? "\u2014" : `${Math.round(100 * v)}%`;
+    if (q && q.why === undefined) {
+      const from = `estimate: the exact design of ${q.sample} of the ${q.of} stipples, ` +
+        "a strip across the plate's middle at its full density" +
+        (coming ? "; the exact design of these settings is on its way" : "");
+      row(t, "machining, whole job", `about ${q.machining}`, from);
+      row(t, "as-cut visibility",
+          `about ${pct(q.as_cut_mean)} mean, ${pct(q.as_cut_lowest)} lowest`, from);
+      row(t, "strokes", `about ${q.strokes.toLocaleString("en")}`, from);
+    } else {
+      const why = q ? q.why : coming ? "the exact design of these settings is on its way" :
+        "the exact design's: press Design exactly (or keep it to the settings)";
+      const wait = S.estimating || coming ? "updating\u2026" : "\u2014";
+      row(t, "machining, whole job", wait, why);
+      row(t, "as-cut visibility", wait, q || coming ? why : e.as_cut_why);
+    }
   }
   row(t, "preview took", `${Math.round(p.ms)} ms`);
 }
@@ -456,8 +496,9 @@ function bindInputs() {
 
 function setModel(name, id) {
   if (id !== S.modelId) {
-    // Another model: the last exact design, and the one on its way, are not its.
-    S.done = null; S.designing = null; S.pending = false;
+    // Another model: the last exact design, and the one on its way, and the
+    // last estimate are not its.
+    S.done = null; S.designing = null; S.pending = false; S.estimate = null;
   }
   S.model = name; S.modelId = id;
   $("model-name").textContent = name || "no model";
@@ -534,5 +575,7 @@ window.studio = {
                           current: S.done.key === key()},
   azimuth: () => S.azimuth,
   command: () => $("command").textContent,
+  // The sample design's figures for the current settings, or null.
+  estimate: () => S.estimate && S.estimate.key === key() ? S.estimate.figures : null,
 };
 start();

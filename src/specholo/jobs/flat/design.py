@@ -10,7 +10,7 @@ import dataclasses
 import math
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -259,7 +259,8 @@ def up_hint(model: Any, config: DesignConfig) -> str:
 
 def design(model_path: str | os.PathLike[str], config: DesignConfig,
            rng: np.random.Generator | None = None, check_overlaps: bool | None = None,
-           expect_as_cut: bool | None = None) -> Design:
+           expect_as_cut: bool | None = None,
+           sample: Callable[[np.ndarray], np.ndarray] | None = None) -> Design:
     """Load, place, stipple, crop by occlusion, check the tool, design the grooves.
 
     Args:
@@ -273,11 +274,16 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
         expect_as_cut: find which glints survive the other grooves' cuts
             (:func:`expected_as_cut`); None for designs of at most
             :data:`AS_CUT_MAX_STIPPLES` stipples.
+        sample: design only the stipples it keeps ((n,) bool of the (n, 3)
+            stipples), placed and banded as the whole design's: a part of the
+            plate at the whole design's density, which a quick estimate
+            designs in its stead (:func:`specholo.studio.estimate.estimate`).
 
     Raises:
         SpecholoError: on bad input, a plate smaller than the design, or (with
             ``config.strict``) a tool whose walls lose views.
     """
+    from specholo.scene.stippling import Stipples
     from specholo.visibility.occlusion import visible_intervals
 
     if not isinstance(config, DesignConfig):
@@ -292,6 +298,10 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     if config.band_share is not None and config.method == "striped":
         config, band_note = machine_band(config, points)
         setup = config.setup()
+    if sample is not None:
+        keep = np.asarray(sample(points), dtype=bool)
+        st = Stipples(points[keep], None if st.normals is None else st.normals[keep])
+        points = st.points
     t0 = time.perf_counter()
     iv = visible_intervals(model.mesh, points, st.normals, setup.viewer)
     runs = make_runs(points, iv.stipple, iv.start, iv.end)

@@ -219,6 +219,34 @@ def dump_design_json(info: dict[str, Any], fh: Any) -> None:
     fh.write(tail)
 
 
+def program_options_of(config: DesignConfig) -> Any:
+    """The program's dialect and units (``GcodeOptions``) a design's settings ask for."""
+    from specholo.fabrication.programs.program import GcodeOptions
+
+    return GcodeOptions(dialect=config.dialect,  # type: ignore[arg-type]
+                        units=config.units)  # type: ignore[arg-type]
+
+
+def machining_estimate(config: DesignConfig, grooves: Grooves) -> tuple[Any, Any, Any]:
+    """How long the program of ``grooves`` (in cutting order) takes: (the tip's
+    ``Holder`` or None for a laser, the machining it runs with, the
+    ``TimeEstimate``), timed as the program runs: a spring holder lowers from
+    its lift to its preload and lifts back on every stroke (``Holder.program``,
+    as the writer), and a mill's program waits after starting its spindle."""
+    from specholo.fabrication.programs.timing import estimate_time
+
+    setup = config.setup()
+    options = program_options_of(config)
+    laser = config.dialect == "marlin"
+    holder = None if laser else config.holder_setup()
+    depth, machining = holder.program(config.depth_mm, setup.machining) \
+        if holder is not None else (config.depth_mm, setup.machining)
+    estimate = estimate_time(grooves, depth, machining, laser=laser,
+                             dwell=options.dwell if options.mill and setup.machining.spindle > 0
+                             else 0.0, machine=config.profile)
+    return holder, machining, estimate
+
+
 def write_design(d: Design, out: str | os.PathLike[str],
                  formats: tuple[str, ...] = DEFAULT_FORMATS,
                  command: list[str] | None = None,
@@ -245,8 +273,6 @@ def write_design(d: Design, out: str | os.PathLike[str],
     from specholo.fabrication.exporting import check_grooves
     from specholo.fabrication.programs.gcode import write_gcode
     from specholo.fabrication.programs.order import order_paths
-    from specholo.fabrication.programs.program import GcodeOptions
-    from specholo.fabrication.programs.timing import estimate_time
     from specholo.folders import check_out
     from specholo.preview.preview import render_preview
     from specholo.scene.stippling import check_disk
@@ -271,18 +297,8 @@ def write_design(d: Design, out: str | os.PathLike[str],
         d = dataclasses.replace(d, grooves=grooves)
         timings["ordering"] = time.perf_counter() - t0
     info = hologram_json(d)
-    options = GcodeOptions(dialect=d.config.dialect,  # type: ignore[arg-type]
-                           units=d.config.units)  # type: ignore[arg-type]
-    laser = d.config.dialect == "marlin"
-    holder = None if laser else d.config.holder_setup()
-    # timed as the program runs: a spring holder lowers from its lift to its
-    # preload and lifts back on every stroke (Holder.program, as the writer)
-    est_depth, est_machining = holder.program(d.config.depth_mm, setup.machining) \
-        if holder is not None else (d.config.depth_mm, setup.machining)
-    # the program waits options.dwell after starting a spindle (a mill's only)
-    estimate = estimate_time(grooves, est_depth, est_machining, laser=laser,
-                             dwell=options.dwell if options.mill and setup.machining.spindle > 0
-                             else 0.0, machine=d.config.profile)
+    options = program_options_of(d.config)
+    holder, est_machining, estimate = machining_estimate(d.config, grooves)
     info["machining"] = {
         "dialect": d.config.dialect, "units": d.config.units,
         "estimated_hours": estimate.total_s / 3600.0,

@@ -1,0 +1,87 @@
+"""The page's quick figures: a sample of the exact design, in about a second.
+
+What a maker decides on (the share of stipples both eyes see on the plate as
+cut, the hours on the machine, the strokes) comes only from designing the
+grooves: which glints the other grooves' cuts take away depends on how dense
+the plate is where they lie. So the estimate designs, exactly, a part of the
+plate at the whole design's density: the stipples whose glint lies in one
+horizontal strip across the plate's middle, seen straight on, a fifth of them
+(:data:`SAMPLE_SHARE`, at most :data:`SAMPLE_MOST`). A stipple's glint moves
+across the plate, not up it, as the eyes walk the arc, so its grooves stay in
+its strip among the neighbours they would cross on the whole plate. The
+strip's as-cut shares stand for the plate's; its strokes and hours, scaled by
+the stipples, for the job's. ``benchmarks/studio_estimates.py`` measures how
+far they fall from the exact design's (docs/studio.md states the margin).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from specholo.jobs.flat.folder import DesignConfig
+
+#: The share of the stipples the estimate designs, and the most and fewest it
+#: designs; a design of at most :data:`WHOLE` stipples is designed whole.
+SAMPLE_SHARE = 0.2
+SAMPLE_MOST = 400
+SAMPLE_FEWEST = 100
+WHOLE = 300
+
+
+def middle_strip(config: DesignConfig, share: float) -> Callable[[np.ndarray], np.ndarray]:
+    """Which stipples (n, 3) the estimate designs: the ``share`` of them whose
+    glint, seen from straight in front, lies nearest the plate's middle height
+    (the median glint height)."""
+    viewer = config.setup().viewer
+
+    def keep(points: np.ndarray) -> np.ndarray:
+        # where the sightline from the eyes straight in front crosses the plate
+        ez, ey = viewer.distance, viewer.height
+        y = ey + ez / (ez - points[:, 2]) * (points[:, 1] - ey)
+        rank = np.argsort(np.argsort(y, kind="stable"), kind="stable")
+        middle = 0.5 * (len(y) - 1)
+        return np.abs(rank - middle) <= 0.5 * share * len(y)
+
+    return keep
+
+
+def estimate(model: Path, config: DesignConfig) -> dict[str, Any]:
+    """The design's figures from a sample of it (:func:`middle_strip`).
+
+    Returns:
+        ``as_cut_mean``, ``as_cut_lowest`` (shares of the stipples both eyes
+        see, the plate as cut), ``strokes``, ``machining_hours`` and
+        ``machining`` (in words), ``sample`` (stipples designed), ``of``
+        (stipples in all), ``seconds``; or ``why`` alone where no estimate is
+        made (a count chosen by visibility or spacing).
+    """
+    from specholo.fabrication.programs.order import order_paths
+    from specholo.fabrication.programs.timing import plain_duration
+    from specholo.jobs.flat.design import design
+    from specholo.jobs.flat.folder import machining_estimate
+
+    if config.stipples is None:
+        return {"why": "the stipple count is chosen by the design (--visibility or "
+                       "--spacing): its figures come with it"}
+    t0 = time.perf_counter()
+    total = int(config.stipples)
+    share = 1.0 if total <= WHOLE else \
+        min(max(SAMPLE_SHARE, SAMPLE_FEWEST / total), SAMPLE_MOST / total)
+    d = design(model, config, sample=None if share >= 1.0 else middle_strip(config, share))
+    n = len(d.points)
+    scale = total / max(n, 1)
+    vis = d.as_cut.stereo_visibility if d.as_cut is not None else np.array([math.nan])
+    seen = vis[~np.isnan(vis)]
+    grooves = order_paths(d.grooves)[0] if d.config.order else d.grooves
+    hours = machining_estimate(d.config, grooves)[2].total_s / 3600.0 * scale
+    return {"as_cut_mean": float(seen.mean()) if seen.size else None,
+            "as_cut_lowest": float(seen.min()) if seen.size else None,
+            "strokes": round(d.grooves.n_paths * scale), "machining_hours": hours,
+            "machining": plain_duration(3600.0 * hours), "sample": n, "of": total,
+            "seconds": time.perf_counter() - t0}
