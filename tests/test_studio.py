@@ -5,6 +5,7 @@ folder that verifies."""
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
@@ -34,15 +35,24 @@ ROOT = Path(__file__).resolve().parents[1]
 BUNNY = ROOT / "examples" / "bunny.obj"
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[StudioServer]:
-    s = make_server(BUNNY, tmp_path_factory.mktemp("studio-out"), 0)
+@contextlib.contextmanager
+def running(model: Path | None, out: Path) -> Iterator[StudioServer]:
+    """A studio serving ``model`` (None: none yet) on a free port, stopped after."""
+    s = make_server(model, out, 0)
     thread = threading.Thread(target=s.serve_forever, daemon=True)
     thread.start()
-    yield s
-    s.shutdown()
-    s.server_close()
-    s.studio.runner.wait(60)
+    try:
+        yield s
+    finally:
+        s.shutdown()
+        s.server_close()
+        s.studio.runner.wait(120)
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[StudioServer]:
+    with running(BUNNY, tmp_path_factory.mktemp("studio-out")) as s:
+        yield s
 
 
 def request(server: StudioServer, path: str, body: Any = None, headers: dict | None = None,

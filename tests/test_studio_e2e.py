@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import io
 import json
-import threading
 import zipfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,9 +16,9 @@ from typing import Any
 
 import numpy as np
 import pytest
-from test_studio import BUNNY, _settled
+from test_studio import BUNNY, _settled, running
 
-from specholo.studio.server import StudioServer, make_server
+from specholo.studio.server import StudioServer
 from specholo_cli.cli import main
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
@@ -31,13 +30,8 @@ MEAN_DRIFT, PIXEL_SHARE = 3.0, 0.01
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[StudioServer]:
-    s = make_server(None, tmp_path_factory.mktemp("studio-out"), 0)
-    thread = threading.Thread(target=s.serve_forever, daemon=True)
-    thread.start()
-    yield s
-    s.shutdown()
-    s.server_close()
-    s.studio.runner.wait(120)
+    with running(None, tmp_path_factory.mktemp("studio-out")) as s:
+        yield s
 
 
 def z_up_bunny(folder: Path) -> Path:

@@ -9,15 +9,14 @@ from __future__ import annotations
 import json
 import re
 import shlex
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-from test_studio import BUNNY, _settled, request
+from test_studio import BUNNY, _settled, request, running
 
-from specholo.studio.server import StudioServer, make_server
+from specholo.studio.server import StudioServer
 from specholo_cli.cli import cli, main
 
 PAGE = Path(__file__).resolve().parents[1] / "src" / "specholo" / "studio" / "page.html"
@@ -25,16 +24,12 @@ PAGE = Path(__file__).resolve().parents[1] / "src" / "specholo" / "studio" / "pa
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[StudioServer]:
-    s = make_server(BUNNY, tmp_path_factory.mktemp("studio-out"), 0)
-    thread = threading.Thread(target=s.serve_forever, daemon=True)
-    thread.start()
-    yield s
-    s.shutdown()
-    s.server_close()
-    s.studio.runner.wait(120)
+    with running(BUNNY, tmp_path_factory.mktemp("studio-out")) as s:
+        yield s
 
 
 def _design(server: StudioServer, settings: dict[str, Any]) -> dict[str, Any]:
+    server.studio.runner.wait(180)  # one a page left running (it follows its settings)
     code, reply = request(server, "/api/design", {"settings": settings})
     assert code == 202, reply
     server.studio.runner.wait(180)

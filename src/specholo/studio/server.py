@@ -21,7 +21,8 @@ Endpoints (JSON unless said otherwise):
   bounds and choices (:func:`settings_schema`), the design's status.
 - ``POST /api/preview``: ``{"settings": {...}}`` -> :meth:`Preview.as_json`.
 - ``POST /api/estimate``: ``{"settings": {...}}`` -> the design's figures from a
-  sample of it (:func:`specholo.studio.estimate.estimate`), one at a time.
+  sample of it (:func:`specholo.studio.estimate.estimate`), one at a time (a
+  second request waits its turn).
 - ``POST /api/model``: a model file's bytes (its name in ``X-Specholo-Name``),
   streamed to disk, at most :data:`MAX_UPLOAD` bytes (:data:`MAX_TEXT_UPLOAD` for text).
 - ``POST /api/design``: start the exact design; ``GET /api/design``: its status.
@@ -63,6 +64,8 @@ from specholo.studio.runner import EXPORTS, STUDIO_FORMATS, Runner, one_line
 
 #: The only address the studio listens on.
 HOST = "127.0.0.1"
+#: How long an estimate waits for another to finish, s (each takes a second or two).
+ESTIMATE_WAIT = 30.0
 #: The header every API request carries: the run's secret (:attr:`StudioServer.token`).
 TOKEN_HEADER = "X-Specholo-Token"
 #: The header an upload names its file in (URL-encoded).
@@ -653,8 +656,9 @@ class _Handler(BaseHTTPRequestHandler):
                                  "command": studio.command(request["settings"])})
             elif path == "/api/estimate":
                 model_path = studio.current()[1]
-                if not studio.estimate_lock.acquire(blocking=False):
-                    self._error(409, "an estimate is already running; ask again after it")
+                # one at a time: another tab's (or a reloaded page's) waits its turn
+                if not studio.estimate_lock.acquire(timeout=ESTIMATE_WAIT):
+                    self._error(409, "another estimate is still running; ask again after it")
                     return
                 try:
                     self._json(200, estimate(model_path, config))
