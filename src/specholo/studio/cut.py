@@ -51,7 +51,7 @@ def arc_pieces(chord: np.ndarray, bulge: np.ndarray, tolerance: float = TOLERANC
     """
     b = np.abs(np.asarray(bulge, dtype=float))
     sweep = 4.0 * np.arctan(b)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         radius = np.where(b > 0, chord * (1.0 + b * b) / (4.0 * b), np.inf)
         # the largest sweep a piece may have: r (1 - cos(p / 2)) <= tolerance
         cosine = np.clip(1.0 - tolerance / radius, -1.0, 1.0)

@@ -492,8 +492,10 @@
     const c = el("plate");
     let drag = null;
     const at = (ev) => {
+      // canvas pixels: inside the border, at the canvas's own resolution
       const r = c.getBoundingClientRect();
-      return [(ev.clientX - r.left) * c.width / r.width, (ev.clientY - r.top) * c.height / r.height];
+      return [(ev.clientX - r.left - c.clientLeft) * c.width / c.clientWidth,
+              (ev.clientY - r.top - c.clientTop) * c.height / c.clientHeight];
     };
     c.addEventListener("wheel", (ev) => {
       ev.preventDefault();
@@ -568,5 +570,7 @@
     eyeGlints: () => eyeGlints(),
     walking: () => C.walk !== 0,
     pending: () => C.frame !== 0,
+    // a design's grooves asked for and not yet here
+    loading: () => C.gkey !== "" && !(C.grooves && C.grooves.key === C.gkey),
   };
 })();

@@ -58,7 +58,7 @@ from typing import Any
 from specholo.errors import SpecholoError
 from specholo.jobs.flat.folder import DesignConfig
 from specholo.scene.loading import FORMATS, Model, load_model
-from specholo.studio.cut import design_grooves
+from specholo.studio import cut
 from specholo.studio.preview import NO_RIDGED, fast_preview
 from specholo.studio.runner import Runner, one_line
 
@@ -293,11 +293,11 @@ class Studio:
             st = npz.stat()
         except OSError as exc:
             raise SpecholoError(f"the design folder {folder} holds no grooves.npz") from exc
-        stamp = (str(folder), st.st_mtime_ns, st.st_size)
+        stamp = (str(folder), st.st_mtime_ns, st.st_size, cut.MAX_POINTS)
         # one encoding at a time: two tabs asking at once wait for one result
         with self._grooves_lock:
             if self._grooves is None or self._grooves[0] != stamp:
-                data = design_grooves(folder)
+                data = cut.design_grooves(folder)
                 data["model_id"] = model_id
                 data["folder"] = str(folder)
                 raw = json.dumps(data, allow_nan=False, separators=(",", ":")).encode("utf-8")
