@@ -23,6 +23,10 @@
   const HIT_PX = 6;
   //: Deepest zoom of the plate view, px per mm (a 0.1 mm stroke is 500 px long).
   const MAX_ZOOM = 5000;
+  //: Paths stroked at a time: a canvas strokes one path of a whole design's
+  //: 130,000 strokes with round ends in 9-18 s (it joins them into one
+  //: outline first), in 500s in 50 ms.
+  const BATCH = 500;
   const LEFT = "#ff4d4d", RIGHT = "#33d6ff", PICK = "#ffd400";
 
   const C = {
@@ -33,8 +37,14 @@
     viewPlate: "",  // the plate the view was fitted to
     hover: -1, picked: -1,  // stipple ids
     walk: 0, frame: 0, draws3d: 0, drawsPlate: 0,
+    ms: null,       // how long the last drawing took, ms: each view and the words
+    cache: {},      // each view's drawing of what does not move with the eyes
   };
   const el = (id) => document.getElementById(id);
+  // Drawn on the CPU: a GPU canvas without a GPU (SwiftShader, a headless or
+  // remote browser) took 9 s to show a design's 130,000 strokes, which the
+  // CPU draws in some 60 ms.
+  const context = (c) => c.getContext("2d", {willReadFrequently: true});
   const rad = (d) => d * Math.PI / 180;
 
   // ------------------------------------------------------------ the design's grooves
@@ -147,9 +157,13 @@
     if (C.frame) return;
     C.frame = requestAnimationFrame(() => {
       C.frame = 0;
+      const t0 = performance.now();
       draw3d();
+      const t1 = performance.now();
       drawPlate();
+      const t2 = performance.now();
       describe();
+      C.ms = {view3d: t1 - t0, plate: t2 - t1, words: performance.now() - t2};
     });
   }
 
@@ -171,12 +185,24 @@
     return {project, turn, front: cy * cp > 0};
   }
 
+  function cached(slot, key, W, H, paint) {
+    // What does not move with the eyes is drawn once and copied: a walk redraws
+    // only the glints and sightlines over it.
+    let kept = C.cache[slot];
+    if (!kept || kept.key !== key) {
+      const canvas = kept ? kept.canvas : document.createElement("canvas");
+      canvas.width = W; canvas.height = H;
+      paint(context(canvas));
+      C.cache[slot] = kept = {canvas, key};
+    }
+    return kept.canvas;
+  }
+
   function draw3d() {
-    const c = el("view3d"), g = c.getContext("2d"), W = c.width, H = c.height;
-    g.fillStyle = "#000"; g.fillRect(0, 0, W, H);
+    const c = el("view3d"), g = context(c), W = c.width, H = c.height;
     C.draws3d += 1;
     const p = S.preview, pl = plate();
-    if (!p) return;
+    if (!p) { g.fillStyle = "#000"; g.fillRect(0, 0, W, H); return; }
     // The scene's reach from the origin, in 20 mm steps: the scale holds still
     // while the view turns and while the pose is dragged.
     let R = 10;
@@ -185,6 +211,25 @@
     if (pl) for (const [x, y] of pl.corners_mm) R = Math.max(R, Math.hypot(x, y));
     R = Math.ceil(R / 20) * 20;
     const {project, turn, front} = camera(W, H, R);
+    const G = C.grooves;
+    const key = JSON.stringify([C.cam, R, W, H, S.asked, pl, G ? G.key : "", G ? stale() : 0]);
+    g.drawImage(cached("view3d", key, W, H, (h) => scene3d(h, p, pl, R, project, turn, front)),
+                0, 0);
+    drawPicked3d(g, project);
+    // towards the eyes: the head's azimuth, from the plate's centre
+    const t = rad(S.azimuth), D = p.eye.distance, y = p.eye.height;
+    const n = Math.hypot(D, y), [ox, oy] = project(0, 0, 0);
+    const [ex, ey] = project(1.15 * R * D * Math.sin(t) / n, 1.15 * R * y / n,
+                             1.15 * R * D * Math.cos(t) / n);
+    g.strokeStyle = "#8a8"; g.setLineDash([4, 4]); g.beginPath();
+    g.moveTo(ox, oy); g.lineTo(ex, ey); g.stroke(); g.setLineDash([]);
+    g.fillStyle = "#8a8"; g.font = "11px sans-serif";
+    g.fillText(`eyes ${S.azimuth.toFixed(1)}\u00b0`, ex + 4, ey);
+  }
+
+  function scene3d(g, p, pl, R, project, turn, front) {
+    const W = g.canvas.width, H = g.canvas.height;
+    g.fillStyle = "#000"; g.fillRect(0, 0, W, H);
     const seen = new Uint8Array(p.stipples);
     for (const s of p.runs.stipple) seen[s] = 1;
     const dots = (behind) => {
@@ -202,17 +247,8 @@
     dots(front);
     if (pl) drawPlate3d(g, project, pl);
     dots(!front);
-    drawPicked3d(g, project);
-    // towards the eyes: the head's azimuth, from the plate's centre
-    const t = rad(S.azimuth), D = p.eye.distance, h = p.eye.height;
-    const n = Math.hypot(D, h), [ox, oy] = project(0, 0, 0);
-    const [ex, ey] = project(1.15 * R * D * Math.sin(t) / n, 1.15 * R * h / n,
-                             1.15 * R * D * Math.cos(t) / n);
-    g.strokeStyle = "#8a8"; g.setLineDash([4, 4]); g.beginPath();
-    g.moveTo(ox, oy); g.lineTo(ex, ey); g.stroke(); g.setLineDash([]);
-    g.fillStyle = "#8a8"; g.font = "11px sans-serif";
-    g.fillText(`eyes ${S.azimuth.toFixed(1)}\u00b0`, ex + 4, ey);
     // which way is which
+    g.font = "11px sans-serif";
     for (const [v, col, name] of [[[1, 0, 0], "#e66", "x"], [[0, 1, 0], "#6e6", "y"],
                                   [[0, 0, 1], "#69f", "z"]]) {
       const [x2, y2] = turn(...v);
@@ -245,6 +281,7 @@
         const [sx, sy] = project(G.xy[2 * a], G.xy[2 * a + 1], 0);
         const [tx, ty] = project(G.xy[2 * b], G.xy[2 * b + 1], 0);
         g.moveTo(sx, sy); g.lineTo(tx + (a === b ? 0.5 : 0), ty);
+        if (q % BATCH === BATCH - 1) { g.stroke(); g.beginPath(); }
       }
       g.stroke();
     }
@@ -315,33 +352,16 @@
   }
 
   function drawPlate() {
-    const c = el("plate"), g = c.getContext("2d"), W = c.width, H = c.height;
-    g.fillStyle = "#000"; g.fillRect(0, 0, W, H);
+    const c = el("plate"), g = context(c), W = c.width, H = c.height;
     C.drawsPlate += 1;
     const pl = plate();
-    if (!pl) return;
+    if (!pl) { g.fillStyle = "#000"; g.fillRect(0, 0, W, H); return; }
     fitView(false);
     const v = C.view, k = v.k, ox = W / 2 - k * v.cx, oy = H / 2 + k * v.cy;
-    const [[x0, y0], [x1, y1]] = pl.corners_mm;
-    const [ax, ay] = toScreen(x0, y1), [bx, by] = toScreen(x1, y0);
-    g.fillStyle = "#1d2126"; g.fillRect(ax, ay, bx - ax, by - ay);
-    const G = C.grooves;
-    if (G && el("show-grooves").checked) {
-      const old = stale();
-      g.lineCap = "round"; g.lineJoin = "round";
-      g.strokeStyle = old ? "rgba(150, 150, 150, 0.55)" : "rgba(215, 222, 235, 0.9)";
-      g.lineWidth = Math.max(1, G.width * k);
-      strokes(g, G, ox, oy, k, null);
-      const id = C.picked >= 0 ? C.picked : C.hover;
-      if (id >= 0 && G.spans.has(id)) {
-        g.strokeStyle = PICK; g.lineWidth = Math.max(2, G.width * k);
-        strokes(g, G, ox, oy, k, G.spans.get(id));
-      }
-    }
-    if (el("show-marks").checked) marks(g, pl, (x, y) => [ox + k * x, oy - k * y], "#7a8");
-    g.strokeStyle = C.grooves || pl.given ? "#9aa" : "#778";
-    g.setLineDash(C.grooves || pl.given ? [] : [6, 4]);
-    g.lineWidth = 1; g.strokeRect(ax, ay, bx - ax, by - ay); g.setLineDash([]);
+    const G = C.grooves, id = C.picked >= 0 ? C.picked : C.hover;
+    const key = JSON.stringify([v, W, H, pl, G ? G.key : "", G ? stale() : 0, id,
+                                el("show-grooves").checked, el("show-marks").checked]);
+    g.drawImage(cached("plate", key, W, H, (h) => platePaint(h, pl, ox, oy, k, id)), 0, 0);
     if (el("show-glints").checked) {
       const eyes = eyeGlints();
       for (const [list, col] of [[eyes.left, LEFT], [eyes.right, RIGHT]]) {
@@ -356,6 +376,29 @@
     scaleBar(k);
   }
 
+  function platePaint(g, pl, ox, oy, k, id) {
+    const W = g.canvas.width, H = g.canvas.height;
+    g.fillStyle = "#000"; g.fillRect(0, 0, W, H);
+    const [[x0, y0], [x1, y1]] = pl.corners_mm;
+    const [ax, ay] = toScreen(x0, y1), [bx, by] = toScreen(x1, y0);
+    g.fillStyle = "#1d2126"; g.fillRect(ax, ay, bx - ax, by - ay);
+    const G = C.grooves;
+    if (G && el("show-grooves").checked) {
+      g.lineCap = "round"; g.lineJoin = "round";
+      g.strokeStyle = stale() ? "rgba(150, 150, 150, 0.55)" : "rgba(215, 222, 235, 0.9)";
+      g.lineWidth = Math.max(1, G.width * k);
+      strokes(g, G, ox, oy, k, null);
+      if (id >= 0 && G.spans.has(id)) {
+        g.strokeStyle = PICK; g.lineWidth = Math.max(2, G.width * k);
+        strokes(g, G, ox, oy, k, G.spans.get(id));
+      }
+    }
+    if (el("show-marks").checked) marks(g, pl, (x, y) => [ox + k * x, oy - k * y], "#7a8");
+    g.strokeStyle = C.grooves || pl.given ? "#9aa" : "#778";
+    g.setLineDash(C.grooves || pl.given ? [] : [6, 4]);
+    g.lineWidth = 1; g.strokeRect(ax, ay, bx - ax, by - ay); g.setLineDash([]);
+  }
+
   function strokes(g, G, ox, oy, k, span) {
     // The paths in view (all, or one stipple's), each a polyline of the
     // design's vertices; a dot (a plunge) is a round cap.
@@ -363,6 +406,7 @@
     const [vx0, vy1] = toMM(0, 0), [vx1, vy0] = toMM(c.width, c.height);
     const box = G.box, xy = G.xy, off = G.off;
     const from = span ? span[0] : 0, to = span ? span[1] : G.n;
+    let drawn = 0;
     g.beginPath();
     for (let j = from; j < to; j++) {
       const q = span ? G.order[j] : j;
@@ -372,6 +416,7 @@
       g.moveTo(ox + k * xy[2 * a], oy - k * xy[2 * a + 1]);
       if (b - a === 1) g.lineTo(ox + k * xy[2 * a] + 0.01, oy - k * xy[2 * a + 1]);
       for (let i = a + 1; i < b; i++) g.lineTo(ox + k * xy[2 * i], oy - k * xy[2 * i + 1]);
+      if (++drawn % BATCH === 0) { g.stroke(); g.beginPath(); }
     }
     g.stroke();
   }
@@ -570,6 +615,7 @@
     eyeGlints: () => eyeGlints(),
     walking: () => C.walk !== 0,
     pending: () => C.frame !== 0,
+    ms: () => C.ms && Object.assign({}, C.ms),
     // a design's grooves asked for and not yet here
     loading: () => C.gkey !== "" && !(C.grooves && C.grooves.key === C.gkey),
   };
