@@ -261,6 +261,30 @@ def test_over_the_cap_every_kth_stipple_is_sent_whole(server: StudioServer,
     assert code == 200 and got["decimated"] == d
 
 
+def test_the_preview_plate_is_the_designs_within_a_millimetre(server: StudioServer):
+    """Before a design the page draws the plate the design would fit: centred,
+    whole millimetres, within 1 mm of the design's; a given plate is that plate."""
+    state = server.studio.design_status()
+    info = json.loads((Path(state["folder"]) / "hologram.json").read_text()) \
+        if state["state"] == "done" else {"settings": {}}
+    if any(info["settings"].get(k) != v for k, v in SETTINGS.items()):
+        info = json.loads((designed(server, SETTINGS) / "hologram.json").read_text())
+    code, got, _ = request(server, "/api/preview", {"settings": SETTINGS})
+    assert code == 200, got
+    plate = got["plate"]
+    assert plate["given"] is False
+    corners = np.array(plate["corners_mm"])
+    np.testing.assert_array_equal(corners[0], -corners[1])
+    np.testing.assert_array_equal(2 * corners[1], np.round(2 * corners[1]))
+    np.testing.assert_allclose(corners, info["plate"]["plate_mm"], atol=0.5)
+    np.testing.assert_array_equal(plate["marks_mm"], Plate.from_corners(corners).marks())
+    code, got, _ = request(server, "/api/preview", {"settings": {
+        **SETTINGS, "plate_width": 120, "plate_height": 90}})
+    assert code == 200, got
+    assert got["plate"]["given"] is True
+    assert got["plate"]["corners_mm"] == [[-60, -45], [60, 45]]
+
+
 # ---------------------------------------------------------------- in a browser
 def stipple_points(grooves: Grooves, stipple: int) -> np.ndarray:
     """The vertices of a stipple's paths (k, 2)."""
