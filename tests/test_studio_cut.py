@@ -455,8 +455,12 @@ def test_the_plate_view_draws_the_grooves_and_zooms_to_a_stipple(server: StudioS
     assert errors == []
 
 
-def test_the_3d_view_turns_and_each_eye_sees_its_own_glints(server: StudioServer,
-                                                            browser: Any):
+def test_the_3d_view_turns_and_each_eye_sees_its_own_glints(
+        server: StudioServer, browser: Any, monkeypatch: pytest.MonkeyPatch):
+    if server.studio.design_status()["state"] != "done":
+        designed(server, SETTINGS)
+    # over the cap, the page draws every k-th stipple's grooves and says so
+    monkeypatch.setattr(cut, "MAX_POINTS", 2000)
     context, page, errors = _page(server, browser)
     # no design to arrive while the view is compared: none is started, and one
     # the page started before it was told (a slow machine) is done and drawn
@@ -464,6 +468,11 @@ def test_the_3d_view_turns_and_each_eye_sees_its_own_glints(server: StudioServer
     server.studio.runner.wait(120)
     page.wait_for_function("!document.getElementById('design').disabled && "
                            "!window.studioCut.loading()", timeout=30_000)
+    decimated = page.evaluate("window.studioCut.grooves().decimated")
+    assert decimated["points_drawn"] <= 2000 < decimated["points_all"]
+    assert f"only every {decimated['stride']}" in page.inner_text("#plate-note")
+    assert f"{decimated['stipples_drawn']} of {decimated['stipples_cut']} stipples" in \
+        page.inner_text("#plate-note")
     _settings(page, {**SETTINGS, "stipples": 200})
     _drawn(page)
     pose = page.evaluate("window.studio.settings()")

@@ -23,9 +23,9 @@
   const HIT_PX = 6;
   //: Deepest zoom of the plate view, px per mm (a 0.1 mm stroke is 500 px long).
   const MAX_ZOOM = 5000;
-  //: Paths stroked at a time: a canvas strokes one path of a whole design's
-  //: 130,000 strokes with round ends in 9-18 s (it joins them into one
-  //: outline first), in 500s in 50 ms.
+  //: Paths stroked at a time: one path of a whole design's 130,000 strokes,
+  //: round-ended and see-through, is outlined as one shape, 0.2 s on the CPU
+  //: (9-18 s on a GPU canvas without a GPU); in 500s it takes 0.05 s.
   const BATCH = 500;
   const LEFT = "#ff4d4d", RIGHT = "#33d6ff", PICK = "#ffd400";
 
