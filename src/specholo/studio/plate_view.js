@@ -285,9 +285,10 @@
       }
       g.stroke();
     }
-    const [lx, ly] = corner[3];
+    // under the lower-left corner, clear of the model floating over the plate
+    const [lx, ly] = corner[0];
     g.fillStyle = "#aab"; g.font = "11px sans-serif";
-    g.fillText(`plate ${size(pl)}`, lx + 3, ly - 4);
+    g.fillText(`plate ${size(pl)}`, lx + 3, ly + 14);
   }
 
   function drawPicked3d(g, project) {
