@@ -181,6 +181,7 @@ def test_every_api_request_needs_the_runs_secret(server: StudioServer, tmp_path:
         other.server_close()
     for method, path, body in (("GET", "/api/state", None), ("GET", "/api/design", None),
                                ("GET", "/api/design.zip", None),
+                               ("GET", "/api/design/grooves", None),
                                ("POST", "/api/preview", b'{"settings": {}}'),
                                ("POST", "/api/design", b'{"settings": {"stipples": 50}}'),
                                ("POST", "/api/model", b"v 0 0 0\n")):
@@ -201,7 +202,7 @@ def test_every_api_request_needs_the_runs_secret(server: StudioServer, tmp_path:
             urllib.request.urlopen(req, timeout=10)
         assert err.value.code == 403
     assert server.studio.runner.status()["state"] in ("idle", "done")  # nothing started
-    for path in ("/", "/studio.js", "/studio.css"):
+    for path in ("/", "/studio.js", "/plate_view.js", "/studio.css"):
         with urllib.request.urlopen(server.origin + path, timeout=10) as reply:
             assert reply.status == 200 and server.token.encode() not in reply.read()
     code, got = request(server, "/api/state")

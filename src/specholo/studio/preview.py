@@ -7,6 +7,10 @@ each stipple's visible azimuths with the design's occlusion code (the same
 intervals); an exact design puts each visible stipple's glint where the eye's
 sightline through the stipple crosses the plate, so the page draws it there.
 
+The plate comes with it, as an estimate until the exact design names it: the
+plate the design would fit to the grooves (:func:`plate_estimate`), or the
+plate the settings give.
+
 Beside it come figures the grooves would give, as estimates that say what they
 are: the groove length the views need, in closed form (see
 :func:`groove_length_bound`), and a lower bound on the cutting time; the
@@ -26,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from specholo.errors import SpecholoError
+from specholo.fabrication.plate import Plate, fit_plate
 from specholo.fabrication.programs.timing import estimate_time, plain_duration, trapezoid_time
 from specholo.hosts.flat import sightline_crossing
 from specholo.jobs.flat.settings import DesignConfig
@@ -36,6 +41,7 @@ from specholo.scene.loading import Model
 from specholo.scene.placement import place
 from specholo.scene.stippling import check_memory, stipple
 from specholo.setup import Light, Viewer
+from specholo.studio.cut import plate_json
 from specholo.visibility.occlusion import visible_intervals
 
 #: Most stipples a preview takes: the page redraws within about a second up to
@@ -43,6 +49,8 @@ from specholo.visibility.occlusion import visible_intervals
 MAX_PREVIEW_STIPPLES = 20_000
 #: Samples along each visible interval for the groove-length bound.
 BOUND_SAMPLES = 64
+#: Samples along each visible interval for the plate's estimate.
+PLATE_SAMPLES = 17
 #: The acceleration the machining estimate assumes (its own default), mm/s^2:
 #: one machine model for the bound and for the design's figure.
 ACCEL = float(inspect.signature(estimate_time).parameters["accel"].default)
@@ -89,6 +97,9 @@ class Preview:
         viewer: the eyes.
         estimates: figures of the grooves to come.
         seconds: time the preview took.
+        plate: (2, 2) the plate's corners, mm: given by the settings, or the
+            one the design would fit (:func:`plate_estimate`).
+        plate_given: whether the settings give the plate.
     """
 
     points: np.ndarray
@@ -98,6 +109,8 @@ class Preview:
     viewer: Viewer
     estimates: Estimates
     seconds: float
+    plate: np.ndarray
+    plate_given: bool = False
 
     def glints(self, azimuth: float) -> tuple[np.ndarray, np.ndarray]:
         """Where one eye sees the glints of an exact design.
@@ -126,7 +139,11 @@ class Preview:
                      "end": np.round(np.degrees(self.end), 4).tolist()},
             "eye": {"radius": v.eye_radius, "height": v.height,
                     "range_deg": math.degrees(v.half_range),
-                    "design_range_deg": math.degrees(v.design_range)},
+                    "design_range_deg": math.degrees(v.design_range),
+                    "distance": v.distance, "ipd": v.ipd,
+                    # each eye's azimuth on the eyes' circle is the head's -/+ this
+                    "eye_half_angle_deg": math.degrees(v.eye_half_angle)},
+            "plate": {**plate_json(Plate.from_corners(self.plate)), "given": self.plate_given},
             "estimates": self.estimates.as_dict(),
             "seconds": self.seconds,
         }
@@ -173,8 +190,46 @@ def fast_preview(model: Model, config: DesignConfig | RidgedConfig) -> Preview:
     moving = per_stipple[per_stipple > 0]
     cutting = float(trapezoid_time(moving, config.feed / 60.0, ACCEL).sum())
     estimates = Estimates(hidden, float(per_stipple.sum()), cutting)
+    given = config.plate_width is not None and config.plate_height is not None
+    if given:
+        half = 0.5 * np.array([config.plate_width, config.plate_height], dtype=float)
+        plate = np.stack([-half, half])
+    else:
+        width = config.cutter().section(config.depth_mm).width
+        plate = plate_estimate(st.points, stip, start, end, setup.viewer, width)
     return Preview(st.points, stip, start, end, setup.viewer, estimates,
-                   time.perf_counter() - t0)
+                   time.perf_counter() - t0, plate, given)
+
+
+def plate_estimate(points: np.ndarray, stip: np.ndarray, start: np.ndarray, end: np.ndarray,
+                   viewer: Viewer, width: float, samples: int = PLATE_SAMPLES) -> np.ndarray:
+    """The plate the design would fit to its grooves (:func:`fit_plate`), from
+    the glints' tracks: each groove follows the crossings of its stipple's
+    sightlines over the views that see it.
+
+    The grooves reach past the tracks by the wall's offset and their stripes'
+    band (0.01 mm across and 0.2 mm up and down on the 2,000-stipple bunny),
+    and the groove width is the tool's at its fallback depth, not the depth
+    the design chooses: the whole-millimetre plate can come out 1 mm smaller
+    than the design's.
+
+    Args:
+        points: (n, 3) stipples; stip, start, end: (k,) visible intervals.
+        viewer: the eyes.
+        width: the groove width, mm.
+        samples: samples per interval.
+
+    Returns:
+        (2, 2) lower-left and upper-right corners, mm (a plate of the margin
+        alone when no stipple is seen).
+    """
+    if len(stip) == 0:
+        return fit_plate(np.zeros((2, 2)), width)
+    u = np.linspace(0.0, 1.0, samples)
+    theta = (start[:, None] + (end - start)[:, None] * u[None, :]).ravel()
+    cross = sightline_crossing(viewer.eye(theta), np.repeat(points[stip], samples, axis=0))
+    xy = cross[:, :2]
+    return fit_plate(np.stack([xy.min(axis=0), xy.max(axis=0)]), width)
 
 
 def groove_length_bound(points: np.ndarray, stip: np.ndarray, start: np.ndarray,

@@ -33,6 +33,12 @@ const TOKEN = (() => {
 
 function showError(text) { $("error").textContent = text ? "error: " + text : ""; }
 
+// The views of what will be cut (plate_view.js) follow the page through these:
+// "preview", "azimuth" and "design" (with the design's status).
+function notify(what, detail) {
+  document.dispatchEvent(new CustomEvent("studio:" + what, {detail}));
+}
+
 async function call(method, url, body, headers) {
   // Every answer is JSON with "error" on failure: one line for the page.
   const opts = {method, headers: Object.assign({"X-Specholo-Token": TOKEN}, headers || {})};
@@ -76,6 +82,7 @@ function setAzimuth(a) {
   el.parentElement.querySelector("output").textContent = S.azimuth.toFixed(1);
   $("azimuth-out").textContent = S.azimuth.toFixed(1);
   drawGlints();
+  notify("azimuth");
 }
 
 function sent() {
@@ -180,6 +187,7 @@ async function askPreview() {
   }
   S.inFlight = false;
   fit(); drawModel(); drawGlints(); showEstimates();
+  notify("preview");
   if (S.dirty) askPreview(); else { follow(); askEstimate(); }
 }
 
@@ -392,6 +400,7 @@ async function poll() {
 }
 
 function showDesign(st) {
+  notify("design", st);
   $("design").disabled = st.state === "running";
   const secs = st.seconds !== undefined ? ` (${Math.round(st.seconds)} s)` : "";
   $("status").textContent = st.state === "idle" ? "" :
