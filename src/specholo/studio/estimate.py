@@ -10,7 +10,7 @@ horizontal strip across the plate's middle, seen straight on, a fifth of them
 across the plate, not up it, as the eyes walk the arc, so its grooves stay in
 its strip among the neighbours they would cross on the whole plate. The
 strip's as-cut shares stand for the plate's; its strokes and hours, scaled by
-the stipples, for the job's. ``benchmarks/studio_estimates.py`` measures how
+the groove length the views need, for the job's. ``benchmarks/studio_estimates.py`` measures how
 far they fall from the exact design's (docs/studio.md states the margin).
 """
 
@@ -51,8 +51,20 @@ def middle_strip(config: DesignConfig, share: float) -> Callable[[np.ndarray], n
     return keep
 
 
-def estimate(model: Path, config: DesignConfig) -> dict[str, Any]:
+def estimate(model: Path, config: DesignConfig, loaded: Any = None) -> dict[str, Any]:
     """The design's figures from a sample of it (:func:`middle_strip`).
+
+    The strip's as-cut shares stand for the plate's. Its strokes and hours
+    are scaled by the groove length the whole design's views need over the
+    strip's (the preview's closed form, :func:`~specholo.studio.preview.groove_length_bound`):
+    a strip whose stipples lie nearer the plate than the rest has shorter
+    grooves, and fewer strokes, than its share of the stipples.
+
+    Args:
+        model: the model's file.
+        config: the settings.
+        loaded: the model as :func:`specholo.scene.loading.load_model` read it
+            (read from ``model`` when not given).
 
     Returns:
         ``as_cut_mean``, ``as_cut_lowest`` (shares of the stipples both eyes
@@ -65,6 +77,8 @@ def estimate(model: Path, config: DesignConfig) -> dict[str, Any]:
     from specholo.fabrication.programs.timing import plain_duration
     from specholo.jobs.flat.design import design
     from specholo.jobs.flat.folder import machining_estimate
+    from specholo.scene.loading import load_model
+    from specholo.studio.preview import fast_preview, groove_length_bound
 
     if config.stipples is None:
         return {"why": "the stipple count is chosen by the design (--visibility or "
@@ -73,9 +87,18 @@ def estimate(model: Path, config: DesignConfig) -> dict[str, Any]:
     total = int(config.stipples)
     share = 1.0 if total <= WHOLE else \
         min(max(SAMPLE_SHARE, SAMPLE_FEWEST / total), SAMPLE_MOST / total)
-    d = design(model, config, sample=None if share >= 1.0 else middle_strip(config, share))
+    strip = None if share >= 1.0 else middle_strip(config, share)
+    d = design(model, config, sample=strip)
     n = len(d.points)
-    scale = total / max(n, 1)
+    scale = 1.0
+    if strip is not None:
+        # the whole design's stipples and the views each needs, as the preview has them
+        preview = fast_preview(loaded if loaded is not None else load_model(model), config)
+        setup = config.setup()
+        need = groove_length_bound(preview.points, preview.stipple, preview.start,
+                                   preview.end, setup.light, setup.viewer)
+        kept = need[strip(preview.points)].sum()
+        scale = float(need.sum() / kept) if kept > 0 else total / max(n, 1)
     vis = d.as_cut.stereo_visibility if d.as_cut is not None else np.array([math.nan])
     seen = vis[~np.isnan(vis)]
     grooves = order_paths(d.grooves)[0] if d.config.order else d.grooves

@@ -722,13 +722,13 @@ class _Handler(BaseHTTPRequestHandler):
                 self._json(200, {**preview.as_json(),
                                  "command": studio.command(request["settings"])})
             elif path == "/api/estimate":
-                model_path = studio.current()[1]
+                model, model_path = studio.current()[:2]
                 # one at a time: another tab's (or a reloaded page's) waits its turn
                 if not studio.estimate_lock.acquire(timeout=ESTIMATE_WAIT):
                     self._error(409, "another estimate is still running; ask again after it")
                     return
                 try:
-                    self._json(200, estimate(model_path, config))
+                    self._json(200, estimate(model_path, config, model))
                 finally:
                     studio.estimate_lock.release()
             elif studio.design(config):
