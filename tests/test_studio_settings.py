@@ -178,3 +178,15 @@ def test_the_estimate_is_the_exact_design_of_a_strip_at_full_density(server: Stu
     assert quick["machining_hours"] == pytest.approx(exact["machining_hours"], rel=0.1)
     code, reply = request(server, "/api/estimate", {"settings": {"visibility": 0.8}})
     assert code == 200 and "chosen by the design" in reply["why"]
+
+
+def test_a_bad_estimate_request_is_one_line(server: StudioServer):
+    for settings, says in (({"tool_radius": -1}, "radius"),
+                           ({"method": "ridged"}, "ridged"),
+                           ({"stipples": "many"}, "stipples")):
+        code, reply = request(server, "/api/estimate", {"settings": settings})
+        assert code == 400 and says in reply["error"], reply
+        assert "\n" not in reply["error"] and "Traceback" not in reply["error"]
+    code, _ = request(server, "/api/estimate", {"settings": {}},
+                      headers={"X-Specholo-Token": "wrong"})
+    assert code == 403
