@@ -38,12 +38,13 @@ def middle_strip(config: DesignConfig, share: float) -> Callable[[np.ndarray], n
     """Which stipples (n, 3) the estimate designs: the ``share`` of them whose
     glint, seen from straight in front, lies nearest the plate's middle height
     (the median glint height)."""
+    from specholo.hosts.flat import sightline_crossing
+
     viewer = config.setup().viewer
+    head = np.array([0.0, viewer.height, viewer.distance])  # straight in front
 
     def keep(points: np.ndarray) -> np.ndarray:
-        # where the sightline from the eyes straight in front crosses the plate
-        ez, ey = viewer.distance, viewer.height
-        y = ey + ez / (ez - points[:, 2]) * (points[:, 1] - ey)
+        y = sightline_crossing(np.broadcast_to(head, points.shape), points)[:, 1]
         rank = np.argsort(np.argsort(y, kind="stable"), kind="stable")
         middle = 0.5 * (len(y) - 1)
         return np.abs(rank - middle) <= 0.5 * share * len(y)
