@@ -1,0 +1,923 @@
+"""Rendered glints (Mitsuba 3): what a viewer meets on a plate as cut, beside verify.
+
+Usage: python benchmarks/render_judge.py [--work DIR] [--azimuths -20 0 20]
+       [--spp 16] [--spp-fine 256] [--pixel 0.003] [--plates bunny knot] [--quick]
+
+Designs two small plates with the default tool (``specholo design`` on the
+bundled bunny and knot), cuts each folder's ``hologram.gcode`` into a height
+field at 2.5 um (``specholo.simulation.cut.cut_surface``), and renders it
+with the physically based renderer Mitsuba 3: a triangle mesh of the field
+with the cut's exact normals at its vertices, a rough conductor (Beckmann,
+alpha 0.003 and 0.01, a perfect reflector otherwise), lit by a sphere far
+along the design's light direction (angular diameter 0.53 deg, the sun, and
+0.05 deg, nearly a point), seen by a pinhole camera at each eye of the
+design's viewer. The ``direct`` integrator samples both the light and the
+BSDF (multiple importance sampling).
+
+In each picture the bright spots are grouped by the path whose cut made the
+surface they lie on (each lit pixel's ray is followed to the height field):
+pieces of one path's streak closer than the eye resolves (1 arcmin) are one
+glint, whose place is its brightness-weighted centroid followed back to the
+cut surface. A stipple is shown to an eye by its glints that pass verify's
+image rule (1/20 of the stipple's brightest, 1/100 of the typical stipple's).
+Per view: stereo visibility, each stipple's apparent point triangulated from
+both eyes' glints (the pairs verify would fuse), its error, streak lengths,
+and spills: glints more than 0.25 mm from every glint of the point model
+(``find_glints`` on the folder's grooves), and whether they touch the end of
+their path. Beside them, ``specholo verify`` on the same folders: the point
+model (ideal and as cut), and the streak model where verify has
+``--light-size`` and ``--roughness``.
+
+Writes benchmarks/results/render_judge.json and prints a markdown table.
+Renders on one CPU thread. ``llvm_ad_rgb`` (vectorised) needs LLVM 19 or
+later (Debian: ``apt-get install libllvm19``; or set DRJIT_LIBLLVM_PATH);
+without it ``scalar_rgb`` renders the same pictures about five times slower.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import glob
+import importlib.util
+import json
+import math
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import ndimage
+from scipy.sparse.csgraph import connected_components
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results" / "render_judge.json"
+
+#: The plates: small enough to render at a few um a pixel, with 30-50 stipples cut.
+PLATES: dict[str, tuple[str, list[str]]] = {
+    "bunny": ("bunny.obj", ["--size", "4", "--center-z", "-3", "--stipples", "80"]),
+    "knot": ("knot.obj", ["--size", "4", "--center-z", "-3", "--stipples", "60"]),
+}
+#: Lights: name and angular diameter seen from the plate, degrees.
+LIGHTS = (("sun", 0.53), ("point", 0.05))
+#: Beckmann roughness (Mitsuba's alpha).
+ALPHAS = (0.003, 0.01)
+#: Height-field spacing, mm: the 0.025 mm tip's wall turns 0.1 rad a sample.
+RESOLUTION = 0.0025
+#: Flat plate kept around the grooves, in samples: a ray toward a light 20 deg up
+#: leaves an 11 um deep groove within 30 um, so nothing further can shadow it.
+RING = 12
+#: Distance of a sun's sphere, mm: across a 12 mm plate its direction turns by
+#: 1e-5 rad, far below the 0.05 deg light's radius.
+SUN_DISTANCE = 1.0e6
+#: Glints farther than this from every point-model glint are spills, mm.
+SPILL = 0.25
+#: Verify's image rule (specholo.simulation.glints.FAINT_RATIO, INVISIBLE_RATIO).
+FAINT_RATIO = 20.0
+INVISIBLE_RATIO = 100.0
+#: What the eye resolves, radians: streak pieces closer than this are one glint.
+EYE_RESOLUTION = math.radians(1.0 / 60.0)
+#: Lit pixels: above this share of the picture's brightest (a few samples'
+#: worth of a glint; Monte Carlo dust is orders of magnitude fainter).
+LIT = 1e-4
+#: Oldest LLVM the vectorised variant is known to compile with (15 fails).
+MIN_LLVM = 19
+
+
+# ---------------------------------------------------------------------------
+# Mitsuba
+
+
+def _find_llvm() -> str | None:
+    """A libLLVM of MIN_LLVM or later in the usual places, newest first."""
+    found: list[tuple[int, str]] = []
+    for pattern in ("/usr/lib/x86_64-linux-gnu/libLLVM*.so*", "/usr/lib/aarch64-linux-gnu/"
+                    "libLLVM*.so*", "/usr/lib/libLLVM*.so*", "/usr/local/lib/libLLVM*.so*",
+                    "/usr/lib/llvm-*/lib/libLLVM*.so*", "/opt/homebrew/opt/llvm/lib/libLLVM.dylib"):
+        for path in glob.glob(pattern):
+            m = re.search(r"libLLVM[-.]?(?:so\.)?(\d+)", os.path.basename(path))
+            if m is None:
+                m = re.search(r"llvm-(\d+)", path)
+            if m is not None and int(m.group(1)) >= MIN_LLVM:
+                found.append((int(m.group(1)), path))
+    return max(found)[1] if found else None
+
+
+def import_mitsuba() -> tuple[Any, Any]:
+    """Mitsuba and Dr.Jit, vectorised (llvm_ad_rgb) on one thread. Exits in one
+    line without Mitsuba or a recent enough LLVM."""
+    try:
+        missing = importlib.util.find_spec("mitsuba") is None
+    except (ImportError, ValueError):
+        missing = True
+    if missing:
+        sys.exit("error: render_judge.py needs Mitsuba 3: pip install -e '.[render]'")
+    # Dr.Jit finds LLVM when the variant is set: the library is chosen before.
+    if not os.environ.get("DRJIT_LIBLLVM_PATH"):
+        llvm = _find_llvm()
+        # An older LLVM aborts the process while compiling, beyond any except.
+        if llvm is None:
+            sys.exit(f"error: render_judge.py renders with Mitsuba's llvm_ad_rgb, which needs "
+                     f"LLVM {MIN_LLVM} or later: apt-get install libllvm{MIN_LLVM}, or set "
+                     "DRJIT_LIBLLVM_PATH to a libLLVM")
+        os.environ["DRJIT_LIBLLVM_PATH"] = llvm
+    try:
+        import drjit as dr
+        import mitsuba as mi
+    except ImportError:
+        sys.exit("error: render_judge.py needs Mitsuba 3: pip install -e '.[render]'")
+    try:
+        mi.set_variant("llvm_ad_rgb")
+    except (ImportError, AttributeError, ValueError) as e:
+        sys.exit(f"error: Mitsuba's llvm_ad_rgb variant is not available here: {e}")
+    # The machine has other work: one core renders.
+    dr.set_thread_count(1)
+    return mi, dr
+
+
+@dataclass
+class Camera:
+    """A pinhole at an eye, aimed at the plate's grooved region (Mitsuba's look_at)."""
+
+    eye: np.ndarray
+    target: np.ndarray
+    width: int
+    height: int
+    tan_x: float
+
+    @classmethod
+    def framing(cls, eye: np.ndarray, target: np.ndarray, box: np.ndarray,
+                pixel: float) -> Camera:
+        """Just covering the plate rectangle ``box`` (2, 2) with pixels of about
+        ``pixel`` mm where the sightline meets the plate."""
+        f, right, up = cls._frame(eye, target)
+        corners = np.array([[x, y, 0.0] for x in box[:, 0] for y in box[:, 1]]) - eye
+        depth = corners @ f
+        tx = float(np.max(np.abs(corners @ right) / depth))
+        ty = float(np.max(np.abs(corners @ up) / depth))
+        step = pixel / float(np.linalg.norm(target - eye))
+        w, h = int(math.ceil(2 * tx / step)), int(math.ceil(2 * ty / step))
+        return cls(eye, target, w, h, 0.5 * w * step)
+
+    @staticmethod
+    def _frame(eye: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, ...]:
+        f = target - eye
+        f = f / np.linalg.norm(f)
+        right = np.cross(f, [0.0, 1.0, 0.0])
+        right /= np.linalg.norm(right)
+        return f, right, np.cross(right, f)
+
+    @property
+    def fov(self) -> float:
+        """Horizontal field of view, degrees."""
+        return math.degrees(2.0 * math.atan(self.tan_x))
+
+    def rays(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+        """Unit directions (n, 3) through film positions in pixels (x right, y down)."""
+        f, right, up = self._frame(self.eye, self.target)
+        tan_y = self.tan_x * self.height / self.width
+        u = 2.0 * np.asarray(px) / self.width - 1.0
+        v = 1.0 - 2.0 * np.asarray(py) / self.height
+        d = f + u[:, None] * self.tan_x * right + v[:, None] * tan_y * up
+        return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Film positions in pixels (x right, y down) of points (n, 3)."""
+        f, right, up = self._frame(self.eye, self.target)
+        tan_y = self.tan_x * self.height / self.width
+        d = points - self.eye
+        depth = d @ f
+        u = (d @ right) / depth / self.tan_x
+        v = (d @ up) / depth / tan_y
+        return 0.5 * (u + 1.0) * self.width, 0.5 * (1.0 - v) * self.height
+
+    def sensor(self, mi: Any, spp: int, seed: int) -> Any:
+        return mi.load_dict({
+            "type": "perspective", "fov": self.fov, "fov_axis": "x",
+            "to_world": mi.ScalarTransform4f().look_at(
+                origin=self.eye.tolist(), target=self.target.tolist(), up=[0.0, 1.0, 0.0]),
+            "near_clip": 1.0, "far_clip": 1.0e4,
+            "sampler": {"type": "stratified", "sample_count": spp, "seed": seed},
+            "film": {"type": "hdrfilm", "width": self.width, "height": self.height,
+                     "rfilter": {"type": "box"}, "pixel_format": "luminance"},
+        })
+
+
+def check_camera(mi: Any, cam: Camera) -> float:
+    """Largest angle (rad) between Mitsuba's rays and ours at the film's corners
+    and centre: the spots are followed back with ours."""
+    sensor = cam.sensor(mi, 1, 0)
+    pos = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.5, 0.5], [0.25, 0.75]])
+    ours = cam.rays(pos[:, 0] * cam.width, pos[:, 1] * cam.height)
+    worst = 0.0
+    for (u, v), d in zip(pos, ours, strict=True):
+        ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(float(u), float(v)),
+                                   mi.Point2f(0.5, 0.5))
+        theirs = np.array(ray.d, dtype=float).ravel()[:3]
+        worst = max(worst, float(np.arccos(np.clip(theirs @ d / np.linalg.norm(theirs), -1, 1))))
+    return worst
+
+
+# ---------------------------------------------------------------------------
+# The plate as cut
+
+
+@dataclass
+class Plate:
+    """A designed folder, its cut height field and its mesh."""
+
+    name: str
+    folder: Path
+    loaded: Any  # the design, grooves as designed (verify's)
+    cut_grooves: Any  # the grooves read back from hologram.gcode (the field's paths)
+    field: Any  # HeightField
+    box: np.ndarray  # (2, 2) the rendered region
+    mesh: Path
+    cut_seconds: float
+    vertices: int = 0
+    faces: int = 0
+    ends: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    engraved: Any = None  # the point model's grooves, prepared on first use
+
+    @property
+    def setup(self) -> Any:
+        return self.loaded.config.setup()
+
+    @property
+    def r_cut(self) -> float:
+        """Half the groove's width at the surface, mm."""
+        cfg = self.loaded.config
+        return float(cfg.cutter().section(cfg.depth_mm).width) / 2.0
+
+    @property
+    def same_paths(self) -> bool:
+        """Whether the G-code's paths are the design's, one for one."""
+        a, b = self.loaded.grooves, self.cut_grooves
+        return bool(a.n_paths == b.n_paths and np.array_equal(a.stipple, b.stipple)
+                    and np.array_equal(a.offsets, b.offsets))
+
+
+def design_plate(name: str, work: Path, redesign: bool) -> Path:
+    """``specholo design`` into work/NAME (kept between runs unless asked)."""
+    folder = work / name
+    if (folder / "hologram.json").is_file() and not redesign:
+        return folder
+    model, options = PLATES[name]
+    cmd = [sys.executable, "-m", "specholo_cli.cli", "design", str(ROOT / "examples" / model),
+           "--out", str(folder), *options]
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    return folder
+
+
+def cut_plate(name: str, folder: Path, work: Path) -> Plate:
+    """The height field of the folder's G-code, cropped to its grooves, as a PLY mesh."""
+    from specholo.jobs.flat.folder import load_design
+    from specholo.simulation.cut import cut_surface
+
+    loaded = load_design(folder)
+    cut = load_design(folder, from_gcode=True)
+    cfg = cut.config
+    t0 = time.perf_counter()
+    ext = cut.grooves.extent()
+    r_cut = cfg.cutter().section(cfg.depth_mm).width / 2.0
+    box = np.stack([ext[0] - r_cut - RING * RESOLUTION, ext[1] + r_cut + RING * RESOLUTION])
+    hf = cut_surface(cut.grooves, cfg.cutter(), cfg.depth_mm, box, RESOLUTION)
+    seconds = time.perf_counter() - t0
+    g = cut.grooves
+    first = g.vertices[g.offsets[:-1]]
+    last = g.vertices[g.offsets[1:] - 1]
+    plate = Plate(name, folder, loaded, g, hf, hf.bounds.copy(), work / f"{name}.ply", seconds,
+                  ends=np.stack([first, last], axis=1))
+    plate.vertices, plate.faces = write_mesh(hf, plate.mesh)
+    return plate
+
+
+def write_mesh(hf: Any, path: Path) -> tuple[int, int]:
+    """The cut samples and a ring of flat plate about them as a binary PLY.
+
+    The flat plate mirrors the light away from every eye, so beyond the ring
+    (which shadows the grooves as the whole plate would) it is left out: a
+    miss is as dark as it. Vertex normals are the cut's own, exact at every
+    sample (``HeightField.surface``), not differences of the samples.
+    """
+    keep = ndimage.binary_dilation(hf.z < 0, iterations=RING)
+    cell = keep[:-1, :-1] & keep[1:, :-1] & keep[:-1, 1:] & keep[1:, 1:]
+    jj, ii = np.nonzero(keep)
+    index = np.full(keep.shape, -1, np.int64)
+    index[jj, ii] = np.arange(len(jj))
+    xy = np.stack([hf.origin[0] + ii * hf.resolution, hf.origin[1] + jj * hf.resolution], 1)
+    _, normal = hf.surface(xy)
+    cj, ci = np.nonzero(cell)
+    a, b = index[cj, ci], index[cj, ci + 1]
+    c, d = index[cj + 1, ci + 1], index[cj + 1, ci]
+    # Each cell is split along its diagonal of least height change: along a
+    # groove, not across it, where the wall bends.
+    z = hf.z
+    ac = np.abs(z[cj, ci] - z[cj + 1, ci + 1]) <= np.abs(z[cj, ci + 1] - z[cj + 1, ci])
+    tri = np.concatenate([np.stack([a, b, c], 1)[ac], np.stack([a, c, d], 1)[ac],
+                          np.stack([a, b, d], 1)[~ac], np.stack([b, c, d], 1)[~ac]])
+    vert = np.empty(len(jj), dtype=[(k, "<f4") for k in ("x", "y", "z", "nx", "ny", "nz")])
+    vert["x"], vert["y"], vert["z"] = xy[:, 0], xy[:, 1], z[jj, ii]
+    vert["nx"], vert["ny"], vert["nz"] = normal.T
+    faces = np.empty(len(tri), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    faces["n"], faces["i"] = 3, tri
+    header = ("ply\nformat binary_little_endian 1.0\n"
+              f"element vertex {len(vert)}\n"
+              + "".join(f"property float {k}\n" for k in ("x", "y", "z", "nx", "ny", "nz"))
+              + f"element face {len(faces)}\nproperty list uchar int vertex_indices\n"
+              "end_header\n")
+    with open(path, "wb") as fh:
+        fh.write(header.encode("ascii"))
+        fh.write(vert.tobytes())
+        fh.write(faces.tobytes())
+    return len(vert), len(faces)
+
+
+def light_position(plate: Plate) -> tuple[np.ndarray, float]:
+    """Where the light's sphere sits and its distance from the plate centre: the
+    folder's point light, or a sun's direction far out."""
+    light = plate.loaded.config.setup().light
+    if light.distance is not None:
+        return np.asarray(light.position, dtype=float), float(light.distance)
+    return SUN_DISTANCE * np.asarray(light.direction, dtype=float), SUN_DISTANCE
+
+
+def load_scene(mi: Any, plate: Plate, diameter_deg: float, alpha: float) -> Any:
+    """The plate lit by a sphere of the given angular diameter, whose radiance
+    gives unit irradiance facing it (so glints compare across light sizes)."""
+    centre, dist = light_position(plate)
+    half = math.radians(0.5 * diameter_deg)
+    solid = 2.0 * math.pi * (1.0 - math.cos(half))
+    return mi.load_dict({
+        "type": "scene",
+        "integrator": {"type": "direct"},
+        "plate": {"type": "ply", "filename": str(plate.mesh),
+                  "bsdf": {"type": "roughconductor", "material": "none",
+                           "distribution": "beckmann", "alpha": alpha}},
+        "light": {"type": "sphere", "center": centre.tolist(), "radius": dist * math.sin(half),
+                  "emitter": {"type": "area", "radiance": {"type": "rgb",
+                                                           "value": 1.0 / solid}}},
+    })
+
+
+class Renderer:
+    """Mitsuba's integrator on the pixels that can glint, at two sample counts.
+
+    Mitsuba's own film would spend samples on every pixel; here each picture is
+    sampled where the camera sees a groove (its cut samples, two pixels more),
+    then again, much more densely, about every pixel the first pass lit. A
+    glint's lit strip is a fraction of a micrometre across the groove, so a
+    pixel's value is a rare hit: the second pass makes the fluxes and
+    centroids steady (and shows a lone lucky hit on a faint cap for what it
+    is), the first only finds where to look.
+    """
+
+    #: Samples traced per kernel launch (bounds the memory of one launch).
+    CHUNK = 1 << 23
+
+    def __init__(self, mi: Any, dr: Any, scene: Any) -> None:
+        self.mi, self.dr, self.scene = mi, dr, scene
+        self.integrator = scene.integrator()
+
+    def sample(self, cam: Camera, xs: np.ndarray, ys: np.ndarray, spp: int,
+               seed: int) -> np.ndarray:
+        """Mean luminance of the pixels (xs, ys), ``spp`` stratified samples each."""
+        mi, dr = self.mi, self.dr
+        k = max(1, int(round(math.sqrt(spp))))
+        spp = k * k
+        f, right, up = Camera._frame(cam.eye, cam.target)
+        tan_y = cam.tan_x * cam.height / cam.width
+        eye = mi.Point3f(*(float(c) for c in cam.eye))
+        out = np.empty(len(xs))
+        per = max(1, self.CHUNK // spp)
+        for lo in range(0, len(xs), per):
+            hi = min(lo + per, len(xs))
+            n = (hi - lo) * spp
+            idx = dr.arange(mi.UInt32, n)
+            pix = idx // spp
+            s = idx - pix * spp
+            sampler = mi.load_dict({"type": "independent"})
+            sampler.seed(seed * 7919 + lo, n)
+            jitter = sampler.next_2d()
+            fx = dr.gather(mi.Float, mi.Float(xs[lo:hi].astype(np.float32)), pix) \
+                + (mi.Float(s % k) + jitter.x) / k
+            fy = dr.gather(mi.Float, mi.Float(ys[lo:hi].astype(np.float32)), pix) \
+                + (mi.Float(s // k) + jitter.y) / k
+            a = (2.0 * fx / cam.width - 1.0) * cam.tan_x
+            b = (1.0 - 2.0 * fy / cam.height) * tan_y
+            d = dr.normalize(mi.Vector3f(*(float(c) for c in f))
+                             + a * mi.Vector3f(*(float(c) for c in right))
+                             + b * mi.Vector3f(*(float(c) for c in up)))
+            spec, _, _ = self.integrator.sample(self.scene, sampler, mi.Ray3f(eye, d))
+            lum = np.asarray(mi.luminance(spec), dtype=np.float64)
+            out[lo:hi] = lum.reshape(hi - lo, spp).mean(axis=1)
+        return out
+
+    def picture(self, cam: Camera, plate: Plate, spp: int, spp_fine: int,
+                seed: int) -> tuple[np.ndarray, dict[str, int]]:
+        """The picture's luminance (height, width), and how many pixels each pass sampled."""
+        hf = plate.field
+        jj, ii = np.nonzero(hf.z < 0)
+        pts = np.stack([hf.origin[0] + ii * hf.resolution, hf.origin[1] + jj * hf.resolution,
+                        hf.z[jj, ii]], axis=1)
+        px, py = cam.project(pts)
+        inside = (px >= 0) & (px < cam.width) & (py >= 0) & (py < cam.height)
+        seen = np.zeros((cam.height, cam.width), bool)
+        seen[py[inside].astype(np.int64), px[inside].astype(np.int64)] = True
+        seen = ndimage.binary_dilation(seen, iterations=2)
+        img = np.zeros((cam.height, cam.width))
+        ys, xs = np.nonzero(seen)
+        img[ys, xs] = self.sample(cam, xs, ys, spp, 2 * seed)
+        peak = float(img.max())
+        if peak <= 0:
+            return img, {"coarse": len(xs), "fine": 0}
+        # Anything above the Beckmann lobe's far tail (1e-19 of its peak at 7
+        # widths) was a hit on a lit strip: its neighbourhood is sampled again.
+        near = ndimage.binary_dilation(img > 1e-6 * peak, iterations=3)
+        fy, fx = np.nonzero(near)
+        img[fy, fx] = self.sample(cam, fx, fy, spp_fine, 2 * seed + 1)
+        return img, {"coarse": len(xs), "fine": len(fx)}
+
+
+# ---------------------------------------------------------------------------
+# Spots
+
+
+def hit_field(hf: Any, eye: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where rays from the eye meet the cut surface: points (n, 3) and the path
+    (n,) that cut the sample nearest each (-1 on the uncut plate).
+
+    Fixed-point steps on the exact surface: sightlines within 30 deg of the
+    plate normal against walls of at most 45 deg contract by 0.6 a step.
+    """
+    t = -eye[2] / d[:, 2]
+    for _ in range(40):
+        p = eye + t[:, None] * d
+        z, _ = hf.surface(p[:, :2])
+        t = (z - eye[2]) / d[:, 2]
+    p = eye + t[:, None] * d
+    ij = np.rint((p[:, :2] - hf.origin) / hf.resolution).astype(np.int64)
+    ny, nx = hf.shape
+    inside = (ij[:, 0] >= 0) & (ij[:, 0] < nx) & (ij[:, 1] >= 0) & (ij[:, 1] < ny)
+    path = np.full(len(p), -1, np.int64)
+    path[inside] = hf.labels[ij[inside, 1], ij[inside, 0]]
+    return p, path
+
+
+@dataclass
+class Glint:
+    """One path's streak in one eye's picture (pieces the eye cannot resolve apart)."""
+
+    path: int
+    stipple: int
+    flux: float
+    point: np.ndarray  # (3,) the centroid followed back to the cut surface
+    length: float  # along its principal axis on the plate, rms as a uniform streak's, mm
+    extent: float  # lit pixels' full extent along that axis, mm
+    pieces: int
+    pixels: int
+    end_distance: float  # from its lit pixels to the nearer end of its path, mm
+    model_distance: float = math.inf  # to the nearest point-model glint, mm
+    own_distance: float = math.inf  # to the point-model glint of its own path, mm
+
+
+def find_spots(img: np.ndarray, cam: Camera, plate: Plate) -> list[Glint]:
+    """Every path's glints in a picture."""
+    peak = float(img.max())
+    if peak <= 0:
+        return []
+    lit = img > LIT * peak
+    # Lit pixels along one streak are sparse where the wall's lit strip is
+    # narrower than a pixel: two pixels' reach joins them.
+    lab, n = ndimage.label(ndimage.binary_dilation(lit, iterations=2))
+    py, px = np.nonzero(lit)
+    w = img[py, px]
+    comp = lab[py, px]
+    points, path = hit_field(plate.field, cam.eye, cam.rays(px + 0.5, py + 0.5))
+    dist = float(np.linalg.norm(cam.target - cam.eye))
+    join = EYE_RESOLUTION * dist
+    out: list[Glint] = []
+    stipple_of = plate.cut_grooves.stipple
+    for p in np.unique(path[path >= 0]):
+        mine = np.flatnonzero(path == p)
+        pieces = np.unique(comp[mine])
+        # pieces of one path closer than the eye resolves are one glint
+        centres = np.array([np.average(points[mine[comp[mine] == c]], axis=0,
+                                       weights=w[mine[comp[mine] == c]]) for c in pieces])
+        group = _single_link(centres[:, :2], join)
+        for gid in np.unique(group):
+            sel = mine[np.isin(comp[mine], pieces[group == gid])]
+            ww = w[sel]
+            flux = float(ww.sum())
+            cx = float(np.average(px[sel] + 0.5, weights=ww))
+            cy = float(np.average(py[sel] + 0.5, weights=ww))
+            centre, _ = hit_field(plate.field, cam.eye, cam.rays(np.array([cx]), np.array([cy])))
+            xy = points[sel, :2]
+            mu = np.average(xy, axis=0, weights=ww)
+            cov = np.cov((xy - mu).T, aweights=ww) if len(sel) > 1 else np.zeros((2, 2))
+            vals, vecs = np.linalg.eigh(np.atleast_2d(cov))
+            along = (xy - mu) @ vecs[:, -1]
+            ends = plate.ends[p]
+            end_d = float(np.min(np.linalg.norm(xy[:, None, :] - ends[None], axis=2)))
+            out.append(Glint(int(p), int(stipple_of[p]), flux, centre[0],
+                             math.sqrt(12.0 * max(float(vals[-1]), 0.0)),
+                             float(along.max() - along.min()) + plate.field.resolution,
+                             int((group == gid).sum()), len(sel), end_d))
+    return out
+
+
+def _single_link(xy: np.ndarray, reach: float) -> np.ndarray:
+    """Cluster labels of points joined by links shorter than reach."""
+    if len(xy) < 2:
+        return np.zeros(len(xy), np.int64)
+    d = np.linalg.norm(xy[:, None] - xy[None], axis=2)
+    return np.asarray(connected_components(d < reach, directed=False)[1])
+
+
+def image_rule(glints: list[Glint]) -> list[Glint]:
+    """The glints that make the stipples' image (verify's Glints.image on fluxes)."""
+    if not glints:
+        return []
+    top: dict[int, float] = {}
+    for g in glints:
+        top[g.stipple] = max(top.get(g.stipple, 0.0), g.flux)
+    lit = np.sort(np.array(list(top.values())))
+    light = np.cumsum(lit)
+    typical = float(lit[np.searchsorted(light, 0.5 * light[-1])])
+    return [g for g in glints
+            if g.flux * FAINT_RATIO >= top[g.stipple] and g.flux * INVISIBLE_RATIO >= typical]
+
+
+def typical_flux(glints: list[Glint]) -> float:
+    top: dict[int, float] = {}
+    for g in glints:
+        top[g.stipple] = max(top.get(g.stipple, 0.0), g.flux)
+    lit = np.sort(np.array(list(top.values())))
+    if not len(lit):
+        return math.nan
+    light = np.cumsum(lit)
+    return float(lit[np.searchsorted(light, 0.5 * light[-1])])
+
+
+# ---------------------------------------------------------------------------
+# One view
+
+
+def point_model(plate: Plate, eye: np.ndarray) -> Any:
+    """The point model's glints for an eye, as verify counts them (its image)."""
+    from specholo.simulation.glints import Engraved, find_glints
+
+    if plate.engraved is None:
+        plate.engraved = Engraved.from_grooves(plate.loaded.grooves, plate.setup.tool)
+    return find_glints(plate.engraved, eye, plate.setup.light).image()
+
+
+def _pct(vals: list[float] | np.ndarray, q: float) -> float:
+    vals = [v for v in vals if math.isfinite(v)]
+    return float(np.percentile(vals, q)) if vals else math.nan
+
+
+def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
+               spots: tuple[list[Glint], list[Glint]], pixel: float) -> dict[str, Any]:
+    """What the two eyes meet at one head azimuth, in verify's terms.
+
+    A glint is *modelled* where the point model has a glint of the same path
+    (the same stipple, if the G-code's paths differ from the design's) within
+    SPILL of it; the rest are caps, the ends of stripes whose glint lies just
+    past them, and the like. A *spill* is a glint farther than SPILL from
+    every glint of the point model.
+    """
+    from specholo.simulation.verify import stereo_errors
+    from specholo.visibility.occlusion import visible
+
+    loaded = plate.loaded
+    points = np.asarray(loaded.points, dtype=float)
+    n = len(points)
+    same_paths = plate.same_paths
+    kept: list[list[Glint]] = []
+    typical: list[float] = []
+    for eye, found in zip(eyes, spots, strict=True):
+        model = point_model(plate, eye)
+        for g in found:
+            if len(model.point):
+                d = np.linalg.norm(model.point - g.point, axis=1)
+                g.model_distance = float(d.min())
+                own = model.path == g.path if same_paths else model.stipple == g.stipple
+                g.own_distance = float(d[own].min()) if own.any() else math.inf
+        kept.append(image_rule(found))
+        typical.append(typical_flux(found))
+    if loaded.mesh is not None and loaded.normals is not None:
+        vis = [visible(loaded.mesh, points, loaded.normals, e) for e in eyes]
+    else:
+        vis = [np.ones(n, bool), np.ones(n, bool)]
+    seen = vis[0] & vis[1]
+
+    def shown(glints: list[list[Glint]]) -> tuple[float, np.ndarray]:
+        lit = [np.bincount(np.array([g.stipple for g in k], np.int64), minlength=n) > 0
+               for k in glints]
+        both = np.flatnonzero(seen & lit[0] & lit[1])
+        err = np.zeros(0)
+        if both.size:
+            err, _ = stereo_errors(points, _as_glints(glints[0]), _as_glints(glints[1]),
+                                   eyes[0], eyes[1], both)
+        return (float(both.size / seen.sum()) if seen.any() else math.nan), err
+
+    modelled = [[g for g in k if g.own_distance <= SPILL] for k in kept]
+    visibility, err = shown(kept)
+    visibility_modelled, err_modelled = shown(modelled)
+    r_cut = plate.r_cut
+    all_kept = kept[0] + kept[1]
+    designed = modelled[0] + modelled[1]
+    extra = [g for g in all_kept if g.own_distance > SPILL]
+    spills = [g for g in all_kept if g.model_distance > SPILL]
+    tflux = float(np.nanmean(typical)) if any(np.isfinite(typical)) else math.nan
+
+    def at_end(g: Glint) -> bool:
+        return g.end_distance <= r_cut + 2.0 * pixel
+
+    return {
+        "azimuth": math.degrees(theta),
+        "stipples_seen": int(seen.sum()),
+        "visibility": visibility,
+        "visibility_modelled": visibility_modelled,
+        "median_error": _pct(err, 50),
+        "p95_error": _pct(err, 95),
+        "max_error": float(err.max()) if err.size else math.nan,
+        "p95_error_modelled": _pct(err_modelled, 95),
+        "glints": [len(k) for k in kept],
+        "unmodelled": len(extra),
+        "unmodelled_at_end": sum(at_end(g) for g in extra),
+        "unmodelled_flux_p95": _pct([g.flux / tflux for g in extra], 95),
+        "spills": len(spills),
+        "spills_at_end": sum(at_end(g) for g in spills),
+        "bright_spills": sum(g.flux * 10 >= tflux for g in spills),
+        "split_streaks": sum(g.pieces > 1 for g in designed),
+        "median_streak_mm": _pct([g.length for g in designed], 50),
+        "p95_streak_mm": _pct([g.length for g in designed], 95),
+        "median_extent_mm": _pct([g.extent for g in designed], 50),
+        "median_offset_mm": _pct([g.own_distance for g in designed], 50),
+        "p95_offset_mm": _pct([g.own_distance for g in designed], 95),
+        "designed_flux_p5": _pct([g.flux / tflux for g in designed], 5),
+        "unmodelled_list": [
+            {"stipple": g.stipple, "path": g.path, "flux_over_typical": g.flux / tflux,
+             "from_model_mm": g.model_distance, "from_own_model_mm": g.own_distance,
+             "from_path_end_mm": g.end_distance, "length_mm": g.length,
+             "point": g.point.tolist()} for g in extra],
+    }
+
+
+def _as_glints(k: list[Glint]) -> Any:
+    from specholo.simulation.glints import Glints
+
+    order = sorted(range(len(k)), key=lambda i: k[i].stipple)
+    return Glints(np.array([k[i].path for i in order], np.int64),
+                  np.array([k[i].stipple for i in order], np.int64),
+                  np.array([k[i].point for i in order]).reshape(-1, 3))
+
+
+# ---------------------------------------------------------------------------
+# verify
+
+
+def verify_rows(folder: Path, azimuths: list[float], step: float,
+                light_size: float | None = None, alpha: float | None = None) -> dict[str, Any]:
+    """``specholo verify`` on the folder: its figures at the rendered azimuths.
+
+    The point model is verified twice, as verify does by default (the
+    design's grooves) and with ``--cut`` (the G-code's grooves as cut, which
+    verify reads from the program); the streak model once, by default.
+    """
+    base = [sys.executable, "-m", "specholo_cli.cli", "verify", str(folder), "--step", f"{step:g}"]
+    runs: list[tuple[str, list[str], str]] = []
+    if light_size is None:
+        runs = [("ideal", [], "verify.json"), ("cut", ["--cut"], "verify_cut.json")]
+    else:
+        runs = [("ideal", ["--light-size", f"{light_size:g}", "--roughness", f"{alpha:g}"],
+                 "verify.json")]
+    out: dict[str, Any] = {}
+    for key, extra, name in runs:
+        subprocess.run(base + extra, check=True, stdout=subprocess.DEVNULL)
+        data = json.loads((folder / name).read_text())
+        rows = data.get("azimuths") or []
+        out[key] = {f"{a:g}": next((r for r in rows if abs(r["azimuth"] - a) < 1e-6), None)
+                    for a in azimuths}
+    return out
+
+
+def has_streak_model() -> bool:
+    """Whether this specholo's verify takes a light's size and a roughness."""
+    help_text = subprocess.run([sys.executable, "-m", "specholo_cli.cli", "verify", "--help"],
+                               check=True, capture_output=True, text=True).stdout
+    return "--light-size" in help_text and "--roughness" in help_text
+
+
+def common_step(azimuths: list[float], half_range: float) -> float:
+    """A verify step whose views include every rendered azimuth."""
+    for step in (5.0, 2.5, 1.0, 0.5, 0.25, 0.1):
+        n = int(math.ceil(2.0 * half_range / step - 1e-9)) + 1
+        grid = np.linspace(-half_range, half_range, max(n, 1))
+        if all(np.min(np.abs(grid - a)) < 1e-6 for a in azimuths):
+            return step
+    raise SystemExit(f"error: no verify step of at least 0.1 deg puts views at {azimuths}")
+
+
+# ---------------------------------------------------------------------------
+# Main
+
+
+#: The table's columns: heading, and the figure from a row.
+COLUMNS: list[tuple[str, str]] = [
+    ("plate", "{plate}"), ("light", "{light}"), ("alpha", "{alpha:g}"),
+    ("azimuth", "{azimuth:+.0f}"),
+    ("render visibility (all / modelled)", "{r_vis} / {r_vis_m}"),
+    ("verify visibility (ideal / cut / streak)", "{v_vis} / {v_cut} / {s_vis}"),
+    ("render p95 mm (all / modelled)", "{r_p95} / {r_p95_m}"),
+    ("verify p95 mm (ideal / streak)", "{v_p95} / {s_p95}"),
+    ("render spills >0.25 mm (at an end)", "{spills} ({spills_end})"),
+    ("render unmodelled glints (at an end)", "{extra} ({extra_end})"),
+    ("verify end spills", "{s_end}"),
+    ("render streak mm (median)", "{streak}"),
+    ("render - point model mm (median / p95)", "{off} / {off95}"),
+]
+
+
+def _fmt(v: Any, fmt: str = ".2f") -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return format(v, fmt)
+
+
+def markdown(rows: list[dict[str, Any]]) -> str:
+    """The table: one row per plate, light, roughness and view."""
+    lines = ["| " + " | ".join(h for h, _ in COLUMNS) + " |",
+             "|" + "---|" * 4 + "---:|" * (len(COLUMNS) - 4)]
+    for r in rows:
+        v = r["render"]
+        values = {
+            "plate": r["plate"], "light": r["light"], "alpha": r["alpha"],
+            "azimuth": r["azimuth"], "r_vis": _fmt(v["visibility"]),
+            "r_vis_m": _fmt(v["visibility_modelled"]),
+            "v_vis": _fmt(r["verify_ideal_visibility"]), "v_cut": _fmt(r["verify_cut_visibility"]),
+            "s_vis": _fmt(r.get("streak_visibility")), "r_p95": _fmt(v["p95_error"], ".3f"),
+            "r_p95_m": _fmt(v["p95_error_modelled"], ".3f"),
+            "v_p95": _fmt(r["verify_ideal_p95"], ".3f"), "s_p95": _fmt(r.get("streak_p95"), ".3f"),
+            "spills": v["spills"], "spills_end": v["spills_at_end"], "extra": v["unmodelled"],
+            "extra_end": v["unmodelled_at_end"], "s_end": _fmt(r.get("streak_end_spills"), "d"),
+            "streak": _fmt(v["median_streak_mm"], ".3f"),
+            "off": _fmt(v["median_offset_mm"], ".3f"), "off95": _fmt(v["p95_offset_mm"], ".3f"),
+        }
+        lines.append("| " + " | ".join(c.format(**values) for _, c in COLUMNS) + " |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--work", type=Path, default=None,
+                    help="folder for the designs and meshes [a temporary one]")
+    ap.add_argument("--redesign", action="store_true", help="design again over --work's folders")
+    ap.add_argument("--plates", nargs="+", default=list(PLATES), choices=list(PLATES))
+    ap.add_argument("--azimuths", nargs="+", type=float, default=[-20.0, 0.0, 20.0],
+                    help="head azimuths, degrees")
+    ap.add_argument("--spp", type=int, default=16,
+                    help="samples per pixel, first pass (a square number)")
+    ap.add_argument("--spp-fine", type=int, default=256,
+                    help="samples per pixel about what the first pass lit (a square number)")
+    ap.add_argument("--pixel", type=float, default=0.003, help="pixel on the plate, mm")
+    ap.add_argument("--quick", action="store_true",
+                    help="one plate, the sun, alpha 0.003, azimuth 0 (a smoke run)")
+    ap.add_argument("--out", type=Path, default=RESULTS)
+    args = ap.parse_args()
+    mi, dr = import_mitsuba()
+    plates: list[str] = args.plates
+    lights: list[tuple[str, float]] = list(LIGHTS)
+    alphas: list[float] = list(ALPHAS)
+    azimuths: list[float] = args.azimuths
+    if args.quick:
+        plates, lights, alphas, azimuths = plates[:1], lights[:1], alphas[:1], [0.0]
+    load0 = os.getloadavg()
+    started = datetime.datetime.now().astimezone()
+    t_all = time.perf_counter()
+    tmp = None
+    if args.work is None:
+        tmp = tempfile.TemporaryDirectory(prefix="render_judge-")
+        work = Path(tmp.name)
+    else:
+        work = args.work
+        work.mkdir(parents=True, exist_ok=True)
+    streaks = has_streak_model()
+    rows: list[dict[str, Any]] = []
+    plates_out: dict[str, Any] = {}
+    render_seconds: list[float] = []
+    for name in plates:
+        folder = design_plate(name, work, args.redesign)
+        plate = cut_plate(name, folder, work)
+        setup = plate.loaded.config.setup()
+        step = common_step(azimuths, math.degrees(setup.viewer.half_range))
+        t0 = time.perf_counter()
+        point_verify = verify_rows(folder, azimuths, step)
+        info = json.loads((folder / "hologram.json").read_text())
+        plates_out[name] = {
+            "design": PLATES[name][1], "stipples": int(len(plate.loaded.points)),
+            "stipples_with_grooves": info["stats"].get("stipples_with_grooves"),
+            "paths": int(plate.cut_grooves.n_paths),
+            "groove_mm": float(info["stats"].get("groove_length_mm", math.nan)),
+            "rendered_region_mm": plate.box.tolist(),
+            "field_samples": list(plate.field.shape), "mesh_vertices": plate.vertices,
+            "mesh_faces": plate.faces, "cut_seconds": plate.cut_seconds,
+            "verify_seconds": time.perf_counter() - t0,
+        }
+        target = np.array([*plate.box.mean(axis=0), 0.0])
+        cams: dict[float, tuple[Camera, Camera]] = {}
+        for a in azimuths:
+            left, right = setup.viewer.stereo(np.array([math.radians(a)]))
+            cams[a] = (Camera.framing(left[0], target, plate.box, args.pixel),
+                       Camera.framing(right[0], target, plate.box, args.pixel))
+        plates_out[name]["camera_check_rad"] = check_camera(mi, cams[azimuths[0]][0])
+        for light_name, size in lights:
+            for alpha in alphas:
+                t0 = time.perf_counter()
+                scene = load_scene(mi, plate, size, alpha)
+                renderer = Renderer(mi, dr, scene)
+                scene_s = time.perf_counter() - t0
+                streak_verify = (verify_rows(folder, azimuths, step, size, alpha)
+                                 if streaks else None)
+                for a in azimuths:
+                    found, sampled = [], []
+                    for cam in cams[a]:
+                        t0 = time.perf_counter()
+                        img, counts = renderer.picture(cam, plate, args.spp, args.spp_fine,
+                                                       seed=len(render_seconds))
+                        render_seconds.append(time.perf_counter() - t0)
+                        found.append(find_spots(img, cam, plate))
+                        sampled.append(counts)
+                    view = judge_view(plate, math.radians(a), (cams[a][0].eye, cams[a][1].eye),
+                                      (found[0], found[1]), args.pixel)
+                    key = f"{a:g}"
+                    ideal = point_verify["ideal"][key] or {}
+                    cut = point_verify["cut"][key] or {}
+                    row: dict[str, Any] = {
+                        "plate": name, "light": light_name, "light_diameter_deg": size,
+                        "alpha": alpha, "azimuth": a, "render": view,
+                        "film": [cams[a][0].width, cams[a][0].height],
+                        "scene_seconds": scene_s,
+                        "render_seconds": render_seconds[-2:], "pixels_sampled": sampled,
+                        "verify_ideal_visibility": ideal.get("visibility"),
+                        "verify_ideal_p95": ideal.get("p95_error"),
+                        "verify_ideal_median": ideal.get("median_error"),
+                        "verify_cut_visibility": cut.get("visibility"),
+                        "verify_cut_p95": cut.get("p95_error"),
+                    }
+                    if streak_verify is not None:
+                        s = streak_verify["ideal"][key] or {}
+                        row.update({"streak_visibility": s.get("visibility"),
+                                    "streak_p95": s.get("p95_error"),
+                                    "streak_median": s.get("median_error"),
+                                    "streak_end_spills": s.get("end_spills"),
+                                    "streak_row": s})
+                    rows.append(row)
+                    print(markdown([row]).splitlines()[-1], flush=True)
+                del scene
+    total = time.perf_counter() - t_all
+    result = {
+        "what": "glints of small plates as cut, rendered with Mitsuba 3, against specholo verify",
+        "date": started.isoformat(timespec="seconds"),
+        "machine": {"cores": os.cpu_count(), "load_before": load0,
+                    "load_after": os.getloadavg(), "platform": platform.platform(),
+                    "python": platform.python_version()},
+        "mitsuba": {"version": mi.__version__, "drjit": dr.__version__, "variant": "llvm_ad_rgb",
+                    "threads": 1, "integrator": "direct", "spp": args.spp,
+                    "spp_fine": args.spp_fine,
+                    "pixel_mm": args.pixel, "field_mm": RESOLUTION,
+                    "sun_distance_mm": SUN_DISTANCE},
+        "rules": {"spill_mm": SPILL, "faint_ratio": FAINT_RATIO,
+                  "invisible_ratio": INVISIBLE_RATIO, "join_arcmin": 1.0, "lit": LIT},
+        "streak_model_in_verify": streaks,
+        "seconds": {"total": total, "render_total": sum(render_seconds),
+                    "render_median": float(np.median(render_seconds)) if render_seconds
+                    else math.nan},
+        "plates": plates_out,
+        "views": rows,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=1, default=float) + "\n")
+    print()
+    print(markdown(rows))
+    median = float(np.median(render_seconds)) if render_seconds else math.nan
+    print(f"\n{len(render_seconds)} pictures in {sum(render_seconds):.0f} s of rendering "
+          f"(median {median:.1f} s, llvm_ad_rgb, 1 thread, "
+          f"{args.spp}/{args.spp_fine} spp); whole run {total:.0f} s; load {load0[0]:.2f} before, "
+          f"{os.getloadavg()[0]:.2f} after -> {args.out}")
+    if tmp is not None:
+        tmp.cleanup()
+
+
+if __name__ == "__main__":
+    main()
