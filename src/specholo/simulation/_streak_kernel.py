@@ -81,15 +81,14 @@ def streak_cells(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: f
 
     Returns:
         cell_row (c,) the index into ``rows``; s (c, 2) arc length of the cell's
-        ends along its arc, mm; f (c, 8): the cell's middle wall point (3),
-        psi at its two ends (2), light factor k, and the wall points' z at its
-        two ends.
+        ends along its arc, mm; f (c, 6): the cell's middle wall point (3),
+        psi at its two ends (2) and the light factor k.
     """
     m = rows.size
     count = np.zeros(m, np.int64)
     empty_i = np.zeros(0, np.int64)
     empty_f = np.zeros((0, 2))
-    empty_g = np.zeros((0, 8))
+    empty_g = np.zeros((0, 6))
     args = (rows, geo, tool_radius, tool_radius - depth, math.cos(max_tilt), eye, light, point,
             beta, tail, step, rate)
     chunked(_walk, 0, m, *args, count, empty_i, empty_f, empty_g, False, grain=_GRAIN)
@@ -98,7 +97,7 @@ def streak_cells(rows: np.ndarray, geo: np.ndarray, tool_radius: float, depth: f
     total = int(count.sum())
     cell_row = np.empty(total, np.int64)
     s = np.empty((total, 2))
-    f = np.empty((total, 8))
+    f = np.empty((total, 6))
     chunked(_walk, 0, m, *args, start, cell_row, s, f, True, grain=_GRAIN)
     return cell_row, s, f
 
@@ -125,7 +124,7 @@ def _walk(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: floa
                 at[j] = 0
             continue
         speed = turn + rate
-        gx, gy, gz, psi, k, nz = _sample(geo, i, 0.0, tool_radius, cz, eye, light, point)
+        _, _, _, psi, k, nz = _sample(geo, i, 0.0, tool_radius, cz, eye, light, point)
         s = 0.0
         while s < length:
             reach = k * beta + tail
@@ -141,8 +140,8 @@ def _walk(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: floa
                     ds = min(ds, 0.25 * max(reach / TAIL_WIDTH, 1e-9) / speed)
             ds = max(ds, MIN_STEP)
             s1 = min(s + ds, length)
-            qx, qy, qz, psi1, k1, nz1 = _sample(geo, i, s1 / length, tool_radius, cz, eye,
-                                                light, point)
+            _, _, _, psi1, k1, nz1 = _sample(geo, i, s1 / length, tool_radius, cz, eye, light,
+                                             point)
             # A stride ends at least the reach short of a streak (it is dark).
             lit = not stride and (min(abs(psi), abs(psi1)) < max(k, k1) * beta + tail
                                   or psi * psi1 <= 0.0)
@@ -154,9 +153,8 @@ def _walk(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: floa
                     mx, my, mz, _, _, _ = _sample(geo, i, um, tool_radius, cz, eye, light, point)
                     f_out[w, 0], f_out[w, 1], f_out[w, 2] = mx, my, mz
                     f_out[w, 3], f_out[w, 4], f_out[w, 5] = psi, psi1, 0.5 * (k + k1)
-                    f_out[w, 6], f_out[w, 7] = gz, qz
                 w += 1
-            gx, gy, gz, psi, k, nz = qx, qy, qz, psi1, k1, nz1
+            psi, k, nz = psi1, k1, nz1
             s = s1
         if not fill:
             at[j] = w

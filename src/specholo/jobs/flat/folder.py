@@ -25,7 +25,6 @@ import numpy as np
 from specholo.errors import SpecholoError
 from specholo.fabrication.atomic import atomic_open
 from specholo.fabrication.plate import Plate
-from specholo.optics.spread import Spread
 from specholo.jobs.flat.design import (
     AS_CUT_MAX_STIPPLES,
     AS_CUT_SKIPPED,
@@ -62,6 +61,7 @@ from specholo.jobs.plate_common import (
     settings_of,
 )
 from specholo.jobs.plate_settings import DEFAULT_STIPPLES, MAX_SETTING, TOOL_DEFAULTS
+from specholo.optics.spread import Spread
 from specholo.toolpaths.grooves import Grooves
 
 #: The settings and the design are re-exported: callers import them from here.
