@@ -235,3 +235,45 @@ def test_bad_spread_options_are_one_line_and_write_nothing(small_design: Path, t
     assert said in run.stderr and "Traceback" not in run.stderr
     assert len(run.stderr.strip().splitlines()) == 1
     assert {p.name: p.stat().st_mtime_ns for p in folder.iterdir()} == before
+
+
+def test_a_still_under_a_real_light_draws_the_streaks_and_their_spills(small_design: Path,
+                                                                       tmp_path: Path) -> None:
+    from PIL import Image
+    from scipy import ndimage
+
+    from specholo.jobs import job_of
+    from specholo.simulation.streaks import false_glints, find_streaks
+
+    def spots(*extra: str) -> tuple[np.ndarray, int]:
+        out = tmp_path / f"still{len(extra)}.png"
+        run = _cli("render", str(small_design), "--width", "1024", "--height", "1024",
+                   "--out", str(out), *extra)
+        assert run.returncode == 0, run.stderr
+        grey = np.asarray(Image.open(out).convert("L"), dtype=float)
+        lit = grey > 0.5 * grey.max()
+        return lit, int(ndimage.label(lit)[1])
+
+    _, points = spots()
+    lit, streaks = spots("--light-size", "0.53", "--roughness", "mirror")
+    # the point glints, and as many again where stripe ends spill light
+    source = job_of(small_design).picture_source(small_design)
+    eye = source.setup.viewer.eye(np.array([0.0]))[0]
+    st = find_streaks(source.engraved(), eye, source.setup.light, Spread(SUN, 0.003))
+    spilled = len(false_glints(st, st.glints().image()))
+    assert spilled > 0
+    assert streaks > points + 0.5 * spilled
+
+
+def test_a_light_size_is_for_grooves() -> None:
+    from specholo_cli.app import _lighting
+
+    class Field:
+        title = "a ridged design"
+
+    with pytest.raises(SpecholoError, match="for flat-plate designs"):
+        _lighting(Field(), None, 0.53)
+    with pytest.raises(SpecholoError, match="perfect mirror"):
+        _lighting(Field(), "0", None)
+    source, lobe = _lighting(Field(), "polished", None)  # the gloss alone sizes the spots
+    assert lobe == pytest.approx(0.01 / math.sqrt(2.0))
