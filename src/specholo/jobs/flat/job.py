@@ -59,6 +59,8 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
                      f"{o.crossings} crossings between stipples, "
                      f"{o.crossed_length / max(o.total_length, 1e-9):.0%} of the groove length "
                      "within a groove width of another stipple's")
+    if getattr(d, "light", None) is not None:
+        lines.append(d.light.describe())
     # What survives the cutting: from the grooves themselves where the design
     # found it, else the rough share from the grooves' coverage.
     figures = d.as_cut.mean_and_lowest() if d.as_cut is not None else None
