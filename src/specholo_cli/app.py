@@ -240,9 +240,38 @@ def _look_options(fn: Any) -> Any:
                       help="Draw the model faintly where it is in space.")(fn)
     fn = click.option("--grooves/--no-grooves", default=False, show_default=True,
                       help="Draw the grooves faintly.")(fn)
-    return click.option("--roughness", type=float, default=1.0, show_default=True,
-                        help="Width of the plate's specular lobe, degrees: rougher, "
-                             "bigger dimmer glints.")(fn)
+    fn = click.option("--light-size", type=float, default=None,
+                      help=LIGHT_SIZE_HELP)(fn)
+    return click.option("--roughness", default=None, help=ROUGHNESS_HELP)(fn)
+
+
+LIGHT_SIZE_HELP = ("A flat plate: draw each glint as the streak a light this many degrees "
+                   "across makes along its groove (the sun 0.53), end spills and all "
+                   "[a spot per glint].")
+ROUGHNESS_HELP = ("The plate's gloss: mirror, polished, satin or a Beckmann alpha; rougher, "
+                  "bigger dimmer glints [0.0247: a lobe of 1 degree].")
+
+
+def _lighting(source: Any, roughness: str | None, light_size: float | None) -> tuple[Any, float]:
+    """The picture source and its spots' lobe (radians) for ``--roughness`` and
+    ``--light-size``: with a light size, a flat plate drawn as its streaks."""
+    from specholo.optics.spread import Spread
+    from specholo.preview.render import REFERENCE_ROUGHNESS
+
+    # without --roughness the pictures keep their lobe of 1 degree
+    gloss = roughness if roughness is not None else str(math.sqrt(2.0) * REFERENCE_ROUGHNESS)
+    spread = Spread.of(light_size, gloss)
+    assert spread is not None
+    if spread.roughness == 0.0:
+        raise SpecholoError("roughness 0 is a perfect mirror, whose glints have no size to "
+                            "draw: give a roughness above 0")
+    if light_size is None:
+        return source, spread.sigma
+    lit = getattr(source, "lit_by", None)
+    if lit is None:
+        raise SpecholoError(f"--light-size draws each glint as its streak along a groove: "
+                            f"{source.title} has none (for flat-plate designs)")
+    return lit(spread), spread.sigma
 
 
 #: Most frames of an animation (an hour at 30 fps); every frame is held in memory.

@@ -15,11 +15,14 @@ import click
 from specholo.errors import SpecholoError
 from specholo_cli.app import (
     _SIZE_HELP,
+    LIGHT_SIZE_HELP,
     MAX_FRAMES,
+    ROUGHNESS_HELP,
     _check_folder,
     _distance,
     _finite_option,
     _fov,
+    _lighting,
     _look_options,
     _picture_source,
     _png_out,
@@ -65,21 +68,21 @@ def _state_words(source: Any, state: float | None) -> str:
               help="PNG file [FOLDER/render.png].")
 def render(folder: Path, azimuth: float | None, elevation: float, at: float | None,
            width: int, height: int, distance: float | None, fov: float | None,
-           roughness: float, grooves: bool, ghost: bool, out: Path | None) -> None:
+           roughness: str | None, light_size: float | None, grooves: bool, ghost: bool,
+           out: Path | None) -> None:
     """Render the lit design in FOLDER as a camera sees it (glints only), any kind."""
     from specholo.preview.render import save_png
     from specholo.preview.source import camera, state_at, still
 
     out = _png_out(out, folder, "render.png", "render")
-    source = _picture_source(folder, "render")
+    source, lobe = _lighting(_picture_source(folder, "render"), roughness, light_size)
     if grooves and not source.grooves:  # said before anything is drawn
         raise SpecholoError(f"{source.title} has no grooves to draw: leave out --grooves")
     az = None if azimuth is None else math.radians(_finite_option("azimuth", azimuth))
     cam = camera(source, az, math.radians(_finite_option("elevation", elevation)),
                  None if distance is None else _distance(distance), _fov(fov), width, height)
     state = state_at(source, _at(at), cam.azimuth)
-    image = still(source, cam, state, math.radians(_finite_option("roughness", roughness)),
-                  grooves, ghost)
+    image = still(source, cam, state, lobe, grooves, ghost)
     save_png(image, out)
     where = f"azimuth {math.degrees(cam.azimuth):+g}" + (
         f", elevation {elevation:+g}" if elevation else "")
@@ -111,8 +114,8 @@ def render(folder: Path, azimuth: float | None, elevation: float, at: float | No
 @click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
               help="GIF or MP4 file, by suffix [FOLDER/<kind>.gif].")
 def animate(folder: Path, kind: str | None, frames: int, width: int, height: int, fps: float,
-            light_span: float, azimuth: float | None, at: float | None, roughness: float,
-            grooves: bool, ghost: bool, out: Path | None) -> None:
+            light_span: float, azimuth: float | None, at: float | None, roughness: str | None,
+            light_size: float | None, grooves: bool, ghost: bool, out: Path | None) -> None:
     """Animate the design in FOLDER, any kind: along its motion (a walk past, a
     turning plate, a moving light), or along another with --kind."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
@@ -128,7 +131,7 @@ def animate(folder: Path, kind: str | None, frames: int, width: int, height: int
         raise SpecholoError(f"--frames must be in [1, {MAX_FRAMES}], got {frames}")
     if not (math.isfinite(fps) and 0.01 <= fps <= 240):
         raise SpecholoError(f"--fps must be in [0.01, 240], got {fps:g}")
-    source = _picture_source(folder, "animate")
+    source, rough = _lighting(_picture_source(folder, "animate"), roughness, light_size)
     kind = source.motion.key if kind is None else kind
     allowed = along_options(source)
     if kind not in allowed:
@@ -142,7 +145,6 @@ def animate(folder: Path, kind: str | None, frames: int, width: int, height: int
     if out is None:
         out = folder / f"{kind}.gif"
         _check_animation_out(out)
-    rough = math.radians(_finite_option("roughness", roughness))
     az = None if azimuth is None else math.radians(_finite_option("azimuth", azimuth))
     console = _stderr_console()
     # Off a terminal the bar would only leave an empty line on stderr.
@@ -188,12 +190,13 @@ def _check_animation_out(out: Path) -> None:
 @click.option("--height", type=int, default=768, help=_SIZE_HELP.format("height", 768))
 @click.option("--fov", type=float, default=None,
               help="Vertical field of view, degrees [frames the plate].")
-@click.option("--roughness", type=float, default=1.0, show_default=True,
-              help="Width of the plate's specular lobe, degrees.")
+@click.option("--roughness", default=None, help=ROUGHNESS_HELP)
+@click.option("--light-size", type=float, default=None, help=LIGHT_SIZE_HELP)
 @click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
               help="PNG file [FOLDER/stereo.png].")
 def stereo(folder: Path, azimuth: float, at: float | None, mode: str, width: int, height: int,
-           fov: float | None, roughness: float, out: Path | None) -> None:
+           fov: float | None, roughness: str | None, light_size: float | None,
+           out: Path | None) -> None:
     """Render what both eyes of a viewer see of the design in FOLDER (any kind), as one
     picture."""
     from specholo.preview.render import save_png
@@ -201,12 +204,11 @@ def stereo(folder: Path, azimuth: float, at: float | None, mode: str, width: int
     from specholo.preview.stereo import anaglyph, side_by_side
 
     out = _png_out(out, folder, "stereo.png", "stereo")
-    source = _picture_source(folder, "stereo")
+    source, lobe = _lighting(_picture_source(folder, "stereo"), roughness, light_size)
     az = math.radians(_finite_option("azimuth", azimuth))
     state = state_at(source, _at(at), az)  # refuses --at where the motion is the eye
     head_cam = head(source, az, width, height, _fov(fov))
-    left, right = stereo_stills(source, head_cam, _at(at),
-                                roughness=math.radians(_finite_option("roughness", roughness)))
+    left, right = stereo_stills(source, head_cam, _at(at), roughness=lobe)
     image = anaglyph(left, right) if mode == "anaglyph" else side_by_side(
         left, right, mode, gap=max(2, width // 32))
     save_png(image, out)

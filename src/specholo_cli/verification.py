@@ -34,11 +34,25 @@ from specholo_cli.app import (
               help="Height-field cut: sample spacing, mm [the tool radius / 5, at most 0.02].")
 @click.option("--stl", type=click.Path(path_type=Path), default=None,
               help="Height-field cut: write the cut plate as a watertight STL here.")
+@click.option("--light-size", type=float, default=None,
+              help="The light's angular diameter seen from the plate, degrees (the sun 0.53; "
+                   "an LED its diameter over its distance): each glint becomes a streak along "
+                   "its groove [a point].")
+@click.option("--roughness", default=None,
+              help="The plate's gloss: mirror (Beckmann alpha 0.003), polished (0.01), satin "
+                   "(0.05), or an alpha [a perfect mirror].")
 def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: str | None,
-           resolution: float | None, stl: Path | None) -> None:
-    """Simulate stereo eye pairs along the arc and measure where each stipple appears."""
+           resolution: float | None, stl: Path | None, light_size: float | None,
+           roughness: str | None) -> None:
+    """Simulate stereo eye pairs along the arc and measure where each stipple appears.
+
+    With --light-size or --roughness every glint is a streak along its groove:
+    each eye sees a stipple at its streaks' brightness-weighted centres, a cut
+    through a streak leaves the rest shining, and the stripe ends that spill
+    light far from every designed glint are counted per view (flat plates)."""
     from specholo.jobs import VerifyOptions, job_of, publish_verification
     from specholo.jobs.flat.folder import cut_method as choose_cut_method
+    from specholo.optics.spread import Spread
 
     if not (math.isfinite(step) and 0.01 <= step <= 5.0):
         raise SpecholoError(f"step must be in [0.01, 5] degrees, got {step}")
@@ -55,7 +69,10 @@ def verify(folder: Path, step: float, from_gcode: bool, cut: bool, cut_method: s
         raise SpecholoError(f"--stl {stl} is a folder: name an .stl file")
     if resolution is not None and not (math.isfinite(resolution) and 0.001 <= resolution <= 1.0):
         raise SpecholoError(f"resolution must be in [0.001, 1] mm, got {resolution}")
-    options = VerifyOptions(step, from_gcode, cut, cut_method, resolution, stl)
+    spread = Spread.of(light_size, roughness)
+    if spread is not None and spread.is_point:
+        spread = None  # a point light on a perfect mirror: the point model exactly
+    options = VerifyOptions(step, from_gcode, cut, cut_method, resolution, stl, spread)
     if cut:
         choose_cut_method(cut_method, resolution, stl)  # refused before the folder is read
     with _status("verifying...", "verify") as status:

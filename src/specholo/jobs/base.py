@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from specholo.errors import SpecholoError
 
 if TYPE_CHECKING:
+    from specholo.optics.spread import Spread
     from specholo.preview.source import PictureSource
 
 #: Told what a long step is doing ("simulating eye pairs..."), for a status line.
@@ -44,6 +45,8 @@ class VerifyOptions:
         cut_method: ``"survival"`` or ``"field"`` (None: the default for the rest).
         resolution: height-field cut sample spacing, mm (None: the default).
         stl: where to write the cut plate as an STL, or None.
+        spread: the light's size and the surface's gloss, every glint a
+            streak (:mod:`specholo.simulation.streaks`); None: every glint a point.
     """
 
     step_deg: float = 5.0
@@ -52,6 +55,7 @@ class VerifyOptions:
     cut_method: str | None = None
     resolution: float | None = None
     stl: Path | None = None
+    spread: Spread | None = None
 
 
 @dataclass(frozen=True)
@@ -209,10 +213,20 @@ def refuse_picture(job: Job, folder: Path, command: str) -> None:
 
 
 def refuse_cut_options(job: Job, options: VerifyOptions) -> None:
-    """Refuse ``--from-gcode`` and ``--cut`` for the kinds that are verified otherwise."""
+    """Refuse ``--from-gcode``, ``--cut``, ``--light-size`` and ``--roughness``
+    for the kinds that are verified otherwise."""
     if options.from_gcode or options.cut:
         raise SpecholoError(f"{job.title} is verified on {job.verified_on}; --from-gcode and "
                             "--cut are for flat-plate designs")
+    refuse_spread(job, options)
+
+
+def refuse_spread(job: Job, options: VerifyOptions) -> None:
+    """Refuse ``--light-size`` and ``--roughness`` for a kind whose glints are not
+    found on grooves (streaks are followed along a flat plate's grooves)."""
+    if options.spread is not None:
+        raise SpecholoError(f"{job.title} is verified on {job.verified_on} with point glints; "
+                            "--light-size and --roughness are for grooved flat-plate designs")
 
 
 def publish_verification(folder: str | os.PathLike[str], v: Verification) -> None:

@@ -34,6 +34,10 @@ from specholo.simulation.glints import Engraved, find_glints
 from specholo.toolpaths.grooves import Grooves
 
 REFERENCE_ROUGHNESS = math.radians(1.0)
+#: What a picture draws: glint points (g, 3), mm; each one's spot's standard
+#: deviation on the plate, mm (one for all, or (g,)); and optionally each
+#: one's power as a share of a typical glint's (g,).
+Spots = tuple[Any, ...]
 MAX_SIDE = 8192  # pixels; larger images are refused rather than exhausting memory
 
 _GAIN = 3.0  # exposure: a reference-roughness spot peaks at 1 - exp(-3) of full white
@@ -563,7 +567,7 @@ def render_still(grooves: Grooves, setup: Setup, camera: Camera,
 
 
 def draw_glints(camera: Camera, bounds: np.ndarray | None, light: Light,
-                glints: Callable[[], tuple[np.ndarray, np.ndarray | float]],
+                glints: Callable[[], Spots],
                 roughness: float = REFERENCE_ROUGHNESS, ghost: Any = None,
                 bloom: float = 0.006,
                 overlay: Callable[[], np.ndarray] | None = None,
@@ -577,9 +581,10 @@ def draw_glints(camera: Camera, bounds: np.ndarray | None, light: Light,
             (k, 2) counter-clockwise, or None where there is no flat plate to
             draw (a curved host: its ``lines`` show it).
         light: the light.
-        glints: returns the glint points (g, 3), mm, and the standard deviation of
-            each one's spot on the plate (mm; one for all, or (g,)); called while
-            the plate is drawn.
+        glints: returns the glint points (g, 3), mm, the standard deviation of
+            each one's spot on the plate (mm; one for all, or (g,)) and, if it
+            says, each one's power as a share of a typical glint's (g,) (every
+            glint alike otherwise); called while the plate is drawn.
         roughness: width of the surface's specular lobe, radians: sets the spots'
             exposure.
         ghost: a mesh (anything with ``vertices``) or (n, 3) points to draw as
@@ -615,7 +620,9 @@ def draw_glints(camera: Camera, bounds: np.ndarray | None, light: Light,
     # The backdrop does not depend on the glints: draw it on a second core
     # (numpy releases the GIL) while the glints are found.
     behind = _Background(backdrop)
-    points, sigma_mm = glints()
+    found = glints()
+    points, sigma_mm = found[0], found[1]
+    power = np.asarray(found[2], dtype=float) if len(found) > 2 else None
     proj = camera.project(points)
     pixel = proj.pixel[proj.valid]
     depth = proj.depth[proj.valid]
@@ -629,6 +636,8 @@ def draw_glints(camera: Camera, bounds: np.ndarray | None, light: Light,
                          / REFERENCE_ROUGHNESS * camera.focal / depth)
     amp = (_GAIN * (REFERENCE_ROUGHNESS / roughness) ** 2
            * (expo_px / np.hypot(expo_px, _MIN_SIGMA_PX)) ** 2)
+    if power is not None:
+        amp = amp * power[proj.valid]
     glow = np.zeros(shape)
     _splat(glow, pixel, sigma, amp)
     if bloom > 0 and len(pixel):

@@ -201,20 +201,31 @@ def _page(folder: Path, info: Any, verify: Any) -> str:
     accuracy = "<p>Not verified yet: run <code>specholo verify</code>.</p>"
     if verify is not None:
         s = verify["summary"]
+        light = verify.get("light")
+        streaks = isinstance(light, dict)
         head = ("<tr><th>azimuth</th><th>median mm</th><th>p95 mm</th><th>p95 depth mm</th>"
-                "<th>max mm</th><th>visibility</th><th>false glints</th></tr>")
+                "<th>max mm</th><th>visibility</th><th>false glints</th>"
+                + ("<th>end spills per eye</th><th>streak mm</th>" if streaks else "")
+                + "</tr>")
         body = "".join(
             f"<tr><td>{r['azimuth']:+.1f}°</td><td>{r['median_error']:.3f}</td>"
             f"<td>{r['p95_error']:.3f}</td><td>{r['p95_depth_error']:.3f}</td>"
             f"<td>{r['max_error']:.3f}</td><td>{r['visibility']:.3f}</td>"
-            f"<td>{r['false_glints']:.3f}</td></tr>" for r in verify["azimuths"])
+            f"<td>{r['false_glints']:.3f}</td>"
+            + (f"<td>{r['end_spills']:.0f}</td><td>{r['streak_length']:.3f}</td>"
+               if streaks else "") + "</tr>" for r in verify["azimuths"])
         worst = s["worst_p95_error"]
+        under = ("each glint a point (a point light on a perfect mirror)" if not streaks else
+                 f"each glint the streak a light {float(light['light_size']):.3g}° across "
+                 f"makes on a surface of roughness {float(light['roughness']):g} (Beckmann "
+                 f"alpha), with at most {float(s['max_end_spills']):.0f} false glints per eye "
+                 "from stripe ends")
         accuracy = (
             f"<p>Worst 95th-percentile error {worst:.3f} mm "
             f"({'within' if worst <= 0.5 else 'beyond'} the ~0.5 mm a viewer's stereo acuity "
             f"resolves at 600 mm), lowest visibility {s['min_visibility']:.3f}, "
             f"most false glints {s['max_false_glints']:.3f}; verified from "
-            f"<code>{html.escape(verify['source'])}</code>.</p>"
+            f"<code>{html.escape(verify['source'])}</code>, {html.escape(under)}.</p>"
             f"<table class=num>{head}{body}</table>")
     pictures = "".join(
         f"<figure>{_img(folder / name)}<figcaption>{html.escape(text)}</figcaption></figure>"

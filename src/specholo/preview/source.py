@@ -28,7 +28,13 @@ from typing import Any, Protocol
 import numpy as np
 
 from specholo.errors import SpecholoError
-from specholo.preview.render import REFERENCE_ROUGHNESS, Camera, draw_glints, plate_camera
+from specholo.preview.render import (
+    REFERENCE_ROUGHNESS,
+    Camera,
+    Spots,
+    draw_glints,
+    plate_camera,
+)
 from specholo.setup import Setup
 
 #: Called as ``progress(done, total)`` after each frame or view.
@@ -141,10 +147,11 @@ class PictureSource(Protocol):
         ...
 
     def spots(self, eye: np.ndarray, state: float | None,
-              roughness: float) -> tuple[np.ndarray, np.ndarray | float]:
+              roughness: float) -> Spots:
         """:meth:`glints` and each one's spot on the plate: its standard
         deviation, mm, at the specular lobe ``roughness`` (radians), one for all
-        or (m,)."""
+        or (m,); and, where glints differ in power (a flat plate's streaks), each
+        one's power as a share of a typical glint's (m,)."""
         ...
 
     def ghost(self, state: float | None) -> Any:
@@ -199,7 +206,7 @@ class BaseSource:
         raise NotImplementedError
 
     def spots(self, eye: np.ndarray, state: float | None,
-              roughness: float) -> tuple[np.ndarray, np.ndarray | float]:
+              roughness: float) -> Spots:
         from specholo.preview.render import spot_sigma
 
         return self.glints(eye, state), spot_sigma(self.setup, roughness)
@@ -295,7 +302,7 @@ def still(source: PictureSource, cam: Camera, state: float | None,
             raise SpecholoError(f"{source.title} has no grooves to draw: leave out --grooves")
         source.prepare()  # the glints and the overlay share one index, on two threads
 
-    def glints() -> tuple[np.ndarray, np.ndarray | float]:
+    def glints() -> Spots:
         return source.spots(cam.position(), state, roughness)
 
     def overlay() -> np.ndarray:

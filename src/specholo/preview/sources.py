@@ -31,7 +31,7 @@ import numpy as np
 
 from specholo.errors import SpecholoError
 from specholo.hosts.surfaces import Cylinder, HeightField, Host, MeshHost, Panels, Plane, Sphere
-from specholo.preview.render import Camera, line_coverage
+from specholo.preview.render import Camera, Spots, line_coverage
 from specholo.preview.source import BaseSource, Motion, PictureSource
 from specholo.setup import Light, Setup, Tool, Viewer
 
@@ -61,8 +61,30 @@ class FlatSource(BaseSource):
         r = setup.viewer.half_range
         self.motion = Motion("turntable", "head azimuth", -r, r)
         self.model = model
+        self.spread: Any = None
         self._eng: Any = None
         self._lock = threading.Lock()
+
+    def lit_by(self, spread: Any) -> FlatSource:
+        """The same plate drawn under a light of real size on a surface of real gloss
+        (a :class:`~specholo.optics.spread.Spread`): each glint the streak it makes
+        along its groove, end spills and all."""
+        other = copy.copy(self)
+        other.spread = spread
+        other._eng, other._lock = self.engraved(), threading.Lock()  # one index for both
+        return other
+
+    def spots(self, eye: np.ndarray, state: float | None, roughness: float) -> Spots:
+        if self.spread is None:
+            return super().spots(eye, state, roughness)
+        from specholo.preview.render import spot_sigma
+        from specholo.simulation.streaks import find_streaks
+
+        st = find_streaks(self.engraved(), eye, self.setup.light, self.spread)
+        designed = st.brightness[st.designed & (st.brightness > 0)]
+        # a typical streak draws as one glint does; each cell its share of that
+        typical = float(np.median(designed)) if len(designed) else 1.0
+        return st.point, spot_sigma(self.setup, roughness), st.weight / typical
 
     def engraved(self) -> Any:
         """The grooves prepared for the glint search (built once, shared)."""
@@ -154,7 +176,7 @@ class FieldSource(BaseSource):
         return np.asarray(self._found(eye).glints.point)
 
     def spots(self, eye: np.ndarray, state: float | None,
-              roughness: float) -> tuple[np.ndarray, np.ndarray | float]:
+              roughness: float) -> Spots:
         from specholo.preview.render import field_spot_sigma
 
         g = self._found(eye)

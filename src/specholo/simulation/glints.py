@@ -91,8 +91,8 @@ class ArcIndex:
         return cls(size, origin, ny, keys, layout[:len(order)], cells, centres,
                    layout[len(order):], half_length, layout)
 
-    def ranges(self, eye: np.ndarray, light: Light,
-               reach: float) -> tuple[np.ndarray, np.ndarray]:
+    def ranges(self, eye: np.ndarray, light: Light, reach: float,
+               spread: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Rows of :attr:`layout` holding the arcs that may glint for an eye.
 
         Args:
@@ -100,6 +100,9 @@ class ArcIndex:
             light: the light.
             reach: how far (mm) a glint may sit from its arc's middle: half the
                 longest arc plus the wall offset.
+            spread: how far (radians) the wall's normal may stray from h along
+                the groove and still glint (a light of real size, a rough
+                surface: see :mod:`specholo.optics.spread`); 0 for a point glint.
 
         Returns:
             starts (r,) and ends (r,): sorted disjoint ranges [start, end).
@@ -119,6 +122,11 @@ class ArcIndex:
         with np.errstate(divide="ignore", invalid="ignore"):
             delta = np.where(hxy > 4.0 * turn, 2.0 * turn / hxy, np.pi)
         delta = delta + self.WIDE + 1e-3
+        if spread > 0.0:
+            # psi = asin(h . t) ~ sin(tilt) x (the tangent's turn from the wanted one)
+            sin_tilt = hxy / np.linalg.norm(h, axis=1)
+            ratio = math.sin(min(spread, 0.5 * math.pi)) / np.maximum(sin_tilt, 1e-300)
+            delta = delta + np.where(ratio < 1.0, np.arcsin(np.minimum(ratio, 1.0)), np.pi)
         want = np.mod(np.arctan2(h[:, 1], h[:, 0]) + 0.5 * np.pi, np.pi)
         lo, hi = want - delta, want + delta
         base = self.cells * 4.0

@@ -18,6 +18,7 @@ from specholo.jobs.base import (
     VerifyOptions,
     WriteOptions,
     refuse_formats,
+    refuse_spread,
 )
 
 if TYPE_CHECKING:
@@ -142,6 +143,7 @@ class CouponJob:
             raise SpecholoError(f"{self.title} is verified on {self.verified_on} (with "
                                 "--from-gcode, as its program cuts them): --cut and its "
                                 "methods are for flat-plate designs")
+        refuse_spread(self, options)
         loaded = load_coupon(folder, from_gcode=options.from_gcode)
         status("looking from where the sheet says...")
         step = min(options.step_deg, 1.0)

@@ -68,6 +68,7 @@ class Design:
     thinning: dict[str, Any] | None = None  # its stereo points as cut, before and after
     up_hint: str = ""  # the --up the model's own flat base suggests, in words ('' if none)
     band_note: str = ""  # why the band is what it is, where the design chose it ('' if not)
+    light: Any = None  # the light to use (simulation.lighting.LightChoice), or None
 
 
 @dataclass(frozen=True)
@@ -350,6 +351,9 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
         if len(thinned):
             cover = coverage(len(points), runs, grooves, dropped, len(thinned))
     timings["as cut"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    light = _light_to_use(config, points, runs, grooves) if expect_as_cut else None
+    timings["light"] = time.perf_counter() - t0
     # One pass over the arcs (or none, when the walk found them), for the plate and
     # the overlaps (which need the length).
     if check_overlaps:
@@ -364,7 +368,7 @@ def design(model_path: str | os.PathLike[str], config: DesignConfig,
     return Design(config, model, points, st.normals, runs, grooves, dropped, timings,
                   views, overlaps, plate, cover, as_cut, placement=placed or None,
                   thinned=thinned if len(thinned) else None, thinning=thinning,
-                  up_hint=up_hint(model, config), band_note=band_note)
+                  up_hint=up_hint(model, config), band_note=band_note, light=light)
 
 
 def stipple_spacing(points: np.ndarray, distance: float) -> float | None:
@@ -429,6 +433,30 @@ def expected_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
     return thin_as_cut(dataclasses.replace(config, thin="off"), points, runs, grooves)[0]
 
 
+def _light_to_use(config: DesignConfig, points: np.ndarray, runs: Runs,
+                  grooves: Grooves) -> Any:
+    """The light that gives this plate its sharpest image
+    (:func:`~specholo.simulation.lighting.choose_light`), each stipple seen from
+    the azimuths the design serves it."""
+    from specholo.simulation.lighting import choose_light
+
+    return choose_light(grooves, points, config.setup(), _served(runs))
+
+
+def _served(runs: Runs) -> Any:
+    """Which stipples an eye sees past the model: those whose visible azimuths
+    (the design's occlusion intervals) hold the eye's."""
+    from specholo.visibility.occlusion import Intervals
+
+    seen_from = Intervals(runs.stipple, runs.start, runs.end)
+
+    def vis(p: np.ndarray, eyes: np.ndarray) -> np.ndarray:
+        # verify asks for all the stipples, in order, from one eye
+        return seen_from.contains(np.arange(len(p)), np.arctan2(eyes[:, 0], eyes[:, 2]))
+
+    return vis
+
+
 def thin_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
                 grooves: Grooves) -> tuple[AsCut, Grooves, np.ndarray, dict[str, Any] | None]:
     """The plate as cut (:func:`expected_as_cut`), thinned as ``config.thin`` says.
@@ -447,15 +475,8 @@ def thin_as_cut(config: DesignConfig, points: np.ndarray, runs: Runs,
     from specholo.simulation.survival import as_cut_report, eye_glints, survivors
     from specholo.simulation.thinning import thin
     from specholo.simulation.verify import view_azimuths
-    from specholo.visibility.occlusion import Intervals
-
     setup = config.setup()
-    seen_from = Intervals(runs.stipple, runs.start, runs.end)
-
-    def vis(p: np.ndarray, eyes: np.ndarray) -> np.ndarray:
-        # verify asks for all the stipples, in order, from one eye
-        return seen_from.contains(np.arange(len(p)), np.arctan2(eyes[:, 0], eyes[:, 2]))
-
+    vis = _served(runs)
     az = view_azimuths(setup.viewer.half_range, math.radians(AS_CUT_STEP_DEG))
     cutter, depth = config.cutter(), config.depth_mm
     glints = eye_glints(grooves, points, setup, cutter, depth, az)
@@ -546,6 +567,7 @@ def hologram_json(d: Design) -> dict[str, Any]:
         "overlaps": d.overlaps.as_dict() if d.overlaps is not None else None,
         "expected": (as_cut_json(d.as_cut) if d.as_cut is not None else
                      {"as_cut_stereo_visibility": None, "why": AS_CUT_SKIPPED}),
+        "light_to_use": d.light.as_dict() if d.light is not None else None,
         "plate": {"groove_extent_mm": [lo.tolist(), hi.tolist()],
                   "plate_mm": d.plate.tolist() if d.plate is not None else None,
                   "stock_thickness_mm": d.config.stock_thickness},

@@ -61,6 +61,7 @@ from specholo.jobs.plate_common import (
     settings_of,
 )
 from specholo.jobs.plate_settings import DEFAULT_STIPPLES, MAX_SETTING, TOOL_DEFAULTS
+from specholo.optics.spread import Spread
 from specholo.toolpaths.grooves import Grooves
 
 #: The settings and the design are re-exported: callers import them from here.
@@ -483,6 +484,21 @@ def verify_design(loaded: Loaded, max_step_deg: float = 5.0) -> list[Any]:
     setup = loaded.config.setup()
     az = view_azimuths(setup.viewer.half_range, math.radians(max_step_deg))
     return verify(loaded.grooves, loaded.points, setup, _visibility(loaded), az)
+
+
+def verify_streak_design(loaded: Loaded, max_step_deg: float, spread: Spread,
+                         cut: bool = False) -> list[Any]:
+    """The stereo verification with each glint a streak under ``spread``
+    (:func:`~specholo.simulation.streak_verify.verify_streaks`), on the ideal
+    grooves or, with ``cut``, on the plate as cut."""
+    from specholo.simulation.streak_verify import verify_streaks
+    from specholo.simulation.verify import view_azimuths
+
+    setup = loaded.config.setup()
+    az = view_azimuths(setup.viewer.half_range, math.radians(max_step_deg))
+    as_cut = (loaded.config.cutter(), loaded.config.depth_mm) if cut else None
+    return list(verify_streaks(loaded.grooves, loaded.points, setup, spread,
+                               _visibility(loaded), az, cut=as_cut))
 
 
 #: How ``verify --cut`` finds what the cutting leaves (:func:`cut_method`).

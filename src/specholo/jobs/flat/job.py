@@ -8,6 +8,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from specholo.errors import SpecholoError
 from specholo.jobs.base import (
     PICTURE_COMMANDS,
     Designed,
@@ -58,6 +59,8 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
                      f"{o.crossings} crossings between stipples, "
                      f"{o.crossed_length / max(o.total_length, 1e-9):.0%} of the groove length "
                      "within a groove width of another stipple's")
+    if getattr(d, "light", None) is not None:
+        lines.append(d.light.describe())
     # What survives the cutting: from the grooves themselves where the design
     # found it, else the rough share from the grooves' coverage.
     figures = d.as_cut.mean_and_lowest() if d.as_cut is not None else None
@@ -309,52 +312,58 @@ class FlatJob:
             load_design,
             verify_cut_design,
             verify_design,
+            verify_streak_design,
         )
-        from specholo.simulation.verify import reports_to_dicts, summarise
+        from specholo.simulation.verify import reports_to_dicts
 
         cut = options.cut
+        spread = options.spread
         method = cut_method(options.cut_method, options.resolution, options.stl) if cut else None
+        if spread is not None and method == "field":
+            raise SpecholoError("--light-size and --roughness follow each streak along its "
+                                "groove: verify them on the cut plate with --cut-method "
+                                "survival (the height field finds point glints)")
         resolution = options.resolution
         loaded = load_design(folder, from_gcode=options.from_gcode or cut)
         if method == "field" and resolution is None:
             resolution = default_resolution(loaded.config)
         status("simulating eye pairs...")
-        reports = verify_design(loaded, options.step_deg)
+        reports = (verify_design(loaded, options.step_deg) if spread is None
+                   else verify_streak_design(loaded, options.step_deg, spread))
         rows = reports_to_dicts(reports)
-        summary = summarise(reports)
+        summary = _summary(reports)
         cut_rows: list[dict[str, Any]] = []
         cut_summary: dict[str, Any] = {}
         if cut:
             status("finding which glints the other grooves' cuts leave..." if method == "survival"
                    else "cutting the plate and simulating eye pairs...")
-            cut_reports, _ = verify_cut_design(loaded, options.step_deg, resolution, options.stl,
-                                               method)
+            if spread is None:
+                cut_reports, _ = verify_cut_design(loaded, options.step_deg, resolution,
+                                                   options.stl, method)
+            else:
+                cut_reports = verify_streak_design(loaded, options.step_deg, spread, cut=True)
             cut_rows = reports_to_dicts(cut_reports)
-            cut_summary = dict(summarise(cut_reports))
-        columns = ["azimuth", "median mm", "p95 mm", "p95 depth mm", "max mm", "visibility",
-                   "false"] + (["cut p95 mm", "cut visibility"] if cut else [])
-        table_rows = []
-        for i, r in enumerate(rows):
-            extra = [] if not cut else [f"{cut_rows[i]['p95_error']:.3f}",
-                                        f"{cut_rows[i]['visibility']:.3f}"]
-            table_rows.append([f"{r['azimuth']:+.1f}", f"{r['median_error']:.3f}",
-                               f"{r['p95_error']:.3f}", f"{r['p95_depth_error']:.3f}",
-                               f"{r['max_error']:.3f}", f"{r['visibility']:.3f}",
-                               f"{r['false_glints']:.3f}", *extra])
+            cut_summary = _summary(cut_reports)
+        table_rows, columns = _table(rows, cut_rows, spread is not None)
         name = loaded.config.method
+        under = "" if spread is None else f" under {spread.describe()}"
         # The design stated what shows as cut; these are the ideal grooves'
         # figures, which no cut disturbs: each is named, so neither reads as the other.
-        lines = [f"ideal grooves (no cut removes a glint): worst p95 error "
+        lines = [f"ideal grooves (no cut removes a glint){under}: worst p95 error "
                  f"{summary['worst_p95_error']:.3f} mm, "
                  f"min visibility {summary['min_visibility']:.3f}, "
                  f"max false glints {summary['max_false_glints']:.3f}"]
+        if spread is not None:
+            lines.append(_spills_line(rows))
         if not cut:
             estimate = _as_cut_estimate(folder)
-            if estimate:
+            if estimate and spread is None:
                 lines.append(estimate)
         if cut:
             how = ("the glints no other groove's cut removes" if method == "survival"
                    else f"height field at {resolution:g} mm")
+            if spread is not None:
+                how = "each streak's pieces no other groove's cut removes"
             lines.append(f"cut plate ({how}): worst p95 error "
                          f"{cut_summary['worst_p95_error']:.3f} mm, min visibility "
                          f"{cut_summary['min_visibility']:.3f} (other grooves cut away the rest)")
@@ -363,15 +372,17 @@ class FlatJob:
                          "would be cut away) and count as not shown")
         source = "hologram.gcode" if options.from_gcode or cut else "grooves.npz"
 
+        light = {} if spread is None else {"light": spread.to_dict()}
+
         def verify_json(into: Path) -> None:
             write_verify_json(into, self.kind, options.step_deg, dict(summary), "azimuths", rows,
-                              {"method": name, "source": source})
+                              {"method": name, "source": source, **light})
 
         def verify_cut_json(into: Path) -> None:
             write_verify_json(into, self.kind, options.step_deg, cut_summary, "azimuths",
                               cut_rows, {"method": name, "source": source, "cut_method": method,
                                          "resolution_mm": resolution if method == "field"
-                                         else None}, name="verify_cut.json")
+                                         else None, **light}, name="verify_cut.json")
 
         def verify_png(into: Path) -> None:
             chart.plot_verification(rows, into / "verify.png", f"{name}: stereo verification")
@@ -383,6 +394,46 @@ class FlatJob:
             files["verify_cut.json"] = verify_cut_json
         title = f"ideal grooves: {name} design, {len(loaded.points)} stipples"
         return Verification(lines, Table(title, columns, table_rows), files)
+
+
+def _summary(reports: list[Any]) -> dict[str, Any]:
+    """The worst figures over the views (:func:`~specholo.simulation.verify.summarise`),
+    and with streaks the most end spills an eye sees."""
+    from specholo.simulation.verify import summarise
+
+    summary: dict[str, Any] = dict(summarise(reports))
+    spills = [r.end_spills for r in reports if hasattr(r, "end_spills")]
+    if spills:
+        summary["max_end_spills"] = float(max(spills))
+    return summary
+
+
+def _table(rows: list[dict[str, Any]], cut_rows: list[dict[str, Any]],
+           streaks: bool) -> tuple[list[list[str]], list[str]]:
+    """The verification's rows and columns as text."""
+    columns = ["azimuth", "median mm", "p95 mm", "p95 depth mm", "max mm", "visibility",
+               "false"] + (["spills", "streak mm"] if streaks else []) + (
+                   ["cut p95 mm", "cut visibility"] if cut_rows else [])
+    table_rows = []
+    for i, r in enumerate(rows):
+        extra = [] if not streaks else [f"{r['end_spills']:.0f}", f"{r['streak_length']:.3f}"]
+        if cut_rows:
+            extra += [f"{cut_rows[i]['p95_error']:.3f}", f"{cut_rows[i]['visibility']:.3f}"]
+        table_rows.append([f"{r['azimuth']:+.1f}", f"{r['median_error']:.3f}",
+                           f"{r['p95_error']:.3f}", f"{r['p95_depth_error']:.3f}",
+                           f"{r['max_error']:.3f}", f"{r['visibility']:.3f}",
+                           f"{r['false_glints']:.3f}", *extra])
+    return table_rows, columns
+
+
+def _spills_line(rows: list[dict[str, Any]]) -> str:
+    """The end spills over the views, in words."""
+    worst = max(rows, key=lambda r: r["end_spills"])
+    mean = sum(r["end_spills"] for r in rows) / len(rows)
+    seen = worst["stipples_seen"]
+    return (f"false glints from stripe ends (streaks whose glint lies past their stripe's end): "
+            f"{mean:.0f} per eye on average over the views, most {worst['end_spills']:.0f} at "
+            f"{worst['azimuth']:+.0f} deg (beside {seen} stipples seen)")
 
 
 def _as_cut_estimate(folder: Path) -> str:

@@ -1,0 +1,212 @@
+"""Verification under a light of real size on a surface of real gloss.
+
+The same stereo figures as :func:`~specholo.simulation.verify.verify`, with
+each glint a streak (:mod:`specholo.simulation.streaks`): each eye sees a
+stipple at its designed streaks' brightness-weighted centres, and the
+verification also counts the end spills each eye sees as glints of their own.
+On the plate as cut, every piece of a streak another groove's cut removes is
+dark (:func:`~specholo.simulation.survival.survivors` on every cell), and the
+rest of the streak still shines, its centre moved.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from specholo.optics.spread import Spread
+from specholo.setup import Setup
+from specholo.simulation.glints import Engraved, Glints, find_glints
+from specholo.simulation.streaks import Streaks, false_glints, find_streaks, join
+from specholo.simulation.survival import on_real_wall, survivors
+from specholo.simulation.verify import (
+    CHUNK_VERTICES,
+    ViewReport,
+    VisibilityFn,
+    _chunks,
+    view_azimuths,
+    view_report,
+)
+from specholo.toolpaths.grooves import Grooves
+
+
+@dataclass(frozen=True)
+class StreakReport(ViewReport):
+    """A :class:`~specholo.simulation.verify.ViewReport` of streaks.
+
+    Attributes:
+        end_spills: end spills an eye sees as glints of their own (bright
+            enough and more than 0.25 mm from every designed glint), the mean
+            of the two eyes.
+        streak_length: median length of the designed streaks where they are at
+            least half as bright per mm as at their brightest, mm.
+        centre_shift: median distance of a designed streak's centre from its
+            point glint, mm (a streak cut short by its stripe's end or a gap).
+    """
+
+    end_spills: float = 0.0
+    streak_length: float = math.nan
+    centre_shift: float = math.nan
+
+
+@dataclass(frozen=True)
+class EyeStreaks:
+    """Every eye's streaks, eye after eye (left, right of each azimuth in turn).
+
+    Attributes:
+        azimuths: (k,) head azimuths, radians.
+        eyes: per azimuth, the (left, right) eye positions.
+        streaks: per eye, its streaks over the whole plate (paths and stipples global).
+        points: per eye, its point glints (the point model's), for how far
+            each streak's centre moved from its own.
+    """
+
+    azimuths: np.ndarray
+    eyes: list[tuple[np.ndarray, np.ndarray]]
+    streaks: list[Streaks]
+    points: list[Glints]
+
+
+def eye_streaks(grooves: Grooves, n: int, setup: Setup, spread: Spread, azimuths: np.ndarray,
+                chunk_vertices: int = CHUNK_VERTICES) -> EyeStreaks:
+    """Each eye's streaks on the ideal grooves, found a stipple chunk at a time.
+
+    Args:
+        grooves: the grooves; n: the number of stipples they draw.
+        setup: light, viewer and tool; spread: the light's size and the gloss.
+        azimuths: (k,) head azimuths, radians.
+        chunk_vertices: groove vertices searched at once.
+    """
+    eyes = [tuple(e[0] for e in setup.viewer.stereo(np.array([theta]))) for theta in azimuths]
+    found: list[list[Streaks]] = [[] for _ in range(2 * len(azimuths))]
+    point: list[list[Glints]] = [[] for _ in range(2 * len(azimuths))]
+    for _, _, paths in _chunks(grooves, n, chunk_vertices):
+        part = grooves.take(paths) if len(paths) != grooves.n_paths else grooves
+        eng = Engraved.from_grooves(part, setup.tool)
+        for j, pair in enumerate(eyes):
+            for side, eye in enumerate(pair):
+                st = find_streaks(eng, eye, setup.light, spread)
+                found[2 * j + side].append(st.offset(paths))
+                gl = find_glints(eng, eye, setup.light)
+                point[2 * j + side].append(Glints(paths[gl.path], gl.stipple, gl.point))
+        del eng
+    return EyeStreaks(np.asarray(azimuths, dtype=float), eyes,  # type: ignore[arg-type]
+                      [join(parts) for parts in found], [_join_points(p) for p in point])
+
+
+def streak_view(theta: float, points: np.ndarray, left: Streaks, right: Streaks,
+                eye_l: np.ndarray, eye_r: np.ndarray, vis_l: np.ndarray,
+                vis_r: np.ndarray, point_glints: tuple[Glints, Glints] | None = None
+                ) -> StreakReport:
+    """One head's figures from both eyes' streaks (as
+    :func:`~specholo.simulation.verify.view_report` gives them from glints),
+    with the end spills, the streaks' length and how far their centres moved
+    from the point glints (``point_glints``, each eye's, when given)."""
+    gl, gr = left.glints(), right.glints()
+    base = view_report(theta, points, gl, gr, eye_l, eye_r, vis_l, vis_r)
+    spills = [len(false_glints(st, g.image())) for st, g in ((left, gl), (right, gr))]
+    lengths = np.concatenate([_fwhm(st)[st.designed & (st.brightness > 0)]
+                              for st in (left, right)])
+    shift = math.nan
+    if point_glints is not None:
+        moved = [_shift(g, p) for g, p in zip((gl, gr), point_glints, strict=True)]
+        both = np.concatenate(moved)
+        shift = float(np.median(both)) if both.size else math.nan
+    return StreakReport(**dataclasses.asdict(base), end_spills=float(np.mean(spills)),
+                        streak_length=float(np.median(lengths)) if lengths.size else math.nan,
+                        centre_shift=shift)
+
+
+def verify_streaks(grooves: Grooves, points: np.ndarray, setup: Setup, spread: Spread,
+                   visible: VisibilityFn | None = None, azimuths: np.ndarray | None = None,
+                   cut: tuple[Any, float] | None = None,
+                   chunk_vertices: int = CHUNK_VERTICES) -> list[StreakReport]:
+    """Stereo eye pairs along the arc, each glint a streak.
+
+    Args:
+        grooves: the engraved grooves; points: (n, 3) the stipples they show.
+        setup: light, viewer and the ball model of the tool.
+        spread: the light's size and the surface's gloss.
+        visible: occlusion test; None means every stipple is unoccluded.
+        azimuths: head azimuths, radians; default every <= 5 degrees over the range.
+        cut: ``(cutter, depth)`` to verify the plate as cut: the pieces of each
+            streak another path's cut removes are dark; None for the ideal grooves.
+        chunk_vertices: groove vertices searched at once.
+
+    Returns:
+        One report per azimuth.
+    """
+    points = np.asarray(points, dtype=float)
+    n = len(points)
+    if azimuths is None:
+        azimuths = view_azimuths(setup.viewer.half_range)
+    found = eye_streaks(grooves, n, setup, spread, azimuths, chunk_vertices)
+    if cut is not None:
+        cutter, depth = cut
+        found = _as_cut(found, grooves, setup, cutter, depth)
+    reports = []
+    for j, theta in enumerate(found.azimuths):
+        eye_l, eye_r = found.eyes[j]
+        vis_l = vis_r = np.ones(n, dtype=bool)
+        if visible is not None and n:
+            vis_l = visible(points, np.broadcast_to(eye_l, (n, 3)))
+            vis_r = visible(points, np.broadcast_to(eye_r, (n, 3)))
+        reports.append(streak_view(float(theta), points, found.streaks[2 * j],
+                                   found.streaks[2 * j + 1], eye_l, eye_r, vis_l, vis_r,
+                                   (found.points[2 * j], found.points[2 * j + 1])))
+    return reports
+
+
+def _as_cut(found: EyeStreaks, grooves: Grooves, setup: Setup, cutter: Any,
+            depth: float) -> EyeStreaks:
+    """Every eye's streaks with the cells another path's cut removes made dark:
+    one survival test for all the cells of every eye (the grooves are streamed once)."""
+    moved, paths = [], []
+    for j, pair in enumerate(found.eyes):
+        for side, eye in enumerate(pair):
+            st = found.streaks[2 * j + side]
+            cells = Glints(st.path[st.run], st.stipple[st.run], st.point)
+            moved.append(on_real_wall(cells, setup.tool, cutter, depth, setup.light, eye))
+            paths.append(cells.path)
+    sizes = [len(p) for p in paths]
+    keep = survivors(grooves, np.concatenate(moved).reshape(-1, 3),
+                     np.concatenate(paths).astype(np.int64), cutter, depth)
+    parts = np.split(keep, np.cumsum(sizes)[:-1])
+    return EyeStreaks(found.azimuths, found.eyes,
+                      [st.cut(k) for st, k in zip(found.streaks, parts, strict=True)],
+                      found.points)
+
+
+def _fwhm(st: Streaks) -> np.ndarray:
+    """(r,) each streak's length where it is at least half as bright per mm as at
+    its brightest, mm."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        density = np.where(st.length > 0, st.weight / st.length, 0.0)
+    peak = np.zeros(st.count)
+    np.maximum.at(peak, st.run, density)
+    bright = (density >= 0.5 * peak[st.run]) & (peak[st.run] > 0)
+    return np.bincount(st.run, weights=st.length * bright, minlength=st.count)
+
+
+def _shift(streak: Glints, point: Glints) -> np.ndarray:
+    """(m,) distance of each streak centre from the point glint on its own path
+    (streaks whose path has no point glint left out)."""
+    if len(streak.path) == 0 or len(point.path) == 0:
+        return np.zeros(0)
+    order = np.argsort(point.path, kind="stable")
+    at = np.searchsorted(point.path[order], streak.path)
+    at = np.minimum(at, len(order) - 1)
+    same = point.path[order][at] == streak.path
+    return np.linalg.norm(streak.point[same] - point.point[order][at[same]], axis=1)
+
+
+def _join_points(parts: list[Glints]) -> Glints:
+    if not parts:
+        return Glints(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
+    return Glints(np.concatenate([p.path for p in parts]),
+                  np.concatenate([p.stipple for p in parts]),
+                  np.concatenate([p.point for p in parts]).reshape(-1, 3))
