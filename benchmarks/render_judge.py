@@ -498,15 +498,18 @@ class Glint:
     point: np.ndarray  # (3,) the centroid followed back to the cut surface
     length: float  # along its principal axis on the plate, rms as a uniform streak's, mm
     extent: float  # lit pixels' full extent along that axis, mm
+    fwhm: float  # length where it is at least half as bright per mm as at its brightest, mm
     pieces: int
     pixels: int
     end_distance: float  # from its lit pixels to the nearer end of its path, mm
+    axis: np.ndarray  # (2,) unit direction of the streak on the plate
     model_distance: float = math.inf  # to the nearest point-model glint, mm
     own_distance: float = math.inf  # to the point-model glint of its own path, mm
+    own_offset: np.ndarray | None = None  # (3,) from that glint to this one, mm
 
 
-def find_spots(img: np.ndarray, cam: Camera, plate: Plate) -> list[Glint]:
-    """Every path's glints in a picture."""
+def find_spots(img: np.ndarray, cam: Camera, plate: Plate, pixel: float) -> list[Glint]:
+    """Every path's glints in a picture of pixels about ``pixel`` mm on the plate."""
     peak = float(img.max())
     if peak <= 0:
         return []
@@ -546,8 +549,19 @@ def find_spots(img: np.ndarray, cam: Camera, plate: Plate) -> list[Glint]:
             out.append(Glint(int(p), int(stipple_of[p]), flux, centre[0],
                              math.sqrt(12.0 * max(float(vals[-1]), 0.0)),
                              float(along.max() - along.min()) + plate.field.resolution,
-                             int((group == gid).sum()), len(sel), end_d))
+                             _fwhm(along, ww, pixel), int((group == gid).sum()), len(sel),
+                             end_d, vecs[:, -1]))
     return out
+
+
+def _fwhm(along: np.ndarray, weight: np.ndarray, pixel: float) -> float:
+    """Length (mm) over which light per mm along a streak is at least half its
+    peak: the flux binned a pixel apart along it, smoothed over three bins
+    (a streak oblique to the pixel grid fills alternate bins unevenly)."""
+    edges = np.arange(along.min(), along.max() + 2.0 * pixel, pixel)
+    flux, _ = np.histogram(along, bins=edges, weights=weight)
+    density = np.convolve(flux, np.ones(3) / 3.0, mode="same")
+    return float((density >= 0.5 * density.max()).sum() * pixel)
 
 
 def _single_link(xy: np.ndarray, reach: float) -> np.ndarray:
@@ -558,21 +572,9 @@ def _single_link(xy: np.ndarray, reach: float) -> np.ndarray:
     return np.asarray(connected_components(d < reach, directed=False)[1])
 
 
-def image_rule(glints: list[Glint]) -> list[Glint]:
-    """The glints that make the stipples' image (verify's Glints.image on fluxes)."""
-    if not glints:
-        return []
-    top: dict[int, float] = {}
-    for g in glints:
-        top[g.stipple] = max(top.get(g.stipple, 0.0), g.flux)
-    lit = np.sort(np.array(list(top.values())))
-    light = np.cumsum(lit)
-    typical = float(lit[np.searchsorted(light, 0.5 * light[-1])])
-    return [g for g in glints
-            if g.flux * FAINT_RATIO >= top[g.stipple] and g.flux * INVISIBLE_RATIO >= typical]
-
-
 def typical_flux(glints: list[Glint]) -> float:
+    """The typical stipple's flux: the median of the stipples' brightest, weighted
+    by their light (as verify's Glints.image takes it)."""
     top: dict[int, float] = {}
     for g in glints:
         top[g.stipple] = max(top.get(g.stipple, 0.0), g.flux)
@@ -581,6 +583,15 @@ def typical_flux(glints: list[Glint]) -> float:
         return math.nan
     light = np.cumsum(lit)
     return float(lit[np.searchsorted(light, 0.5 * light[-1])])
+
+
+def image_rule(glints: list[Glint], typical: float) -> list[Glint]:
+    """The glints that make the stipples' image (verify's Glints.image on fluxes)."""
+    top: dict[int, float] = {}
+    for g in glints:
+        top[g.stipple] = max(top.get(g.stipple, 0.0), g.flux)
+    return [g for g in glints
+            if g.flux * FAINT_RATIO >= top[g.stipple] and g.flux * INVISIBLE_RATIO >= typical]
 
 
 # ---------------------------------------------------------------------------
@@ -626,10 +637,17 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
             if len(model.point):
                 d = np.linalg.norm(model.point - g.point, axis=1)
                 g.model_distance = float(d.min())
-                own = model.path == g.path if same_paths else model.stipple == g.stipple
-                g.own_distance = float(d[own].min()) if own.any() else math.inf
-        kept.append(image_rule(found))
-        typical.append(typical_flux(found))
+                own = np.flatnonzero(model.path == g.path if same_paths
+                                     else model.stipple == g.stipple)
+                if len(own):
+                    k = own[np.argmin(d[own])]
+                    g.own_distance = float(d[k])
+                    g.own_offset = g.point - model.point[k]
+        # the typical stipple's light is its designed glints' (verify's image of them)
+        t = typical_flux([g for g in found if g.own_distance <= SPILL])
+        t = t if math.isfinite(t) else typical_flux(found)
+        typical.append(t)
+        kept.append(image_rule(found, t))
     if loaded.mesh is not None and loaded.normals is not None:
         vis = [visible(loaded.mesh, points, loaded.normals, e) for e in eyes]
     else:
@@ -662,6 +680,18 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
     def bright(g: Glint) -> bool:
         return g.flux * BRIGHT >= tflux
 
+    # Verify's end spills: glints of their own, at least 1/20 of the typical
+    # stipple's light and of their stipple's brightest designed glint, far from
+    # every designed glint; counted per eye, the mean of the two.
+    own_spills = []
+    for side in range(2):
+        best: dict[int, float] = {}
+        for g in modelled[side]:
+            best[g.stipple] = max(best.get(g.stipple, 0.0), g.flux)
+        t = typical[side]
+        own_spills.append([g for g in kept[side] if g.model_distance > SPILL
+                           and g.flux * FAINT_RATIO >= max(t, best.get(g.stipple, t))])
+
     return {
         "azimuth": math.degrees(theta),
         "stipples_seen": int(seen.sum()),
@@ -671,21 +701,33 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
         "p95_error": _pct(err, 95),
         "max_error": float(err.max()) if err.size else math.nan,
         "p95_error_modelled": _pct(err_modelled, 95),
+        "median_error_modelled": _pct(err_modelled, 50),
         "glints": [len(k) for k in kept],
         "unmodelled": len(extra),
         "unmodelled_at_end": sum(at_end(g) for g in extra),
         "bright_unmodelled": sum(bright(g) for g in extra),
         "bright_unmodelled_at_end": sum(bright(g) and at_end(g) for g in extra),
         "unmodelled_flux_max": max((g.flux / tflux for g in extra), default=math.nan),
+        "end_spills": 0.5 * (len(own_spills[0]) + len(own_spills[1])),
+        "end_spills_at_end": 0.5 * sum(at_end(g) for k in own_spills for g in k),
         "spills": len(spills),
         "spills_at_end": sum(at_end(g) for g in spills),
         "bright_spills": sum(bright(g) for g in spills),
         "bright_spills_at_end": sum(bright(g) and at_end(g) for g in spills),
         "split_streaks": sum(g.pieces > 1 for g in designed),
         "median_streak_mm": _pct([g.length for g in designed], 50),
+        "median_fwhm_mm": _pct([g.fwhm for g in designed], 50),
         "p95_streak_mm": _pct([g.length for g in designed], 95),
         "median_extent_mm": _pct([g.extent for g in designed], 50),
         "median_offset_mm": _pct([g.own_distance for g in designed], 50),
+        # the offset along the streak, across it on the plate, and in depth
+        "median_offset_along_mm": _pct([abs(float(g.own_offset[:2] @ g.axis))
+                                        for g in designed if g.own_offset is not None], 50),
+        "median_offset_across_mm": _pct([abs(float(g.own_offset[0] * g.axis[1]
+                                                   - g.own_offset[1] * g.axis[0]))
+                                         for g in designed if g.own_offset is not None], 50),
+        "median_offset_depth_mm": _pct([abs(float(g.own_offset[2]))
+                                        for g in designed if g.own_offset is not None], 50),
         "p95_offset_mm": _pct([g.own_distance for g in designed], 95),
         "designed_flux_p5": _pct([g.flux / tflux for g in designed], 5),
         "unmodelled_list": [
@@ -711,26 +753,27 @@ def _as_glints(k: list[Glint]) -> Any:
 
 def verify_rows(folder: Path, azimuths: list[float], step: float,
                 light_size: float | None = None, alpha: float | None = None) -> dict[str, Any]:
-    """``specholo verify`` on the folder: its figures at the rendered azimuths.
+    """``specholo verify`` on the folder: its figures at the rendered azimuths,
+    ideal and as cut.
 
-    The point model is verified twice, as verify does by default (the
-    design's grooves) and with ``--cut`` (the G-code's grooves as cut, which
-    verify reads from the program); the streak model once, by default.
+    The point model is verified as verify does by default (the design's
+    grooves) and with ``--cut`` (the grooves read back from the G-code, as
+    cut); the streak model with ``--cut`` alone, whose ideal figures are the
+    G-code's grooves uncut.
     """
     base = [sys.executable, "-m", "specholo_cli.cli", "verify", str(folder), "--step", f"{step:g}"]
-    runs: list[tuple[str, list[str], str]] = []
     if light_size is None:
-        runs = [("ideal", [], "verify.json"), ("cut", ["--cut"], "verify_cut.json")]
+        runs = [([], {"ideal": "verify.json"}), (["--cut"], {"cut": "verify_cut.json"})]
     else:
-        runs = [("ideal", ["--light-size", f"{light_size:g}", "--roughness", f"{alpha:g}"],
-                 "verify.json")]
+        runs = [(["--cut", "--light-size", f"{light_size:g}", "--roughness", f"{alpha:g}"],
+                 {"ideal": "verify.json", "cut": "verify_cut.json"})]
     out: dict[str, Any] = {}
-    for key, extra, name in runs:
+    for extra, files in runs:
         subprocess.run(base + extra, check=True, stdout=subprocess.DEVNULL)
-        data = json.loads((folder / name).read_text())
-        rows = data.get("azimuths") or []
-        out[key] = {f"{a:g}": next((r for r in rows if abs(r["azimuth"] - a) < 1e-6), None)
-                    for a in azimuths}
+        for key, name in files.items():
+            rows = json.loads((folder / name).read_text()).get("azimuths") or []
+            out[key] = {f"{a:g}": next((r for r in rows if abs(r["azimuth"] - a) < 1e-6), {})
+                        for a in azimuths}
     return out
 
 
@@ -755,53 +798,54 @@ def common_step(azimuths: list[float], half_range: float) -> float:
 # Main
 
 
-#: The table's columns: heading, and the figure from a row.
-COLUMNS: list[tuple[str, str]] = [
-    ("plate", "{plate}"), ("light", "{light}"), ("alpha", "{alpha:g}"),
-    ("azimuth", "{azimuth:+.0f}"),
-    ("render visibility (all / modelled)", "{r_vis} / {r_vis_m}"),
-    ("verify visibility (ideal / cut / streak)", "{v_vis} / {v_cut} / {s_vis}"),
-    ("render p95 mm (all / modelled)", "{r_p95} / {r_p95_m}"),
-    ("verify p95 mm (ideal / streak)", "{v_p95} / {s_p95}"),
-    ("render spills >0.25 mm, all / bright (at an end)",
-     "{spills} / {bspills} ({bspills_end})"),
-    ("render unmodelled glints, all / bright (at an end)",
-     "{extra} / {bextra} ({bextra_end})"),
-    ("verify end spills", "{s_end}"),
-    ("render streak mm (median)", "{streak}"),
-    ("render - point model mm (median / p95)", "{off} / {off95}"),
-]
-
-
 def _fmt(v: Any, fmt: str = ".2f") -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
     return format(v, fmt)
 
 
+def _verify(row: dict[str, Any], model: str, kind: str, key: str) -> Any:
+    figures = row["verify"].get(model) or {}
+    return (figures.get(kind) or {}).get(key)
+
+
+def _beside(row: dict[str, Any], key: str, fmt: str) -> str:
+    """A figure as rendered (every glint, the modelled ones) and as verified."""
+    v = row["render"]
+    return " / ".join([_fmt(v[key], fmt), _fmt(v[key + "_modelled"], fmt)]
+                      + [_fmt(_verify(row, m, k, key), fmt) for m in ("point", "streak")
+                         for k in ("ideal", "cut")])
+
+
 def markdown(rows: list[dict[str, Any]]) -> str:
-    """The table: one row per plate, light, roughness and view."""
-    lines = ["| " + " | ".join(h for h, _ in COLUMNS) + " |",
-             "|" + "---|" * 4 + "---:|" * (len(COLUMNS) - 4)]
+    """Two tables, one row per plate, light, roughness and view: what the
+    stereo pairs see, then the streaks and spills."""
+    head = "| plate | light | alpha | azimuth | "
+    stereo = [head + "visibility: render / modelled glints / point / point as cut / streak / "
+              "streak as cut | p95 error mm: render / modelled glints / point / point as cut / "
+              "streak / streak as cut |", "|---|---|---|---|---|---|"]
+    streaks = [head + "end spills an eye: render (at an end) / streak / streak as cut | "
+               "streak mm (median FWHM): render / streak | centre from point glint mm "
+               "(median): render / streak / streak as cut | other unmodelled glints "
+               "(bright, at an end) | streaks split |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         v = r["render"]
-        values = {
-            "plate": r["plate"], "light": r["light"], "alpha": r["alpha"],
-            "azimuth": r["azimuth"], "r_vis": _fmt(v["visibility"]),
-            "r_vis_m": _fmt(v["visibility_modelled"]),
-            "v_vis": _fmt(r["verify_ideal_visibility"]), "v_cut": _fmt(r["verify_cut_visibility"]),
-            "s_vis": _fmt(r.get("streak_visibility")), "r_p95": _fmt(v["p95_error"], ".3f"),
-            "r_p95_m": _fmt(v["p95_error_modelled"], ".3f"),
-            "v_p95": _fmt(r["verify_ideal_p95"], ".3f"), "s_p95": _fmt(r.get("streak_p95"), ".3f"),
-            "spills": v["spills"], "bspills": v["bright_spills"],
-            "bspills_end": v["bright_spills_at_end"], "extra": v["unmodelled"],
-            "bextra": v["bright_unmodelled"], "bextra_end": v["bright_unmodelled_at_end"],
-            "s_end": _fmt(r.get("streak_end_spills"), "d"),
-            "streak": _fmt(v["median_streak_mm"], ".3f"),
-            "off": _fmt(v["median_offset_mm"], ".3f"), "off95": _fmt(v["p95_offset_mm"], ".3f"),
-        }
-        lines.append("| " + " | ".join(c.format(**values) for _, c in COLUMNS) + " |")
-    return "\n".join(lines)
+        lead = f"| {r['plate']} | {r['light']} | {r['alpha']:g} | {r['azimuth']:+.0f} | "
+
+        stereo.append(lead + _beside(r, "visibility", ".2f") + " | "
+                      + _beside(r, "p95_error", ".3f") + " |")
+        streaks.append(
+            lead + f"{v['end_spills']:g} ({v['end_spills_at_end']:g}) / "
+            f"{_fmt(_verify(r, 'streak', 'ideal', 'end_spills'), 'g')} / "
+            f"{_fmt(_verify(r, 'streak', 'cut', 'end_spills'), 'g')} | "
+            f"{_fmt(v['median_fwhm_mm'], '.3f')} / "
+            f"{_fmt(_verify(r, 'streak', 'ideal', 'streak_length'), '.3f')} | "
+            f"{_fmt(v['median_offset_mm'], '.4f')} / "
+            f"{_fmt(_verify(r, 'streak', 'ideal', 'centre_shift'), '.4f')} / "
+            f"{_fmt(_verify(r, 'streak', 'cut', 'centre_shift'), '.4f')} | "
+            f"{v['bright_unmodelled']} ({v['bright_unmodelled_at_end']}) | "
+            f"{v['split_streaks']} |")
+    return "\n".join(stereo) + "\n\n" + "\n".join(streaks)
 
 
 def main() -> None:
@@ -886,34 +930,24 @@ def main() -> None:
                         img, counts = renderer.picture(cam, plate, args.spp, args.spp_fine,
                                                        seed=len(render_seconds))
                         render_seconds.append(time.perf_counter() - t0)
-                        found.append(find_spots(img, cam, plate))
+                        found.append(find_spots(img, cam, plate, args.pixel))
                         sampled.append(counts)
                     view = judge_view(plate, math.radians(a), (cams[a][0].eye, cams[a][1].eye),
                                       (found[0], found[1]), args.pixel)
                     key = f"{a:g}"
-                    ideal = point_verify["ideal"][key] or {}
-                    cut = point_verify["cut"][key] or {}
+                    verified = {"point": {k: point_verify[k][key] for k in point_verify}}
+                    if streak_verify is not None:
+                        verified["streak"] = {k: streak_verify[k][key] for k in streak_verify}
                     row: dict[str, Any] = {
                         "plate": name, "light": light_name, "light_diameter_deg": size,
-                        "alpha": alpha, "azimuth": a, "render": view,
+                        "alpha": alpha, "azimuth": a, "render": view, "verify": verified,
                         "film": [cams[a][0].width, cams[a][0].height],
                         "scene_seconds": scene_s,
                         "render_seconds": render_seconds[-2:], "pixels_sampled": sampled,
-                        "verify_ideal_visibility": ideal.get("visibility"),
-                        "verify_ideal_p95": ideal.get("p95_error"),
-                        "verify_ideal_median": ideal.get("median_error"),
-                        "verify_cut_visibility": cut.get("visibility"),
-                        "verify_cut_p95": cut.get("p95_error"),
                     }
-                    if streak_verify is not None:
-                        s = streak_verify["ideal"][key] or {}
-                        row.update({"streak_visibility": s.get("visibility"),
-                                    "streak_p95": s.get("p95_error"),
-                                    "streak_median": s.get("median_error"),
-                                    "streak_end_spills": s.get("end_spills"),
-                                    "streak_row": s})
                     rows.append(row)
-                    print(markdown([row]).splitlines()[-1], flush=True)
+                    text = markdown([row]).split("\n\n")
+                    print(text[0].splitlines()[-1] + "\n" + text[1].splitlines()[-1], flush=True)
                 del scene
     total = time.perf_counter() - t_all
     result = {
