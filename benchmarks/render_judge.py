@@ -756,17 +756,15 @@ def verify_rows(folder: Path, azimuths: list[float], step: float,
     """``specholo verify`` on the folder: its figures at the rendered azimuths,
     ideal and as cut.
 
-    The point model is verified as verify does by default (the design's
-    grooves) and with ``--cut`` (the grooves read back from the G-code, as
-    cut); the streak model with ``--cut`` alone, whose ideal figures are the
-    G-code's grooves uncut.
+    Each model is verified as verify does by default (the design's grooves)
+    and with ``--cut``, which reads the grooves back from the G-code and
+    verifies them as cut (``ideal_gcode``: the G-code's grooves uncut).
     """
     base = [sys.executable, "-m", "specholo_cli.cli", "verify", str(folder), "--step", f"{step:g}"]
-    if light_size is None:
-        runs = [([], {"ideal": "verify.json"}), (["--cut"], {"cut": "verify_cut.json"})]
-    else:
-        runs = [(["--cut", "--light-size", f"{light_size:g}", "--roughness", f"{alpha:g}"],
-                 {"ideal": "verify.json", "cut": "verify_cut.json"})]
+    spread = [] if light_size is None else ["--light-size", f"{light_size:g}",
+                                            "--roughness", f"{alpha:g}"]
+    runs = [(spread, {"ideal": "verify.json"}),
+            (["--cut", *spread], {"ideal_gcode": "verify.json", "cut": "verify_cut.json"})]
     out: dict[str, Any] = {}
     for extra, files in runs:
         subprocess.run(base + extra, check=True, stdout=subprocess.DEVNULL)
@@ -824,7 +822,8 @@ def markdown(rows: list[dict[str, Any]]) -> str:
     stereo = [head + "visibility: render / modelled glints / point / point as cut / streak / "
               "streak as cut | p95 error mm: render / modelled glints / point / point as cut / "
               "streak / streak as cut |", "|---|---|---|---|---|---|"]
-    streaks = [head + "end spills an eye: render (at an end) / streak / streak as cut | "
+    streaks = [head + "end spills an eye: render (at an end) / streak / streak on the G-code / "
+               "streak as cut | "
                "streak mm (median FWHM): render / streak | centre from point glint mm "
                "(median): render / streak / streak as cut | other unmodelled glints "
                "(bright, at an end) | streaks split |", "|---|---|---|---|---|---|---|---|---|"]
@@ -837,6 +836,7 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         streaks.append(
             lead + f"{v['end_spills']:g} ({v['end_spills_at_end']:g}) / "
             f"{_fmt(_verify(r, 'streak', 'ideal', 'end_spills'), 'g')} / "
+            f"{_fmt(_verify(r, 'streak', 'ideal_gcode', 'end_spills'), 'g')} / "
             f"{_fmt(_verify(r, 'streak', 'cut', 'end_spills'), 'g')} | "
             f"{_fmt(v['median_fwhm_mm'], '.3f')} / "
             f"{_fmt(_verify(r, 'streak', 'ideal', 'streak_length'), '.3f')} | "
