@@ -88,6 +88,8 @@ INVISIBLE_RATIO = 100.0
 #: fainter ones, the caps at paths' ends about 1/100 of it, come and go
 #: from one seed to the next.
 BRIGHT = 20.0
+#: A rendered end streak is the model's when on its path and this near, mm.
+END_MATCH = 0.05
 #: What the eye resolves, radians: streak pieces closer than this are one glint.
 EYE_RESOLUTION = math.radians(1.0 / 60.0)
 #: Lit pixels: above this share of the picture's brightest (a few samples'
@@ -556,12 +558,19 @@ def find_spots(img: np.ndarray, cam: Camera, plate: Plate, pixel: float) -> list
 
 def _fwhm(along: np.ndarray, weight: np.ndarray, pixel: float) -> float:
     """Length (mm) over which light per mm along a streak is at least half its
-    peak: the flux binned a pixel apart along it, smoothed over three bins
-    (a streak oblique to the pixel grid fills alternate bins unevenly)."""
-    edges = np.arange(along.min(), along.max() + 2.0 * pixel, pixel)
-    flux, _ = np.histogram(along, bins=edges, weights=weight)
-    density = np.convolve(flux, np.ones(3) / 3.0, mode="same")
-    return float((density >= 0.5 * density.max()).sum() * pixel)
+    peak. The pixels' centres fall unevenly along an oblique streak, so the
+    light per mm is a sum of Gaussians a pixel wide about them, and their
+    width is taken back out in quadrature (exact for a Gaussian streak)."""
+    h = pixel
+    grid = np.arange(along.min() - 3 * h, along.max() + 3 * h, 0.1 * h)
+    density = np.zeros(len(grid))
+    for lo in range(0, len(along), 256):
+        a, w = along[lo:lo + 256], weight[lo:lo + 256]
+        density += (w[None, :] * np.exp(-0.5 * ((grid[:, None] - a[None, :]) / h) ** 2)).sum(1)
+    half = np.flatnonzero(density >= 0.5 * density.max())
+    measured = float(grid[half[-1]] - grid[half[0]]) + 0.1 * h
+    kernel = 2.0 * math.sqrt(2.0 * math.log(2.0)) * h
+    return math.sqrt(max(measured**2 - kernel**2, 0.0))
 
 
 def _single_link(xy: np.ndarray, reach: float) -> np.ndarray:
@@ -607,13 +616,45 @@ def point_model(plate: Plate, eye: np.ndarray) -> Any:
     return find_glints(plate.engraved, eye, plate.setup.light).image()
 
 
+def model_end_streaks(plate: Plate, size_deg: float, alpha: float,
+                      theta: float) -> list[list[tuple[int, np.ndarray, float]]] | None:
+    """Per eye, the streak model's end streaks bright enough to be glints of
+    their own (as its end spills, at any distance): path, centre, and
+    brightness over the typical stipple's. None where the library has no
+    streak model."""
+    try:
+        from specholo.optics.spread import Spread
+        from specholo.simulation.streak_verify import eye_streaks
+    except ImportError:
+        return None
+    found = eye_streaks(plate.loaded.grooves, len(plate.loaded.points), plate.setup,
+                        Spread(math.radians(size_deg), alpha), np.array([theta]))
+    out = []
+    for st in found.streaks:
+        designed = st.glints()
+        top: dict[int, float] = {}
+        for stipple, b in zip(designed.stipple.tolist(), designed.brightness.tolist(),
+                              strict=True):
+            top[stipple] = max(top.get(stipple, 0.0), b)
+        lit = np.sort(np.array(list(top.values())))
+        typical = float(lit[np.searchsorted(np.cumsum(lit), 0.5 * lit.sum())]) if len(lit) \
+            else math.nan
+        bright = st.brightness
+        keep = [i for i in range(st.count) if not st.designed[i] and bright[i] > 0
+                and bright[i] * FAINT_RATIO >= max(typical, top.get(int(st.stipple[i]), typical))]
+        out.append([(int(st.path[i]), st.centre[i], float(bright[i] / typical)) for i in keep])
+    return out
+
+
 def _pct(vals: list[float] | np.ndarray, q: float) -> float:
     vals = [v for v in vals if math.isfinite(v)]
     return float(np.percentile(vals, q)) if vals else math.nan
 
 
 def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
-               spots: tuple[list[Glint], list[Glint]], pixel: float) -> dict[str, Any]:
+               spots: tuple[list[Glint], list[Glint]], pixel: float,
+               model_ends: list[list[tuple[int, np.ndarray, float]]] | None = None
+               ) -> dict[str, Any]:
     """What the two eyes meet at one head azimuth, in verify's terms.
 
     A glint is *modelled* where the point model has a glint of the same path
@@ -683,14 +724,26 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
     # Verify's end spills: glints of their own, at least 1/20 of the typical
     # stipple's light and of their stipple's brightest designed glint, far from
     # every designed glint; counted per eye, the mean of the two.
-    own_spills = []
+    # Bright stripe ends anywhere, beside the streak model's end streaks.
+    own_spills, ends = [], []
     for side in range(2):
         best: dict[int, float] = {}
         for g in modelled[side]:
             best[g.stipple] = max(best.get(g.stipple, 0.0), g.flux)
         t = typical[side]
-        own_spills.append([g for g in kept[side] if g.model_distance > SPILL
-                           and g.flux * FAINT_RATIO >= max(t, best.get(g.stipple, t))])
+        ends.append([g for g in kept[side] if g.own_distance > SPILL
+                     and g.flux * FAINT_RATIO >= max(t, best.get(g.stipple, t))])
+        own_spills.append([g for g in ends[-1] if g.model_distance > SPILL])
+    matched: int | None = None
+    model_only: int | None = None
+    if model_ends is not None:
+        matched = model_only = 0
+        for side in range(2):
+            for path, centre, _ in model_ends[side]:
+                hit = any(g.path == path and np.linalg.norm(g.point[:2] - centre[:2]) <= END_MATCH
+                          for g in ends[side])
+                matched += int(hit)
+                model_only += int(not hit)
 
     return {
         "azimuth": math.degrees(theta),
@@ -709,6 +762,11 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
         "bright_unmodelled_at_end": sum(bright(g) and at_end(g) for g in extra),
         "unmodelled_flux_max": max((g.flux / tflux for g in extra), default=math.nan),
         "end_spills": 0.5 * (len(own_spills[0]) + len(own_spills[1])),
+        "end_streaks": len(ends[0]) + len(ends[1]),
+        "end_streaks_model": None if model_ends is None
+        else len(model_ends[0]) + len(model_ends[1]),
+        "end_streaks_matched": matched,
+        "end_streaks_model_only": model_only,
         "end_spills_at_end": 0.5 * sum(at_end(g) for k in own_spills for g in k),
         "spills": len(spills),
         "spills_at_end": sum(at_end(g) for g in spills),
@@ -720,7 +778,12 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
         "p95_streak_mm": _pct([g.length for g in designed], 95),
         "median_extent_mm": _pct([g.extent for g in designed], 50),
         "median_offset_mm": _pct([g.own_distance for g in designed], 50),
-        # the offset along the streak, across it on the plate, and in depth
+        # The offset along the streak, across it on the plate, and in depth:
+        # verify's wall is the tool's round model at its own depth (0.007 mm
+        # for the default tip, cut 0.011 mm deep), so its glints sit higher on
+        # the same normals; along the streak is where a streak's centre moves.
+        "median_offset_plate_mm": _pct([float(np.hypot(*g.own_offset[:2])) for g in designed
+                                        if g.own_offset is not None], 50),
         "median_offset_along_mm": _pct([abs(float(g.own_offset[:2] @ g.axis))
                                         for g in designed if g.own_offset is not None], 50),
         "median_offset_across_mm": _pct([abs(float(g.own_offset[0] * g.axis[1]
@@ -825,8 +888,9 @@ def markdown(rows: list[dict[str, Any]]) -> str:
     streaks = [head + "end spills an eye: render (at an end) / streak / streak on the G-code / "
                "streak as cut | "
                "streak mm (median FWHM): render / streak | centre from point glint mm "
-               "(median): render / streak / streak as cut | other unmodelled glints "
-               "(bright, at an end) | streaks split |", "|---|---|---|---|---|---|---|---|---|"]
+               "(median): render in the plate's plane / render / streak / streak as cut | "
+               "bright stripe ends, both eyes: render / streak / both | streaks split |",
+               "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         v = r["render"]
         lead = f"| {r['plate']} | {r['light']} | {r['alpha']:g} | {r['azimuth']:+.0f} | "
@@ -840,10 +904,11 @@ def markdown(rows: list[dict[str, Any]]) -> str:
             f"{_fmt(_verify(r, 'streak', 'cut', 'end_spills'), 'g')} | "
             f"{_fmt(v['median_fwhm_mm'], '.3f')} / "
             f"{_fmt(_verify(r, 'streak', 'ideal', 'streak_length'), '.3f')} | "
-            f"{_fmt(v['median_offset_mm'], '.4f')} / "
+            f"{_fmt(v['median_offset_plate_mm'], '.4f')} / {_fmt(v['median_offset_mm'], '.4f')} / "
             f"{_fmt(_verify(r, 'streak', 'ideal', 'centre_shift'), '.4f')} / "
             f"{_fmt(_verify(r, 'streak', 'cut', 'centre_shift'), '.4f')} | "
-            f"{v['bright_unmodelled']} ({v['bright_unmodelled_at_end']}) | "
+            f"{v['end_streaks']} / {_fmt(v['end_streaks_model'], 'd')} / "
+            f"{_fmt(v['end_streaks_matched'], 'd')} | "
             f"{v['split_streaks']} |")
     return "\n".join(stereo) + "\n\n" + "\n".join(streaks)
 
@@ -932,8 +997,10 @@ def main() -> None:
                         render_seconds.append(time.perf_counter() - t0)
                         found.append(find_spots(img, cam, plate, args.pixel))
                         sampled.append(counts)
+                    ends = (model_end_streaks(plate, size, alpha, math.radians(a))
+                            if streaks else None)
                     view = judge_view(plate, math.radians(a), (cams[a][0].eye, cams[a][1].eye),
-                                      (found[0], found[1]), args.pixel)
+                                      (found[0], found[1]), args.pixel, ends)
                     key = f"{a:g}"
                     verified = {"point": {k: point_verify[k][key] for k in point_verify}}
                     if streak_verify is not None:
