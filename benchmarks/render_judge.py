@@ -89,11 +89,6 @@ SPILL = 0.25
 #: Verify's image rule (specholo.simulation.glints.FAINT_RATIO, INVISIBLE_RATIO).
 FAINT_RATIO = 20.0
 INVISIBLE_RATIO = 100.0
-#: Glints at least 1/BRIGHT of the typical stipple's are always found at the
-#: default sample counts (sampling every pixel at 256 spp found none more);
-#: fainter ones, the caps at paths' ends about 1/100 of it, come and go
-#: from one seed to the next.
-BRIGHT = 20.0
 #: A rendered end streak is the model's when on its path and this near, mm.
 END_MATCH = 0.05
 #: What the eye resolves, radians: streak pieces closer than this are one glint.
@@ -213,6 +208,7 @@ class Camera:
         return 0.5 * (u + 1.0) * self.width, 0.5 * (1.0 - v) * self.height
 
     def sensor(self, mi: Any, spp: int, seed: int) -> Any:
+        """Mitsuba's own camera at this eye (to check the rays against)."""
         return mi.load_dict({
             "type": "perspective", "fov": self.fov, "fov_axis": "x",
             "to_world": mi.ScalarTransform4f().look_at(
@@ -399,9 +395,10 @@ class Renderer:
     sampled where the camera sees a groove (its cut samples, two pixels more),
     then again, much more densely, about every pixel the first pass lit. A
     glint's lit strip is a fraction of a micrometre across the groove, so a
-    pixel's value is a rare hit: the second pass makes the fluxes and
-    centroids steady (and shows a lone lucky hit on a faint cap for what it
-    is), the first only finds where to look.
+    pixel's value is a rare hit: the second pass makes the glints' fluxes and
+    centroids steady, the first only finds where to look. (A cap at a path's
+    end, a sphere of the tip, still gets about one sample: its light is not
+    measured, see judge_view.)
     """
 
     #: Samples traced per kernel launch (bounds the memory of one launch).
@@ -463,8 +460,9 @@ class Renderer:
         peak = float(img.max())
         if peak <= 0:
             return img, {"coarse": len(xs), "fine": 0}
-        # Anything above the Beckmann lobe's far tail (1e-19 of its peak at 7
-        # widths) was a hit on a lit strip: its neighbourhood is sampled again.
+        # A pixel above a millionth of the brightest was hit on a lit strip
+        # (the Beckmann lobe's tail a few widths out is far fainter): its
+        # neighbourhood is sampled again.
         near = ndimage.binary_dilation(img > 1e-6 * peak, iterations=3)
         fy, fx = np.nonzero(near)
         img[fy, fx] = self.sample(cam, fx, fy, spp_fine, 2 * seed + 1)
@@ -714,7 +712,9 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
     modelled = [[g for g in k if g.own_distance <= SPILL] for k in kept]
     # Stripe ends bright enough to be glints of their own (verify's rule for
     # end spills: 1/20 of the typical stipple's light and of their own
-    # stipple's brightest designed glint), near designed glints or far.
+    # stipple's brightest designed glint), near designed glints or far. Every
+    # glint that bright is found at the default sample counts (sampling every
+    # pixel at 256 found none more).
     ends: list[list[Glint]] = []
     for side in range(2):
         best: dict[int, float] = {}
@@ -1049,7 +1049,7 @@ def main() -> None:
                     "pixel_mm": args.pixel, "field_mm": RESOLUTION,
                     "sun_distance_mm": SUN_DISTANCE},
         "rules": {"spill_mm": SPILL, "faint_ratio": FAINT_RATIO,
-                  "invisible_ratio": INVISIBLE_RATIO, "bright_ratio": BRIGHT,
+                  "invisible_ratio": INVISIBLE_RATIO,
                   "join_arcmin": 1.0, "lit": LIT},
         "streak_model_in_verify": streaks,
         "seconds": {"total": total, "render_total": sum(render_seconds),
