@@ -159,3 +159,33 @@ def _walk(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: floa
         if not fill:
             at[j] = w
 
+
+
+def within(ref: np.ndarray, query: np.ndarray, radius: float) -> np.ndarray:
+    """(q,) whether each query point (q, 3) lies within ``radius`` of some
+    reference point (r, 3): the references sorted by x, each query looks
+    through the strip of them within ``radius`` in x."""
+    q = len(query)
+    out = np.zeros(q, np.bool_)
+    if q == 0 or len(ref) == 0:
+        return out
+    order = np.argsort(ref[:, 0], kind="stable")
+    ref = np.ascontiguousarray(ref[order])
+    chunked(_within, 0, q, ref, np.ascontiguousarray(query), radius, out, grain=_GRAIN)
+    return out
+
+
+@kernel(nogil=True)
+def _within(lo: int, hi: int, ref: np.ndarray, query: np.ndarray, radius: float,
+            out: np.ndarray) -> None:
+    r2 = radius * radius
+    xs = ref[:, 0]
+    for j in range(lo, hi):
+        x, y, z = query[j, 0], query[j, 1], query[j, 2]
+        i = np.searchsorted(xs, x - radius)
+        while i < len(xs) and xs[i] <= x + radius:
+            dx, dy, dz = xs[i] - x, ref[i, 1] - y, ref[i, 2] - z
+            if dx * dx + dy * dy + dz * dz <= r2:
+                out[j] = True
+                break
+            i += 1

@@ -34,7 +34,7 @@ from specholo.optics.normality import tilt
 from specholo.optics.spread import Spread
 from specholo.setup import Light
 from specholo.simulation import _glint_kernel
-from specholo.simulation._streak_kernel import streak_cells
+from specholo.simulation._streak_kernel import streak_cells, within
 from specholo.simulation.glints import FAINT_RATIO, Engraved, Glints, wall_glint
 
 #: Longest step along a groove near a streak, mm: a fifth of the default drag
@@ -175,12 +175,7 @@ def false_glints(streaks: Streaks, image: Glints,
     else:
         bright = np.ones(len(b), dtype=bool)
     at = spills.point[bright]
-    if len(image.point) and len(at):
-        from scipy.spatial import cKDTree
-
-        near, _ = cKDTree(image.point).query(at, k=1)
-        at = at[near > separation]
-    return at
+    return at[~within(image.point, at, separation)]
 
 
 def find_streaks(eng: Engraved, eye: np.ndarray, light: Light, spread: Spread,
