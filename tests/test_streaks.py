@@ -35,7 +35,7 @@ RHO = 20.0
 CENTRE = np.array([0.0, RHO])
 
 
-def _arc(x0: float, x1: float, centre: np.ndarray = CENTRE, rho: float = RHO
+def _circle_arc(x0: float, x1: float, centre: np.ndarray = CENTRE, rho: float = RHO
          ) -> tuple[np.ndarray, float]:
     """Ends (2, 2) and bulge of the arc of the circle below its centre from x0 to x1."""
     a0 = math.atan2(-math.sqrt(rho**2 - x0**2), x0)
@@ -57,7 +57,7 @@ def _eye(azimuth_deg: float = 0.0) -> np.ndarray:
 
 def _point_glint(eye: np.ndarray) -> tuple[np.ndarray, float]:
     """Where the long test arc glints for ``eye``, and how bright (point model)."""
-    gl = find_glints(Engraved.from_grooves(_grooves(_arc(-6.0, 6.0)), TOOL), eye, LIGHT)
+    gl = find_glints(Engraved.from_grooves(_grooves(_circle_arc(-6.0, 6.0)), TOOL), eye, LIGHT)
     assert gl.brightness is not None and len(gl.path) == 1
     return gl.point[0], float(gl.brightness[0])
 
@@ -65,7 +65,7 @@ def _point_glint(eye: np.ndarray) -> tuple[np.ndarray, float]:
 @pytest.mark.parametrize("azimuth", [-5.0, 0.0, 4.0])
 def test_a_streak_of_a_point_light_on_a_mirror_is_the_point_glint(azimuth: float) -> None:
     rng = np.random.default_rng(3)
-    arcs = [_arc(-8.0, 8.0, CENTRE + [x, y], RHO + r)
+    arcs = [_circle_arc(-8.0, 8.0, CENTRE + [x, y], RHO + r)
             for x, y, r in zip(rng.uniform(-3, 3, 12), rng.uniform(-5, 5, 12),
                                rng.uniform(-5, 30, 12), strict=True)]
     eng = Engraved.from_grooves(_grooves(*arcs), TOOL)
@@ -89,7 +89,7 @@ def test_a_streak_of_a_point_light_on_a_mirror_is_the_point_glint(azimuth: float
 def test_a_streaks_length_is_the_lobe_times_the_walls_radius_along_it(alpha: float) -> None:
     eye = _eye()
     at, bright = _point_glint(eye)
-    eng = Engraved.from_grooves(_grooves(_arc(-6.0, 6.0)), TOOL)
+    eng = Engraved.from_grooves(_grooves(_circle_arc(-6.0, 6.0)), TOOL)
     st = find_streaks(eng, eye, LIGHT, Spread(0.0, alpha))
     assert st.count == 1 and st.designed[0]
     # the wall's radius along the groove (psi turns by 1 / rho_wall per mm), from
@@ -106,7 +106,7 @@ def test_a_streaks_length_is_the_lobe_times_the_walls_radius_along_it(alpha: flo
 
 def test_a_bigger_light_makes_a_longer_streak_as_bright_in_all() -> None:
     eye = _eye(10.0)
-    eng = Engraved.from_grooves(_grooves(_arc(-6.0, 6.0)), TOOL)
+    eng = Engraved.from_grooves(_grooves(_circle_arc(-6.0, 6.0)), TOOL)
     lengths, totals = [], []
     for size in (0.0, 0.5 * SUN, SUN, 2.0 * SUN):
         st = find_streaks(eng, eye, LIGHT, Spread(size, GLOSS["mirror"]))
@@ -125,8 +125,8 @@ def test_a_stripe_ending_short_of_its_glint_spills_light_onto_its_end() -> None:
     rho_wall = bright / TOOL.radius
     past = 0.03  # mm: the stripe stops this far before its glint
     # stipple 0's stripe ends short of its glint; stipple 1 glints 1 mm below
-    stub = _arc(at[0] - 2.0, at[0] - past)
-    other = _arc(-6.0, 6.0, CENTRE - [0.0, 1.0])
+    stub = _circle_arc(at[0] - 2.0, at[0] - past)
+    other = _circle_arc(-6.0, 6.0, CENTRE - [0.0, 1.0])
     eng = Engraved.from_grooves(_grooves(stub, other), TOOL)
     assert list(find_glints(eng, eye, LIGHT).stipple) == [1]  # no point glint on the stub
     st = find_streaks(eng, eye, LIGHT, spread)
@@ -143,7 +143,7 @@ def test_a_stripe_ending_short_of_its_glint_spills_light_onto_its_end() -> None:
     found = false_glints(st, st.glints().image())
     assert len(found) == 1 and np.linalg.norm(found[0, :2] - end) < 0.15
     # a stripe ending far from its glint throws no light there
-    far = Engraved.from_grooves(_grooves(_arc(at[0] - 2.0, at[0] - 0.05 * rho_wall), other),
+    far = Engraved.from_grooves(_grooves(_circle_arc(at[0] - 2.0, at[0] - 0.05 * rho_wall), other),
                                 TOOL)
     assert len(false_glints(find_streaks(far, eye, LIGHT, spread), st.glints())) == 0
 
@@ -151,7 +151,7 @@ def test_a_stripe_ending_short_of_its_glint_spills_light_onto_its_end() -> None:
 def test_a_cut_through_a_streak_leaves_a_gap_not_a_lost_glint() -> None:
     left, right = (e[0] for e in VIEWER.stereo(np.array([0.0])))
     at, _ = _point_glint(left)
-    stripe = _arc(-6.0, 6.0)
+    stripe = _circle_arc(-6.0, 6.0)
     # a straight groove across it through the left eye's point glint
     cross = (np.array([[at[0], at[1] - 1.0], [at[0], at[1] + 1.0]]), 0.0)
     grooves = _grooves(stripe, cross)

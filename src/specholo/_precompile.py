@@ -109,7 +109,10 @@ def _run(config: Any) -> None:
         extent, total = grooves.extent_and_length()
         overlaps = groove_overlaps(grooves, width, extent=extent, total_length=total)
     else:
+        from specholo.simulation.lighting import choose_light
+
         as_cut = expected_as_cut(config, points, runs, grooves)
+        choose_light(grooves, points, config.setup(), sizes_deg=(0.53,))  # its streak walk
     _chains()
     model = _Model()
     d = Design(config, model, points, None, runs, grooves, np.zeros(0, np.int64), {},

@@ -44,8 +44,6 @@ SUN = math.radians(0.53)
 GLOSS = {"mirror": 0.003, "polished": 0.01, "satin": 0.05}
 #: Beyond this many standard deviations of the gloss the lobe is taken as zero.
 TAIL = 5.0
-#: Gauss-Hermite nodes for the gloss, Gauss-Chebyshev nodes for the disc.
-_NODES = 24
 
 
 @dataclass(frozen=True)
@@ -103,44 +101,29 @@ class Spread:
 
     def cdf(self, psi: np.ndarray, k: np.ndarray) -> np.ndarray:
         """The lobe's integral from -inf to psi (g,), for light factors k (g,)."""
-        psi = np.asarray(psi, dtype=float)
-        a = np.asarray(k, dtype=float) * 0.5 * self.light_size  # the disc's radius in psi
-        s = self.sigma
-        if s == 0.0:
-            return _semicircle_cdf(psi / np.maximum(a, 1e-300))
-        if self.light_size == 0.0:
-            return _normal_cdf(psi / s)
-        # Sum over whichever part is the wider of the two nodes of the other,
-        # so that neither is sampled coarser than it is wide.
-        x, w = np.polynomial.hermite.hermgauss(_NODES)
-        w = w / math.sqrt(math.pi)
-        theta = np.arange(1, _NODES + 1) * math.pi / (_NODES + 1)
-        cw = np.sin(theta) ** 2
-        cw = cw / cw.sum()
-        out = np.empty_like(psi)
-        disc_wide = a > s
-        if disc_wide.any():
-            p, aa = psi[disc_wide, None], a[disc_wide, None]
-            out[disc_wide] = (w * _semicircle_cdf((p - math.sqrt(2.0) * s * x) / aa)).sum(1)
-        if (~disc_wide).any():
-            p, aa = psi[~disc_wide, None], a[~disc_wide, None]
-            out[~disc_wide] = (cw * _normal_cdf((p - aa * np.cos(theta)) / s)).sum(1)
-        return out
+        from specholo.optics._lobe_kernel import lobe_cdf
+
+        psi = np.ascontiguousarray(np.asarray(psi, dtype=float).ravel())
+        k = np.ascontiguousarray(np.broadcast_to(np.asarray(k, dtype=float), psi.shape))
+        return lobe_cdf(psi, k, 0.5 * self.light_size, self.sigma)
 
     def mass(self, psi_a: np.ndarray, psi_b: np.ndarray, k: np.ndarray) -> np.ndarray:
         """Mean lobe (per radian) over psi from psi_a to psi_b (g,), light factors k (g,).
 
         A stretch of wall whose normal sweeps psi_a .. psi_b sends its length
         times this to the eye: the lobe averaged over the sweep, the exact
-        share where psi runs linearly along it.
+        share where psi runs linearly along it. (A sweep narrower than a
+        thousandth of the lobe takes the lobe at its middle.)
         """
-        psi_a, psi_b = np.asarray(psi_a, dtype=float), np.asarray(psi_b, dtype=float)
-        k = np.asarray(k, dtype=float)
-        width = self.reach(k) / TAIL + 1e-12 if self.sigma else 0.5 * self.light_size * k
-        # A sweep narrower than a thousandth of the lobe takes the lobe at its middle.
-        half = np.maximum(0.5 * np.abs(psi_b - psi_a), 1e-3 * np.maximum(width, 1e-12))
-        mid = 0.5 * (psi_a + psi_b)
-        return (self.cdf(mid + half, k) - self.cdf(mid - half, k)) / (2.0 * half)
+        from specholo.optics._lobe_kernel import lobe_mass
+
+        def flat(v: np.ndarray) -> np.ndarray:
+            return np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float),
+                                                        np.shape(psi_a)).ravel())
+
+        out = lobe_mass(flat(psi_a), flat(psi_b), flat(k), 0.5 * self.light_size, self.sigma,
+                        1e-3)
+        return out.reshape(np.shape(psi_a))
 
     def describe(self) -> str:
         """Words for the light and surface, as a figure's conditions name them."""
@@ -151,17 +134,6 @@ class Spread:
     def to_dict(self) -> dict[str, float]:
         """The settings by the command's option names, degrees at the edge."""
         return {"light_size": math.degrees(self.light_size), "roughness": self.roughness}
-
-
-def _semicircle_cdf(u: np.ndarray) -> np.ndarray:
-    u = np.clip(u, -1.0, 1.0)
-    return 0.5 + (u * np.sqrt(1.0 - u * u) + np.arcsin(u)) / math.pi
-
-
-def _normal_cdf(z: np.ndarray) -> np.ndarray:
-    from scipy.special import ndtr
-
-    return np.asarray(ndtr(z), dtype=float)
 
 
 def _is_number(text: str) -> bool:

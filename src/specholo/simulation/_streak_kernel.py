@@ -20,9 +20,10 @@ from specholo._compiling import kernel
 from specholo._threads import chunked
 from specholo.simulation._glint_kernel import _at_row, _h
 
-#: Fixed-point steps placing a sample on the groove's wall (h moves by ~R /
-#: distance between them).
-WALL_STEPS = 3
+#: Fixed-point steps placing a sample on the groove's wall: h moves by about
+#: R / distance (4e-5 rad for the default tip at 600 mm) from the toolpath to
+#: the wall, and by that squared from one step to the next.
+WALL_STEPS = 1
 #: Fewest arcs per thread worth a thread's start.
 _GRAIN = 1024
 #: Shortest step along a groove, mm.
@@ -124,7 +125,7 @@ def _walk(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: floa
                 at[j] = 0
             continue
         speed = turn + rate
-        _, _, _, psi, k, nz = _sample(geo, i, 0.0, tool_radius, cz, eye, light, point)
+        gx, gy, gz, psi, k, nz = _sample(geo, i, 0.0, tool_radius, cz, eye, light, point)
         s = 0.0
         while s < length:
             reach = k * beta + tail
@@ -140,8 +141,8 @@ def _walk(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: floa
                     ds = min(ds, 0.25 * max(reach / TAIL_WIDTH, 1e-9) / speed)
             ds = max(ds, MIN_STEP)
             s1 = min(s + ds, length)
-            _, _, _, psi1, k1, nz1 = _sample(geo, i, s1 / length, tool_radius, cz, eye, light,
-                                             point)
+            qx, qy, qz, psi1, k1, nz1 = _sample(geo, i, s1 / length, tool_radius, cz, eye,
+                                                light, point)
             # A stride ends at least the reach short of a streak (it is dark).
             lit = not stride and (min(abs(psi), abs(psi1)) < max(k, k1) * beta + tail
                                   or psi * psi1 <= 0.0)
@@ -149,13 +150,44 @@ def _walk(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: floa
                 if fill:
                     cell_row[w] = j
                     s_out[w, 0], s_out[w, 1] = s, s1
-                    um = 0.5 * (s + s1) / length
-                    mx, my, mz, _, _, _ = _sample(geo, i, um, tool_radius, cz, eye, light, point)
-                    f_out[w, 0], f_out[w, 1], f_out[w, 2] = mx, my, mz
+                    # the chord's middle: within ds^2 / (8 rho) of the wall's
+                    f_out[w, 0], f_out[w, 1] = 0.5 * (gx + qx), 0.5 * (gy + qy)
+                    f_out[w, 2] = 0.5 * (gz + qz)
                     f_out[w, 3], f_out[w, 4], f_out[w, 5] = psi, psi1, 0.5 * (k + k1)
                 w += 1
-            psi, k, nz = psi1, k1, nz1
+            gx, gy, gz, psi, k, nz = qx, qy, qz, psi1, k1, nz1
             s = s1
         if not fill:
             at[j] = w
+
+
+
+def within(ref: np.ndarray, query: np.ndarray, radius: float) -> np.ndarray:
+    """(q,) whether each query point (q, 3) lies within ``radius`` of some
+    reference point (r, 3): the references sorted by x, each query looks
+    through the strip of them within ``radius`` in x."""
+    q = len(query)
+    out = np.zeros(q, np.bool_)
+    if q == 0 or len(ref) == 0:
+        return out
+    order = np.argsort(ref[:, 0], kind="stable")
+    ref = np.ascontiguousarray(ref[order])
+    chunked(_within, 0, q, ref, np.ascontiguousarray(query), radius, out, grain=_GRAIN)
+    return out
+
+
+@kernel(nogil=True)
+def _within(lo: int, hi: int, ref: np.ndarray, query: np.ndarray, radius: float,
+            out: np.ndarray) -> None:
+    r2 = radius * radius
+    xs = ref[:, 0]
+    for j in range(lo, hi):
+        x, y, z = query[j, 0], query[j, 1], query[j, 2]
+        i = np.searchsorted(xs, x - radius)
+        while i < len(xs) and xs[i] <= x + radius:
+            dx, dy, dz = xs[i] - x, ref[i, 1] - y, ref[i, 2] - z
+            if dx * dx + dy * dy + dz * dz <= r2:
+                out[j] = True
+                break
+            i += 1
 

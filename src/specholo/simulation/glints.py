@@ -215,6 +215,16 @@ class Engraved:
                    kink_rows)
 
     @cached_property
+    def span(self) -> float:
+        """How far from the plate centre, in plan, any point of a groove lies, mm:
+        every point of an arc lies within half the longest chord of its ends' box."""
+        xy = self.grooves.vertices
+        if len(xy) == 0:
+            return 0.0
+        far = np.abs(np.concatenate([xy.min(axis=0), xy.max(axis=0)])).reshape(2, 2).max(0)
+        return float(np.hypot(*far)) + self.index.half_length
+
+    @cached_property
     def _arcs(self) -> tuple[np.ndarray, ...]:
         """start, end, centre, radius, start_angle, sweep, direction in path order."""
         seg = self.grooves.segments()

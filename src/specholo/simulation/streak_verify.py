@@ -141,13 +141,23 @@ def verify_streaks(grooves: Grooves, points: np.ndarray, setup: Setup, spread: S
         One report per azimuth.
     """
     points = np.asarray(points, dtype=float)
-    n = len(points)
     if azimuths is None:
         azimuths = view_azimuths(setup.viewer.half_range)
-    found = eye_streaks(grooves, n, setup, spread, azimuths, chunk_vertices)
+    found = eye_streaks(grooves, len(points), setup, spread, azimuths, chunk_vertices)
     if cut is not None:
-        cutter, depth = cut
-        found = _as_cut(found, grooves, setup, cutter, depth)
+        found = cut_streaks(found, grooves, setup, *cut)
+    return streak_reports(found, points, visible)
+
+
+def streak_reports(found: EyeStreaks, points: np.ndarray,
+                   visible: VisibilityFn | None = None) -> list[StreakReport]:
+    """The figures per head azimuth of every eye's streaks (:func:`streak_view`).
+
+    Args:
+        found: every eye's streaks (:func:`eye_streaks`, or :func:`cut_streaks`).
+        points: (n, 3) the stipples; visible: the occlusion test, or None.
+    """
+    n = len(points)
     reports = []
     for j, theta in enumerate(found.azimuths):
         eye_l, eye_r = found.eyes[j]
@@ -161,10 +171,11 @@ def verify_streaks(grooves: Grooves, points: np.ndarray, setup: Setup, spread: S
     return reports
 
 
-def _as_cut(found: EyeStreaks, grooves: Grooves, setup: Setup, cutter: Any,
-            depth: float) -> EyeStreaks:
-    """Every eye's streaks with the cells another path's cut removes made dark:
-    one survival test for all the cells of every eye (the grooves are streamed once)."""
+def cut_streaks(found: EyeStreaks, grooves: Grooves, setup: Setup, cutter: Any,
+                depth: float) -> EyeStreaks:
+    """Every eye's streaks with the cells another path's cut (``cutter`` to
+    ``depth`` mm) removes made dark: one survival test for all the cells of
+    every eye (the grooves are streamed once)."""
     moved, paths = [], []
     for j, pair in enumerate(found.eyes):
         for side, eye in enumerate(pair):

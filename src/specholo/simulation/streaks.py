@@ -34,7 +34,7 @@ from specholo.optics.normality import tilt
 from specholo.optics.spread import Spread
 from specholo.setup import Light
 from specholo.simulation import _glint_kernel
-from specholo.simulation._streak_kernel import streak_cells
+from specholo.simulation._streak_kernel import streak_cells, within
 from specholo.simulation.glints import FAINT_RATIO, Engraved, Glints, wall_glint
 
 #: Longest step along a groove near a streak, mm: a fifth of the default drag
@@ -175,12 +175,7 @@ def false_glints(streaks: Streaks, image: Glints,
     else:
         bright = np.ones(len(b), dtype=bool)
     at = spills.point[bright]
-    if len(image.point) and len(at):
-        from scipy.spatial import cKDTree
-
-        near, _ = cKDTree(image.point).query(at, k=1)
-        at = at[near > separation]
-    return at
+    return at[~within(image.point, at, separation)]
 
 
 def find_streaks(eng: Engraved, eye: np.ndarray, light: Light, spread: Spread,
@@ -222,12 +217,9 @@ def find_streaks(eng: Engraved, eye: np.ndarray, light: Light, spread: Spread,
 def _turn_rate(eng: Engraved, eye: np.ndarray, light: Light) -> float:
     """A bound on how fast h turns along a groove, rad/mm: a unit vector toward a
     point at distance d turns at most 1 / d per mm moved, and h sums two."""
-    xy = eng.grooves.vertices
-    if len(xy) == 0:
+    if len(eng.grooves.vertices) == 0:
         return 0.0
-    # every point of an arc lies within half its chord of its ends' box
-    far = np.abs(np.concatenate([xy.min(axis=0), xy.max(axis=0)])).reshape(2, 2).max(axis=0)
-    span = float(np.hypot(*far)) + eng.index.half_length
+    span = eng.span
     rate = 2.0 / max(float(np.linalg.norm(eye)) - span, 1.0)
     if light.distance is not None:
         rate += 2.0 / max(light.distance - span, 1.0)

@@ -487,18 +487,23 @@ def verify_design(loaded: Loaded, max_step_deg: float = 5.0) -> list[Any]:
 
 
 def verify_streak_design(loaded: Loaded, max_step_deg: float, spread: Spread,
-                         cut: bool = False) -> list[Any]:
+                         cut: bool = False) -> tuple[list[Any], list[Any] | None]:
     """The stereo verification with each glint a streak under ``spread``
-    (:func:`~specholo.simulation.streak_verify.verify_streaks`), on the ideal
-    grooves or, with ``cut``, on the plate as cut."""
-    from specholo.simulation.streak_verify import verify_streaks
+    (:mod:`~specholo.simulation.streak_verify`): on the ideal grooves and, with
+    ``cut``, on the plate as cut, from the same streaks."""
+    from specholo.simulation.streak_verify import cut_streaks, eye_streaks, streak_reports
     from specholo.simulation.verify import view_azimuths
 
     setup = loaded.config.setup()
     az = view_azimuths(setup.viewer.half_range, math.radians(max_step_deg))
-    as_cut = (loaded.config.cutter(), loaded.config.depth_mm) if cut else None
-    return list(verify_streaks(loaded.grooves, loaded.points, setup, spread,
-                               _visibility(loaded), az, cut=as_cut))
+    found = eye_streaks(loaded.grooves, len(loaded.points), setup, spread, az)
+    vis = _visibility(loaded)
+    ideal = list(streak_reports(found, loaded.points, vis))
+    if not cut:
+        return ideal, None
+    as_cut = cut_streaks(found, loaded.grooves, setup, loaded.config.cutter(),
+                         loaded.config.depth_mm)
+    return ideal, list(streak_reports(as_cut, loaded.points, vis))
 
 
 #: How ``verify --cut`` finds what the cutting leaves (:func:`cut_method`).

@@ -327,9 +327,13 @@ class FlatJob:
         loaded = load_design(folder, from_gcode=options.from_gcode or cut)
         if method == "field" and resolution is None:
             resolution = default_resolution(loaded.config)
-        status("simulating eye pairs...")
-        reports = (verify_design(loaded, options.step_deg) if spread is None
-                   else verify_streak_design(loaded, options.step_deg, spread))
+        status("simulating eye pairs..." if spread is None else
+               "following each glint's streak for every eye...")
+        streak_cut = None
+        if spread is None:
+            reports = verify_design(loaded, options.step_deg)
+        else:
+            reports, streak_cut = verify_streak_design(loaded, options.step_deg, spread, cut)
         rows = reports_to_dicts(reports)
         summary = _summary(reports)
         cut_rows: list[dict[str, Any]] = []
@@ -337,11 +341,11 @@ class FlatJob:
         if cut:
             status("finding which glints the other grooves' cuts leave..." if method == "survival"
                    else "cutting the plate and simulating eye pairs...")
-            if spread is None:
+            if streak_cut is None:
                 cut_reports, _ = verify_cut_design(loaded, options.step_deg, resolution,
                                                    options.stl, method)
             else:
-                cut_reports = verify_streak_design(loaded, options.step_deg, spread, cut=True)
+                cut_reports = streak_cut
             cut_rows = reports_to_dicts(cut_reports)
             cut_summary = _summary(cut_reports)
         table_rows, columns = _table(rows, cut_rows, spread is not None)
