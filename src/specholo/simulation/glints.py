@@ -215,6 +215,21 @@ class Engraved:
                    kink_rows)
 
     @cached_property
+    def kink_turn(self) -> np.ndarray:
+        """(c,) how far the path turns at each of :attr:`kinks`, radians."""
+        return self.turn_after(self.kinks)
+
+    def turn_after(self, arcs: np.ndarray) -> np.ndarray:
+        """(c,) how far the path turns from each given arc (path order) into the
+        next, radians."""
+        if len(arcs) == 0:
+            return np.zeros(0)
+        _, t0 = self.at(arcs, np.ones(len(arcs)))
+        _, t1 = self.at(arcs + 1, np.zeros(len(arcs)))
+        cross = t0[:, 0] * t1[:, 1] - t0[:, 1] * t1[:, 0]
+        return np.abs(np.arctan2(cross, np.einsum("ij,ij->i", t0, t1)))
+
+    @cached_property
     def span(self) -> float:
         """How far from the plate centre, in plan, any point of a groove lies, mm:
         every point of an arc lies within half the longest chord of its ends' box."""
@@ -288,6 +303,12 @@ FAINT_RATIO = 20.0
 #: README example's glints, and so is a dimple (a dot) beside grooves; a plate
 #: of dots alone keeps them, being its own typical stipple.
 INVISIBLE_RATIO = 100.0
+#: A path turning less than this (radians) at a vertex glints there as its
+#: groove does, not as a corner: a program's rounded digits leave kinks of up
+#: to 2e-3 rad between short arcs, and any real light or gloss spreads a glint
+#: wider than that across them (a physically based render of plates cut from
+#: their programs shows every such glint at full brightness).
+SOFT_CORNER = 0.01
 #: Longest radius of curvature along a wall counted, mm: a straight groove's
 #: glint spreads as far as h turns along it, about the viewing distance.
 MAX_ALONG_RADIUS = 1000.0
@@ -420,9 +441,17 @@ def find_glints(eng: Engraved, eye: np.ndarray, light: Light, iterations: int = 
                 inside &= (at >= 0) & (eng.kink_rows < np.append(ends, 0)[at])
             sel = inside.all(axis=1)
             ok, pts = _kernel.corner_glints(eng.kink_rows[sel], eng.geometry, *tool)
-            paths.append(eng.path[eng.kinks[sel][ok]])
+            at = eng.kinks[sel][ok]
+            paths.append(eng.path[at])
             points.append(pts[ok])
-            bright.append(np.full(int(ok.sum()), sphere))
+            b = np.full(len(at), sphere)
+            # a kink narrower than any light's lobe is the groove running on:
+            # as bright as the arc after it
+            soft = eng.kink_turn[sel][ok] < SOFT_CORNER
+            if soft.any():
+                b[soft] = _groove_brightness(eng.radius[at[soft] + 1], pts[ok][soft], eng.tool,
+                                             light, eye)
+            bright.append(b)
         rows = _kernel.expand(starts, ends)
         ok, pts = _kernel.arc_glints(rows, eng.geometry, *tool, iterations)
         # Back to arc order, as the arcs were before the index sorted them.

@@ -21,7 +21,13 @@ import numpy as np
 from specholo.optics.spread import Spread
 from specholo.setup import Setup
 from specholo.simulation.glints import Engraved, Glints, find_glints
-from specholo.simulation.streaks import Streaks, false_glints, find_streaks, join
+from specholo.simulation.streaks import (
+    Streaks,
+    bright_spills,
+    false_glints,
+    find_streaks,
+    join,
+)
 from specholo.simulation.survival import on_real_wall, survivors
 from specholo.simulation.verify import (
     CHUNK_VERTICES,
@@ -107,7 +113,10 @@ def streak_view(theta: float, points: np.ndarray, left: Streaks, right: Streaks,
     with the end spills, the streaks' length and how far their centres moved
     from the point glints (``point_glints``, each eye's, when given)."""
     gl, gr = left.glints(), right.glints()
-    base = view_report(theta, points, gl, gr, eye_l, eye_r, vis_l, vis_r)
+    # what each eye sees of a stipple: its designed streaks and the stripe ends
+    # bright enough to be glints (the image's rule picks among both)
+    seen_l, seen_r = (_with_spills(g, st) for g, st in ((gl, left), (gr, right)))
+    base = view_report(theta, points, seen_l, seen_r, eye_l, eye_r, vis_l, vis_r)
     spills = [len(false_glints(st, g.image())) for st, g in ((left, gl), (right, gr))]
     lengths = np.concatenate([_fwhm(st)[st.designed & (st.brightness > 0)]
                               for st in (left, right)])
@@ -221,3 +230,16 @@ def _join_points(parts: list[Glints]) -> Glints:
     return Glints(np.concatenate([p.path for p in parts]),
                   np.concatenate([p.stipple for p in parts]),
                   np.concatenate([p.point for p in parts]).reshape(-1, 3))
+
+
+def _with_spills(designed: Glints, streaks: Streaks) -> Glints:
+    """The designed glints and the bright end spills together, sorted by stipple."""
+    spills = bright_spills(streaks)
+    if len(spills.path) == 0:
+        return designed
+    assert designed.brightness is not None and spills.brightness is not None
+    both = Glints(np.concatenate([designed.path, spills.path]),
+                  np.concatenate([designed.stipple, spills.stipple]),
+                  np.concatenate([designed.point, spills.point]),
+                  np.concatenate([designed.brightness, spills.brightness]))
+    return both.take(np.argsort(both.stipple, kind="stable"))

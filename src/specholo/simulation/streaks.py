@@ -40,8 +40,10 @@ from specholo.simulation.glints import FAINT_RATIO, Engraved, Glints, wall_glint
 #: Longest step along a groove near a streak, mm: a fifth of the default drag
 #: tip's groove (0.05 mm wide), so a crossing's gap spans several steps.
 STEP = 0.01
-#: A path turning less than this (radians) between two arcs keeps a streak going.
-CORNER = 1e-3
+#: A path turning less than this (radians) between two arcs keeps a streak
+#: going: a program's rounded digits leave kinks of up to 2e-3 rad between
+#: short arcs, and a kink turns the wall's normal by less than a lobe is wide.
+CORNER = 0.01
 #: A spill counts as a false glint this far from every designed glint, mm:
 #: nearer, it merges with one (the verification's p95 error limit).
 SPILL_SEPARATION = 0.25
@@ -140,41 +142,46 @@ def join(parts: list[Streaks]) -> Streaks:
                    np.concatenate([p.length for p in parts]))
 
 
+def bright_spills(streaks: Streaks) -> Glints:
+    """The end spills bright enough for an eye to see as glints: at least 1/20
+    as bright (:data:`~specholo.simulation.glints.FAINT_RATIO`) as their own
+    stipple's brightest designed glint and as the typical stipple's (the
+    image's rule, :meth:`~specholo.simulation.glints.Glints.image`, where a
+    stipple with no designed glint has the typical one). They are part of
+    what the eye sees of their stipple."""
+    spills = streaks.spills()
+    if len(spills.path) == 0:
+        return spills
+    designed = streaks.glints()
+    b = spills.brightness
+    assert b is not None and designed.brightness is not None
+    if len(designed.path) == 0:
+        return spills
+    n = int(max(designed.stipple.max(), spills.stipple.max())) + 1
+    top = np.zeros(n)
+    np.maximum.at(top, designed.stipple, designed.brightness)
+    lit = np.sort(top[np.unique(designed.stipple)])
+    light = np.cumsum(lit)
+    typical = float(lit[np.searchsorted(light, 0.5 * light[-1])])
+    # as bright as a glint of its own stipple's image would have to be, and
+    # never fainter than a glint of the typical stipple's image
+    return spills.take(b * FAINT_RATIO >= np.maximum(top[spills.stipple], typical))
+
+
 def false_glints(streaks: Streaks, image: Glints,
                  separation: float = SPILL_SEPARATION) -> np.ndarray:
-    """The end spills an eye sees as glints of their own: at least 1/20 as bright
-    (:data:`~specholo.simulation.glints.FAINT_RATIO`) as their own stipple's
-    brightest designed glint and as the typical stipple's (the image's rule,
-    :meth:`~specholo.simulation.glints.Glints.image`, where a stipple with no
-    designed glint has the typical one), and more than ``separation`` mm from
-    every glint of the image.
+    """The end spills an eye sees as glints of their own (:func:`bright_spills`)
+    more than ``separation`` mm from every designed glint of the image: a
+    point where the model has none.
 
     Args:
         streaks: the eye's streaks.
-        image: the glints that make its image (designed, bright enough).
+        image: the designed glints that make its image (bright enough).
 
     Returns:
         (f, 3) where the false glints are.
     """
-    spills = streaks.spills()
-    if len(spills.path) == 0:
-        return np.zeros((0, 3))
-    designed = streaks.glints()
-    b = spills.brightness
-    assert b is not None and designed.brightness is not None
-    if len(designed.path):
-        n = int(max(designed.stipple.max(), spills.stipple.max())) + 1
-        top = np.zeros(n)
-        np.maximum.at(top, designed.stipple, designed.brightness)
-        lit = np.sort(top[np.unique(designed.stipple)])
-        light = np.cumsum(lit)
-        typical = float(lit[np.searchsorted(light, 0.5 * light[-1])])
-        # as bright as a glint of its own stipple's image would have to be, and
-        # never fainter than a glint of the typical stipple's image
-        bright = b * FAINT_RATIO >= np.maximum(top[spills.stipple], typical)
-    else:
-        bright = np.ones(len(b), dtype=bool)
-    at = spills.point[bright]
+    at = bright_spills(streaks).point
     return at[~within(image.point, at, separation)]
 
 
@@ -245,7 +252,7 @@ def _group(eng: Engraved, rows: np.ndarray, cell_row: np.ndarray, s: np.ndarray,
                 & (s[prev, 1] >= arc_length[prev] - 1e-9) & (s[nxt, 0] <= 1e-9))
     if next_arc.any():
         at = np.flatnonzero(next_arc)
-        next_arc[at] = _smooth(eng, arc[at])
+        next_arc[at] = eng.turn_after(arc[at]) < CORNER
     starts = np.r_[True, ~(same_arc | next_arc)]
     run = np.cumsum(starts) - 1
     psi_a, psi_b, k = f[:, 3], f[:, 4], f[:, 5]
@@ -259,17 +266,6 @@ def _group(eng: Engraved, rows: np.ndarray, cell_row: np.ndarray, s: np.ndarray,
     run_path = path[first]
     return Streaks(run_path, eng.grooves.stipple[run_path], designed, run.astype(np.int64),
                    np.ascontiguousarray(f[:, :3]), weight, length)
-
-
-def _smooth(eng: Engraved, arc: np.ndarray) -> np.ndarray:
-    """(c,) whether each given arc runs on into the next with no corner a streak
-    would notice: a turn under :data:`CORNER` (a program's rounded digits
-    leave kinks of 1e-4 rad between arcs, a thousandth of a streak's width)."""
-    _, t0 = eng.at(arc, np.ones(len(arc)))
-    _, t1 = eng.at(arc + 1, np.zeros(len(arc)))
-    cross = t0[:, 0] * t1[:, 1] - t0[:, 1] * t1[:, 0]
-    dot = np.einsum("ij,ij->i", t0, t1)
-    return np.abs(np.arctan2(cross, dot)) < CORNER
 
 
 def _arc_length(eng: Engraved, arc: np.ndarray) -> np.ndarray:
