@@ -44,6 +44,7 @@ DRJIT_LIBLLVM_PATH to a libLLVM).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import glob
 import importlib.util
@@ -724,12 +725,16 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
         ends.append([g for g in kept[side] if g.own_distance > SPILL
                      and g.flux * FAINT_RATIO >= max(t, best.get(g.stipple, t))])
     spills = [[g for g in k if g.model_distance > SPILL] for k in ends]
-    # What a viewer meets: the designed glints and the bright stripe ends.
+    near = [[g for g in k if g.model_distance <= SPILL] for k in ends]
+    # What a viewer meets of each stipple: its designed glints and the bright
+    # stripe ends beside them (within SPILL of a designed glint, as verify
+    # takes them into a stipple's image); the spills farther off are points
+    # of their own, counted apart.
     # Fainter unmodelled glints (mostly the caps a path's ends leave, 1/140 of
     # the typical glint) get about one sample each at these counts, so those
     # found are the lucky ones, their light overestimated: they are counted
     # apart, with verify's own image rule.
-    visibility, err = shown([modelled[0] + ends[0], modelled[1] + ends[1]])
+    visibility, err = shown([_merged(modelled[0], near[0]), _merged(modelled[1], near[1])])
     visibility_modelled, err_modelled = shown(modelled)
     visibility_faint, err_faint = shown(kept)
     r_cut = plate.r_cut
@@ -802,6 +807,25 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
              "end_streak": any(g is e for k in ends for e in k),
              "point": g.point.tolist()} for g in faint],
     }
+
+
+def _merged(designed: list[Glint], beside: list[Glint]) -> list[Glint]:
+    """Each designed glint with the light of the bright stripe ends within SPILL
+    of it (nearer it than any other) at their flux-weighted centre: a viewer
+    sees one spot there, as verify's image of the stipples has it."""
+    if not designed or not beside:
+        return designed
+    pts = np.array([g.point for g in designed])
+    flux = np.array([g.flux for g in designed], dtype=float)
+    moment = pts * flux[:, None]
+    for g in beside:
+        d = np.linalg.norm(pts - g.point, axis=1)
+        i = int(np.argmin(d))
+        if d[i] <= SPILL:
+            flux[i] += g.flux
+            moment[i] += g.point * g.flux
+    return [dataclasses.replace(g, point=moment[i] / flux[i], flux=float(flux[i]))
+            for i, g in enumerate(designed)]
 
 
 def _as_glints(k: list[Glint]) -> Any:

@@ -164,30 +164,36 @@ def _walk(lo: int, hi: int, rows: np.ndarray, geo: np.ndarray, tool_radius: floa
 
 def within(ref: np.ndarray, query: np.ndarray, radius: float) -> np.ndarray:
     """(q,) whether each query point (q, 3) lies within ``radius`` of some
-    reference point (r, 3): the references sorted by x, each query looks
+    reference point (r, 3)."""
+    return nearest(ref, query, radius) >= 0
+
+
+def nearest(ref: np.ndarray, query: np.ndarray, radius: float) -> np.ndarray:
+    """(q,) the reference point (r, 3) nearest each query point (q, 3) within
+    ``radius``, -1 where none is: the references sorted by x, each query looks
     through the strip of them within ``radius`` in x."""
     q = len(query)
-    out = np.zeros(q, np.bool_)
+    out = np.full(q, -1, np.int64)
     if q == 0 or len(ref) == 0:
         return out
     order = np.argsort(ref[:, 0], kind="stable")
-    ref = np.ascontiguousarray(ref[order])
-    chunked(_within, 0, q, ref, np.ascontiguousarray(query), radius, out, grain=_GRAIN)
-    return out
+    chunked(_nearest, 0, q, np.ascontiguousarray(ref[order]), np.ascontiguousarray(query),
+            radius, out, grain=_GRAIN)
+    return np.where(out >= 0, order[np.maximum(out, 0)], -1)
 
 
 @kernel(nogil=True)
-def _within(lo: int, hi: int, ref: np.ndarray, query: np.ndarray, radius: float,
-            out: np.ndarray) -> None:
-    r2 = radius * radius
+def _nearest(lo: int, hi: int, ref: np.ndarray, query: np.ndarray, radius: float,
+             out: np.ndarray) -> None:
     xs = ref[:, 0]
     for j in range(lo, hi):
         x, y, z = query[j, 0], query[j, 1], query[j, 2]
+        best = radius * radius
         i = np.searchsorted(xs, x - radius)
         while i < len(xs) and xs[i] <= x + radius:
             dx, dy, dz = xs[i] - x, ref[i, 1] - y, ref[i, 2] - z
-            if dx * dx + dy * dy + dz * dz <= r2:
-                out[j] = True
-                break
+            d = dx * dx + dy * dy + dz * dz
+            if d <= best:
+                best = d
+                out[j] = i
             i += 1
-

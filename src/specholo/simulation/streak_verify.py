@@ -20,8 +20,10 @@ import numpy as np
 
 from specholo.optics.spread import Spread
 from specholo.setup import Setup
+from specholo.simulation._streak_kernel import nearest
 from specholo.simulation.glints import Engraved, Glints, find_glints
 from specholo.simulation.streaks import (
+    SPILL_SEPARATION,
     Streaks,
     bright_spills,
     false_glints,
@@ -113,8 +115,9 @@ def streak_view(theta: float, points: np.ndarray, left: Streaks, right: Streaks,
     with the end spills, the streaks' length and how far their centres moved
     from the point glints (``point_glints``, each eye's, when given)."""
     gl, gr = left.glints(), right.glints()
-    # what each eye sees of a stipple: its designed streaks and the stripe ends
-    # bright enough to be glints (the image's rule picks among both)
+    # what each eye sees of a stipple: its designed streaks, with the light of
+    # the bright stripe ends beside them; the spills farther off are points of
+    # their own, counted apart
     seen_l, seen_r = (_with_spills(g, st) for g, st in ((gl, left), (gr, right)))
     base = view_report(theta, points, seen_l, seen_r, eye_l, eye_r, vis_l, vis_r)
     spills = [len(false_glints(st, g.image())) for st, g in ((left, gl), (right, gr))]
@@ -233,13 +236,23 @@ def _join_points(parts: list[Glints]) -> Glints:
 
 
 def _with_spills(designed: Glints, streaks: Streaks) -> Glints:
-    """The designed glints and the bright end spills together, sorted by stipple."""
+    """An eye's image of the stipples: each designed glint with the light of
+    the bright end spills within
+    :data:`~specholo.simulation.streaks.SPILL_SEPARATION` of it (nearer it than
+    any other) at their brightness-weighted centre, sorted by stipple. Nearer
+    than that a viewer sees one spot; farther off a spill is a false glint,
+    counted apart."""
+    image = designed.image()
     spills = bright_spills(streaks)
-    if len(spills.path) == 0:
-        return designed
-    assert designed.brightness is not None and spills.brightness is not None
-    both = Glints(np.concatenate([designed.path, spills.path]),
-                  np.concatenate([designed.stipple, spills.stipple]),
-                  np.concatenate([designed.point, spills.point]),
-                  np.concatenate([designed.brightness, spills.brightness]))
-    return both.take(np.argsort(both.stipple, kind="stable"))
+    to = nearest(image.point, spills.point, SPILL_SEPARATION)
+    joined = to >= 0
+    if not joined.any():
+        return image
+    b = image.brightness
+    sb = spills.brightness
+    assert b is not None and sb is not None
+    light = b.copy()
+    np.add.at(light, to[joined], sb[joined])
+    moment = image.point * b[:, None]
+    np.add.at(moment, to[joined], spills.point[joined] * sb[joined, None])
+    return Glints(image.path, image.stipple, moment / light[:, None], light)
