@@ -736,6 +736,9 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
     # apart, with verify's own image rule.
     visibility, err = shown([_merged(modelled[0], near[0]), _merged(modelled[1], near[1])])
     visibility_modelled, err_modelled = shown(modelled)
+    # the stipples both eyes see whose designed glint one eye's picture lacks
+    lacking = [sorted(set(np.flatnonzero(seen).tolist())
+                      - {g.stipple for g in modelled[side]}) for side in range(2)]
     visibility_faint, err_faint = shown(kept)
     r_cut = plate.r_cut
     designed = modelled[0] + modelled[1]
@@ -761,6 +764,7 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
     return {
         "azimuth": math.degrees(theta),
         "stipples_seen": int(seen.sum()),
+        "lacking_designed": {"left": lacking[0], "right": lacking[1]},
         "visibility": visibility,
         "median_error": _pct(err, 50),
         "p95_error": _pct(err, 95),
