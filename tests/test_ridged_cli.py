@@ -121,6 +121,22 @@ def test_verify_over_azimuth_and_elevation(designed: Path, capsys):
     assert (designed / "verify.png").is_file()
 
 
+def test_a_light_size_is_refused_on_a_ridged_plate(designed: Path, capsys):
+    """Streaks are followed along grooves: a ridged plate has none, and says so."""
+    before = (designed / "verify.json").stat().st_mtime_ns if (designed / "verify.json").exists() \
+        else None
+    code, _, err = run(["verify", designed, "--light-size", "0.53"], capsys)
+    assert code != 0 and "for grooved flat-plate designs" in err
+    assert len(err.strip().splitlines()) == 1
+    after = (designed / "verify.json").stat().st_mtime_ns if (designed / "verify.json").exists() \
+        else None
+    assert after == before
+    code, _, err = run(["render", designed, "--light-size", "0.53", "--out",
+                        designed / "streaks.png"], capsys)
+    assert code != 0 and "for flat-plate designs" in err
+    assert not (designed / "streaks.png").exists()
+
+
 @pytest.mark.parametrize("azimuth, elevation", [(-20.0, -8.0), (0.0, 0.0), (15.0, 10.0)])
 def test_render_spots_are_the_glints(designed: Path, tmp_path: Path, capsys,
                                      azimuth: float, elevation: float):
