@@ -277,3 +277,23 @@ def test_a_light_size_is_for_grooves() -> None:
         _lighting(Field(), "0", None)
     source, lobe = _lighting(Field(), "polished", None)  # the gloss alone sizes the spots
     assert lobe == pytest.approx(0.01 / math.sqrt(2.0))
+
+
+def test_the_design_names_the_light_that_gives_its_sharpest_image(small_design: Path) -> None:
+    record = json.loads((small_design / "hologram.json").read_text())
+    light = record["light_to_use"]
+    trials = light["trials"]
+    assert [t["size_deg"] for t in trials] == sorted((t["size_deg"] for t in trials),
+                                                      reverse=True)
+    best_p95 = min(t["p95_mm"] for t in trials)
+    best_spills = min(t["spills_per_100"] for t in trials)
+    chosen = next(t for t in trials if t["size_deg"] == light["size_deg"])
+    # the largest light within a tenth of the sharpest figures
+    assert chosen["p95_mm"] <= 1.1 * best_p95
+    assert chosen["spills_per_100"] <= 1.1 * best_spills + 1.0
+    larger = [t for t in trials if t["size_deg"] > light["size_deg"]]
+    assert all(t["p95_mm"] > 1.1 * best_p95 or t["spills_per_100"] > 1.1 * best_spills + 1.0
+               for t in larger)
+    # a smaller light never blurs the plate more (beyond the sample's noise)
+    assert trials[-1]["p95_mm"] <= 1.05 * trials[0]["p95_mm"]
+    assert f"{light['size_deg']:g} deg across" in light["lamp"]
