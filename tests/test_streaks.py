@@ -297,3 +297,22 @@ def test_the_design_names_the_light_that_gives_its_sharpest_image(small_design: 
     # a smaller light never blurs the plate more (beyond the sample's noise)
     assert trials[-1]["p95_mm"] <= 1.05 * trials[0]["p95_mm"]
     assert f"{light['size_deg']:g} deg across" in light["lamp"]
+
+
+def test_a_plate_verified_a_few_views_at_a_time_gives_the_same_figures(small_design: Path
+                                                                        ) -> None:
+    from specholo.jobs.flat.folder import load_design
+    from specholo.simulation.streak_verify import verify_streaks_both
+
+    loaded = load_design(small_design)
+    setup = loaded.config.setup()
+    az = np.radians([-30.0, -10.0, 0.0, 25.0])
+    cut = (loaded.config.cutter(), loaded.config.depth_mm)
+    spread = Spread(SUN, GLOSS["mirror"])
+    whole = verify_streaks_both(loaded.grooves, loaded.points, setup, spread, azimuths=az,
+                                cut=cut)
+    # a budget of one cell: one azimuth a batch, the grooves searched four times
+    parts = verify_streaks_both(loaded.grooves, loaded.points, setup, spread, azimuths=az,
+                                cut=cut, budget=1)
+    assert whole == parts
+    assert whole[1] is not None and len(whole[1]) == len(az)

@@ -133,6 +133,13 @@ def streak_view(theta: float, points: np.ndarray, left: Streaks, right: Streaks,
                         centre_shift=shift)
 
 
+#: Streak cells held at once, over all the eyes of a batch of head azimuths
+#: (about 100 bytes each with the survival test's own arrays): a plate whose
+#: eyes' cells would pass it is verified a few azimuths at a time. The README
+#: example (about 150,000 cells an eye) fits whole, 38 eyes in 1.8 GB.
+CELL_BUDGET = 12_000_000
+
+
 def verify_streaks(grooves: Grooves, points: np.ndarray, setup: Setup, spread: Spread,
                    visible: VisibilityFn | None = None, azimuths: np.ndarray | None = None,
                    cut: tuple[Any, float] | None = None,
@@ -152,13 +159,43 @@ def verify_streaks(grooves: Grooves, points: np.ndarray, setup: Setup, spread: S
     Returns:
         One report per azimuth.
     """
+    ideal, as_cut = verify_streaks_both(grooves, points, setup, spread, visible, azimuths, cut,
+                                        chunk_vertices)
+    return as_cut if as_cut is not None else ideal
+
+
+def verify_streaks_both(grooves: Grooves, points: np.ndarray, setup: Setup, spread: Spread,
+                        visible: VisibilityFn | None = None,
+                        azimuths: np.ndarray | None = None,
+                        cut: tuple[Any, float] | None = None,
+                        chunk_vertices: int = CHUNK_VERTICES,
+                        budget: int = CELL_BUDGET
+                        ) -> tuple[list[StreakReport], list[StreakReport] | None]:
+    """:func:`verify_streaks` on the ideal grooves and, with ``cut``, on the plate
+    as cut, from the same streaks, a batch of azimuths at a time so that the
+    cells held stay under ``budget`` (the first azimuth measures how many an
+    eye has).
+
+    Returns:
+        The ideal reports, and the as-cut ones (None without ``cut``).
+    """
     points = np.asarray(points, dtype=float)
     if azimuths is None:
         azimuths = view_azimuths(setup.viewer.half_range)
-    found = eye_streaks(grooves, len(points), setup, spread, azimuths, chunk_vertices)
-    if cut is not None:
-        found = cut_streaks(found, grooves, setup, *cut)
-    return streak_reports(found, points, visible)
+    azimuths = np.asarray(azimuths, dtype=float)
+    ideal: list[StreakReport] = []
+    as_cut: list[StreakReport] = []
+    at, batch = 0, 1
+    while at < len(azimuths):
+        part = azimuths[at:at + batch]
+        found = eye_streaks(grooves, len(points), setup, spread, part, chunk_vertices)
+        ideal += streak_reports(found, points, visible)
+        if cut is not None:
+            as_cut += streak_reports(cut_streaks(found, grooves, setup, *cut), points, visible)
+        cells = max((len(st.run) for st in found.streaks), default=0)
+        at += len(part)
+        batch = max(1, budget // max(2 * cells, 1))
+    return ideal, (as_cut if cut is not None else None)
 
 
 def streak_reports(found: EyeStreaks, points: np.ndarray,

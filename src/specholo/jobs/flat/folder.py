@@ -489,21 +489,17 @@ def verify_design(loaded: Loaded, max_step_deg: float = 5.0) -> list[Any]:
 def verify_streak_design(loaded: Loaded, max_step_deg: float, spread: Spread,
                          cut: bool = False) -> tuple[list[Any], list[Any] | None]:
     """The stereo verification with each glint a streak under ``spread``
-    (:mod:`~specholo.simulation.streak_verify`): on the ideal grooves and, with
-    ``cut``, on the plate as cut, from the same streaks."""
-    from specholo.simulation.streak_verify import cut_streaks, eye_streaks, streak_reports
+    (:func:`~specholo.simulation.streak_verify.verify_streaks_both`): on the
+    ideal grooves and, with ``cut``, on the plate as cut, from the same streaks."""
+    from specholo.simulation.streak_verify import verify_streaks_both
     from specholo.simulation.verify import view_azimuths
 
     setup = loaded.config.setup()
     az = view_azimuths(setup.viewer.half_range, math.radians(max_step_deg))
-    found = eye_streaks(loaded.grooves, len(loaded.points), setup, spread, az)
-    vis = _visibility(loaded)
-    ideal = list(streak_reports(found, loaded.points, vis))
-    if not cut:
-        return ideal, None
-    as_cut = cut_streaks(found, loaded.grooves, setup, loaded.config.cutter(),
-                         loaded.config.depth_mm)
-    return ideal, list(streak_reports(as_cut, loaded.points, vis))
+    as_cut = (loaded.config.cutter(), loaded.config.depth_mm) if cut else None
+    ideal, cut_reports = verify_streaks_both(loaded.grooves, loaded.points, setup, spread,
+                                             _visibility(loaded), az, as_cut)
+    return list(ideal), None if cut_reports is None else list(cut_reports)
 
 
 #: How ``verify --cut`` finds what the cutting leaves (:func:`cut_method`).
