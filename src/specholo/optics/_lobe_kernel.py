@@ -18,14 +18,6 @@ from specholo._threads import chunked
 _GRAIN = 4096
 
 
-def lobe_cdf(psi: np.ndarray, k: np.ndarray, beta: float, sigma: float) -> np.ndarray:
-    """(c,) the lobe's integral from -inf to psi (c,), for light factors k (c,)."""
-    c = len(psi)
-    out = np.empty(c)
-    chunked(_lobe_cdf, 0, c, psi, k, beta, sigma, *_nodes(), out, grain=_GRAIN)
-    return out
-
-
 def _nodes() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     x, w = np.polynomial.hermite.hermgauss(NODES)
     theta = np.arange(1, NODES + 1) * math.pi / (NODES + 1)
@@ -86,10 +78,3 @@ def _lobe_mass(lo: int, hi: int, psi_a: np.ndarray, psi_b: np.ndarray, k: np.nda
         out[j] = (_cdf(mid + half, a, sigma, x, w, cos_t, cw)
                   - _cdf(mid - half, a, sigma, x, w, cos_t, cw)) / (2.0 * half)
 
-
-@kernel(nogil=True)
-def _lobe_cdf(lo: int, hi: int, psi: np.ndarray, k: np.ndarray, beta: float, sigma: float,
-              x: np.ndarray, w: np.ndarray, cos_t: np.ndarray, cw: np.ndarray,
-              out: np.ndarray) -> None:
-    for j in range(lo, hi):
-        out[j] = _cdf(psi[j], k[j] * beta, sigma, x, w, cos_t, cw)

@@ -73,13 +73,13 @@ class Spread:
         where neither is given (every glint a point)."""
         if light_size_deg is None and gloss is None:
             return None
-        if isinstance(gloss, str) and not _is_number(gloss):
+        try:
+            alpha = float(gloss) if gloss is not None else 0.0
+        except ValueError:  # a name
             if gloss not in GLOSS:
                 raise SpecholoError(f"roughness {gloss!r} is neither a number nor one of "
-                                    f"{', '.join(GLOSS)}")
-            alpha = GLOSS[gloss]
-        else:
-            alpha = float(gloss) if gloss is not None else 0.0
+                                    f"{', '.join(GLOSS)}") from None
+            alpha = GLOSS[str(gloss)]
         size = float(light_size_deg) if light_size_deg is not None else 0.0
         if not math.isfinite(size):
             raise SpecholoError(f"light size must be a number of degrees, got {size}")
@@ -98,14 +98,6 @@ class Spread:
     def reach(self, k: np.ndarray | float) -> np.ndarray:
         """How far psi may stray before the lobe is zero, radians, for light factors k."""
         return np.asarray(k, dtype=float) * 0.5 * self.light_size + TAIL * self.sigma
-
-    def cdf(self, psi: np.ndarray, k: np.ndarray) -> np.ndarray:
-        """The lobe's integral from -inf to psi (g,), for light factors k (g,)."""
-        from specholo.optics._lobe_kernel import lobe_cdf
-
-        psi = np.ascontiguousarray(np.asarray(psi, dtype=float).ravel())
-        k = np.ascontiguousarray(np.broadcast_to(np.asarray(k, dtype=float), psi.shape))
-        return lobe_cdf(psi, k, 0.5 * self.light_size, self.sigma)
 
     def mass(self, psi_a: np.ndarray, psi_b: np.ndarray, k: np.ndarray) -> np.ndarray:
         """Mean lobe (per radian) over psi from psi_a to psi_b (g,), light factors k (g,).
@@ -134,14 +126,6 @@ class Spread:
     def to_dict(self) -> dict[str, float]:
         """The settings by the command's option names, degrees at the edge."""
         return {"light_size": math.degrees(self.light_size), "roughness": self.roughness}
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def _shown(name: str, v: float) -> str:
