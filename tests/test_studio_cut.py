@@ -16,6 +16,7 @@ import re
 import threading
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -219,6 +220,32 @@ def test_the_grooves_sent_are_the_designs(server: StudioServer):
     code, raw, hdrs = request(server, "/api/design/grooves",
                               headers={"Accept-Encoding": "gzip;q=0, br"})
     assert hdrs["Content-Encoding"] is None and raw == got
+
+
+
+def test_a_design_seen_done_is_drawn_while_the_next_one_runs(server: StudioServer):
+    """A page that saw a design done asks for its grooves by the folder the
+    status named: it gets them even once the next design has started (the race
+    a quick slider makes), and no folder this studio did not design into."""
+    state = server.studio.design_status()
+    folder = Path(state["folder"]) if state["state"] == "done" else designed(server, SETTINGS)
+    asked = "/api/design/grooves?folder=" + urllib.parse.quote(str(folder))
+    code, before, _ = request(server, asked)
+    assert code == 200 and before["folder"] == str(folder)
+    code, got, _ = request(server, "/api/design", {"settings": {**SETTINGS, "stipples": 160}})
+    assert code == 202 and server.studio.design_status()["state"] == "running"
+    code, during, _ = request(server, asked)
+    assert code == 200 and during == before
+    # the bare route is still the open model's finished design only
+    code, bare, _ = request(server, "/api/design/grooves")
+    assert code == 400 and "no finished design" in bare["error"]
+    server.studio.runner.wait(120)
+    # a path the studio did not design into is not read, however it is spelled
+    for other in (folder.parent, folder / "..", ROOT / "examples", "/etc"):
+        code, got, _ = request(server, "/api/design/grooves?folder="
+                               + urllib.parse.quote(str(other)))
+        assert code == 400 and "no finished design of this studio" in got["error"], other
+    designed(server, SETTINGS)
 
 
 def test_the_grooves_need_the_runs_secret(server: StudioServer):

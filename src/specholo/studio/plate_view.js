@@ -73,11 +73,12 @@
             length: g.groove_length_mm, points: xy.length / 2};
   }
 
-  async function load(key) {
+  async function load(key, folder) {
     C.gkey = key;
     let g;
     try {
-      g = await call("GET", "/api/design/grooves");
+      // by the folder the status named: a design started since does not take it away
+      g = await call("GET", "/api/design/grooves?folder=" + encodeURIComponent(folder));
     } catch (e) {
       if (C.gkey === key) C.gkey = "";
       showError(e.message);
@@ -94,7 +95,7 @@
     if (st.state === "idle") clear();
     if (st.state !== "done" || st.model_id !== S.modelId) return;
     const key = `${st.model_id}|${st.folder}|${st.seconds}`;
-    if (key !== C.gkey) load(key);
+    if (key !== C.gkey) load(key, st.folder);
   }
 
   function clear() {

@@ -142,6 +142,9 @@ class Runner:
         self._started = 0.0
         self._thread: threading.Thread | None = None
         self._export_lock = threading.Lock()
+        # every folder a design of this run finished into -> its model's number:
+        # a page may still draw one after the next design has started
+        self._finished: dict[str, int] = {}
 
     def start(self, model: Path, name: str, config: DesignConfig,
               on_done: Callable[[], None] | None = None, model_id: int = 0) -> bool:
@@ -192,7 +195,9 @@ class Runner:
                     stage[0] = STAGES[2]
                     self._set(stage=STAGES[2])
                     summary["compared"] = compare_with_arcs(model, d)
-            self._set(state="done", stage="done", summary=summary)
+            with self._lock:
+                self._state.update(state="done", stage="done", summary=summary)
+                self._finished[str(out)] = int(self._state.get("model_id", 0))
         except BaseException as exc:  # noqa: BLE001 - the page shows one line, never a trace
             self._set(state="failed", stage="failed", error=one_line(exc))
         finally:
@@ -239,6 +244,20 @@ class Runner:
         if not folder.is_dir():
             raise SpecholoError(f"the design folder {folder} is gone")
         return folder
+
+    def finished_into(self, folder: str) -> int:
+        """The number of the model whose design this run finished into ``folder``
+        (the folder a status named), even if another design has started since.
+
+        Raises:
+            SpecholoError: no design of this run finished into that folder (the
+                page names only folders the studio wrote, never another path).
+        """
+        with self._lock:
+            model_id = self._finished.get(folder)
+        if model_id is None:
+            raise SpecholoError("no finished design of this studio is in that folder")
+        return model_id
 
     def export(self, name: str, model_id: int | None = None) -> Path:
         """One file of the finished design (:data:`EXPORTS`). The paper pattern

@@ -348,25 +348,33 @@ class Studio:
             model_id = self.model_id
         return self.runner.zip_bytes(model_id)
 
-    def grooves_bytes(self) -> tuple[bytes, bytes]:
-        """The open model's finished design's grooves and plate, as JSON and gzipped
-        (see :func:`specholo.studio.cut.design_grooves`).
+    def grooves_bytes(self, folder_asked: str | None = None) -> tuple[bytes, bytes]:
+        """A finished design's grooves and plate, as JSON and gzipped (see
+        :func:`specholo.studio.cut.design_grooves`): of the folder a status named
+        (``folder_asked``; still served once the next design has started or
+        another model is open, so a page that saw "done" always gets what it
+        asked for), else of the open model's finished design.
 
         Raises:
-            SpecholoError: no finished design of this model, or its folder is gone.
+            SpecholoError: no finished design of this model, or none of this
+                studio's in ``folder_asked``, or its folder is gone.
         """
-        with self._lock:
-            model_id = self.model_id
-        state = self.runner.status(model_id)
-        if state["state"] != "done":
-            raise SpecholoError("no finished design of this model to draw yet")
-        folder = Path(state["folder"])
+        if folder_asked:
+            model_id = self.runner.finished_into(folder_asked)
+            folder = Path(folder_asked)
+        else:
+            with self._lock:
+                model_id = self.model_id
+            state = self.runner.status(model_id)
+            if state["state"] != "done":
+                raise SpecholoError("no finished design of this model to draw yet")
+            folder = Path(state["folder"])
         npz = folder / "grooves.npz"
         try:
             st = npz.stat()
         except OSError as exc:
             raise SpecholoError(f"the design folder {folder} holds no grooves.npz") from exc
-        stamp = (str(folder), st.st_mtime_ns, st.st_size, cut.MAX_POINTS)
+        stamp = (str(folder), model_id, st.st_mtime_ns, st.st_size, cut.MAX_POINTS)
         # one encoding at a time: two tabs asking at once wait for one result
         with self._grooves_lock:
             if self._grooves is None or self._grooves[0] != stamp:
@@ -669,7 +677,8 @@ class _Handler(BaseHTTPRequestHandler):
             elif path == "/api/design":
                 self._json(200, studio.design_status())
             elif path == "/api/design/grooves":
-                raw, packed = studio.grooves_bytes()
+                query = urllib.parse.parse_qs(urllib.parse.urlsplit(self.path).query)
+                raw, packed = studio.grooves_bytes((query.get("folder") or [""])[0])
                 if accepts_gzip(self.headers.get("Accept-Encoding", "")):
                     self._send(200, packed, "application/json",
                                {"Content-Encoding": "gzip", "Vary": "Accept-Encoding"})
