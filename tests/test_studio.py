@@ -467,6 +467,9 @@ def test_the_exact_figures_follow_the_settings(server: StudioServer, browser: An
     assert summary["machining_hours"] == pytest.approx(info["machining"]["estimated_hours"])
     seen = info["expected"]["as_cut_stereo_visibility"]
     assert summary["as_cut_lowest"] == pytest.approx(seen["lowest"])
+    # and the light the design names for its sharpest image is the folder's
+    lamp = info["light_to_use"]["lamp"]
+    assert lamp in summary["light"] and lamp in page.inner_text("#result")
     # a setting moves: the figures wait for the next design, then are its own
     _slide(page, "light_elevation", 50)
     _settled(page)

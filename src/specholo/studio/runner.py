@@ -68,6 +68,8 @@ def summary_figures(d: Any, written: Any, out: Path) -> dict[str, Any]:
         "machining": plain_duration(3600.0 * float(mach["estimated_hours"])),
         "cutting_hours": float(mach.get("cutting_hours", math.nan)),
         "hidden": None if d.coverage is None else int(d.coverage.hidden),
+        # the light that gives this plate its sharpest image, as the design names it
+        "light": None if getattr(d, "light", None) is None else d.light.describe(),
         "depth_mm": float(d.config.depth_mm),
         "lines": list(summary.lines),
         "warnings": list(summary.warnings),

@@ -413,6 +413,7 @@ function showDesign(st) {
   row(t, "machining", `about ${f.machining} (${f.machining_hours.toFixed(2)} h)`);
   row(t, "hidden stipples", `${f.hidden} of ${f.stipples}`);
   row(t, "groove length", `${(f.groove_length_mm / 1000).toFixed(2)} m, ${f.paths} paths`);
+  if (f.light) row(t, "light to use", f.light);
   for (const w of f.warnings) row(t, "warning", w);
   $("folder").textContent = st.folder;
   showCompared(f.compared || []);
