@@ -22,6 +22,11 @@ from specholo.toolpaths.grooves import measure_paths
 
 _NEAR_EDGE = 1e-12
 _SNAP = 0.02  # a step ending within this share of w from the edge ends its stripe
+#: Radians a stripe begun at a grid azimuth starts before it: its glint
+#: moves about 1e-3 mm along the groove in that turn (1e-4 mm for a stipple
+#: 1 mm off the plate), far more than a program's digits round (1e-5 mm),
+#: far less than the eye resolves.
+_OVERLAP = 1e-4
 _MAX_ITERATIONS = 64  # most fixed-point steps for the wall normal
 _CONVERGED = 1e-10  # mm: the wall glint's estimated remaining error at the last step
 #: The setup's floats (see above) as a tuple: passed down the inlined helpers by
@@ -222,14 +227,35 @@ def _start_offsets(lo: int, hi: int, start: np.ndarray, end: np.ndarray, pts: np
     """:func:`start_offsets` of runs lo .. hi - 1."""
     params = _unpacked(packed)
     for i in range(lo, hi):
-        u0[i], valid[i], cap[i] = _offset(start[i], end[i], pts[i, 0], pts[i, 1], pts[i, 2],
-                                          params, w, min_light_tilt)
+        u0[i], valid[i], cap[i], _ = _offset(start[i], end[i], pts[i, 0], pts[i, 1], pts[i, 2],
+                                             params, w, min_light_tilt)
+
+
+def drifts(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray,
+           w: float) -> np.ndarray:
+    """Each run's mean |u'| over its interval (mm of band drift per radian of
+    azimuth), from the coarse pass of :func:`start_offsets`."""
+    n = start.size
+    out = np.zeros(n)
+    chunked(_drifts, 0, n, start, end, pts, packed, w, out, grain=_GRAIN)
+    return out
+
+
+@kernel(fastmath=_FAST, nogil=True)
+def _drifts(lo: int, hi: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray,
+            packed: np.ndarray, w: float, out: np.ndarray) -> None:
+    """:func:`drifts` of runs lo .. hi - 1."""
+    params = _unpacked(packed)
+    for i in range(lo, hi):
+        total = _offset(start[i], end[i], pts[i, 0], pts[i, 1], pts[i, 2], params, w, 0.0)[3]
+        out[i] = total / max(end[i] - start[i], 1e-12)
 
 
 @kernel(fastmath=_FAST, helper=True)
 def _offset(th0: float, th_end: float, px: float, py: float, pz: float, params: Params,
-            w: float, min_light_tilt: float) -> tuple[float, bool, int]:
-    """One run of :func:`start_offsets`: u0, validity and capacity."""
+            w: float, min_light_tilt: float) -> tuple[float, bool, int, float]:
+    """One run of :func:`start_offsets`: u0, validity, capacity and the total
+    |u| drift over the run (mm)."""
     k = 33
     valid = True
     u = 0.0
@@ -288,7 +314,7 @@ def _offset(th0: float, th_end: float, px: float, py: float, pz: float, params: 
     span = th_end - th0
     cap = 3 * (int(total / (2.0 * w)) + 2) + int(span / params[8]) \
         + int(abs(x_last - x_first) / params[9]) + 64
-    return u_first, valid, cap
+    return u_first, valid, cap, total
 
 
 @kernel(fastmath=_FAST, inline="always", helper=True)
@@ -323,8 +349,9 @@ def _put(s: Solved, slot: int, point_out: np.ndarray,
 
 def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarray,
               packed: np.ndarray, w: float, spacing: float, offsets: np.ndarray,
-              stripe_out: np.ndarray, point_out: np.ndarray,
-              tangent_out: np.ndarray) -> np.ndarray:
+              stripe_out: np.ndarray, point_out: np.ndarray, tangent_out: np.ndarray,
+              period: np.ndarray | None = None, min_length: float = 0.0,
+              origin: float = 0.0) -> np.ndarray:
     """Walk every run through its interval, striping where |u| reaches the band edge.
 
     Samples of run r go to slots offsets[r] .. offsets[r + 1] - 1: stripe
@@ -332,13 +359,18 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
     Where the paths are steep the band widens so that consecutive stripes'
     centrelines stay ``spacing`` apart: a groove never cuts into its neighbour.
 
+    ``period`` (r,), where positive, also ends run r's stripes at the
+    azimuths origin + (j + 1/2) period (see :func:`_walk`); ``min_length``:
+    shortest stripe, mm, such an azimuth ends.
+
     Returns:
         (r,) number of samples written per run, or -1 where the slots ran out.
     """
     n = start.size
     count = np.zeros(n, dtype=np.int64)
+    grid = np.zeros(n) if period is None else np.ascontiguousarray(period, dtype=np.float64)
     chunked(_integrate, 0, n, start, end, pts, u0, packed, w, spacing, offsets, stripe_out,
-            point_out, tangent_out, count, grain=_GRAIN)
+            point_out, tangent_out, count, grid, min_length, origin, grain=_GRAIN)
     return count
 
 
@@ -346,21 +378,41 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
 def _integrate(lo: int, hi: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray,
                u0: np.ndarray, packed: np.ndarray, w: float, spacing: float,
                offsets: np.ndarray, stripe_out: np.ndarray, point_out: np.ndarray,
-               tangent_out: np.ndarray, count: np.ndarray) -> None:
+               tangent_out: np.ndarray, count: np.ndarray, period: np.ndarray,
+               min_length: float, origin: float) -> None:
     """:func:`integrate` of runs lo .. hi - 1."""
     params = _unpacked(packed)
     for i in range(lo, hi):
         count[i] = _walk(start[i], end[i], pts[i, 0], pts[i, 1], pts[i, 2], u0[i], params, w,
                          spacing, offsets[i], offsets[i + 1], stripe_out, point_out,
-                         tangent_out)
+                         tangent_out, period[i], min_length, origin)
+
+
+@kernel(fastmath=_FAST, inline="always", helper=True)
+def _next_grid(th: float, period: float, origin: float) -> float:
+    """The first azimuth origin + (j + 1/2) period beyond th (inf without a period)."""
+    if period <= 0.0:
+        return math.inf
+    g = origin + (math.floor((th - origin) / period - 0.5) + 1.5) * period
+    # th on a grid azimuth (within rounding) is past it
+    return g if g - th > 1e-9 * period else g + period
 
 
 @kernel(fastmath=_FAST)
 def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
           params: Params, w: float, spacing: float, first: int, stop: int,
-          stripe_out: np.ndarray, point_out: np.ndarray, tangent_out: np.ndarray) -> int:
+          stripe_out: np.ndarray, point_out: np.ndarray, tangent_out: np.ndarray,
+          period: float, min_length: float, origin: float) -> int:
     """One run of :func:`integrate`, from theta ``th0`` to ``th_end`` into slots
     ``first`` .. ``stop`` - 1.
+
+    With a ``period``, a stripe also ends at each azimuth origin + (j + 1/2)
+    period (common to every run of that period) where it is at least ``min_length`` long and the
+    next stripe, started so that its band offset runs symmetrically about
+    zero over the coming period, lies a groove apart; the band's edge still
+    ends a stripe that drifts faster. Both eyes of a head are a whole number
+    of periods apart, so they see every stipple at the same point of its
+    stripes' cycle.
 
     Returns:
         the number of samples written, or -1 where the slots ran out.
@@ -368,9 +420,17 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
     max_step, max_chord = params[8], params[9]
     k = first
     th = th0
-    c = target(th, 0.0, px, py, pz, params)[1]
+    s0 = target(th, 0.0, px, py, pz, params)
+    c = s0[1]
+    grid = _next_grid(th, period, origin)
+    if period > 0.0:
+        # The first stripe centred on its stretch to the first grid azimuth.
+        k0, _, dc0 = _slopes(s0)
+        u0 = -0.5 * (k0 - dc0) * (min(grid, th_end) - th)
+        u0 = max(-(1.0 - _SNAP) * w, min((1.0 - _SNAP) * w, u0))
     y = c + u0
     stripe = 0
+    length = 0.0  # of the stripe so far, mm
     point_out[k, 1], stripe_out[k] = y, stripe
     k += 1
     # Each solve starts from the wall normal of the last, nearby, and its
@@ -407,6 +467,10 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
         if th_end - th < 1.25 * dth:
             dth = th_end - th
             aimed = False
+        at_grid = grid < th_end and th + dth >= grid
+        if at_grid:
+            dth = grid - th
+            aimed = False
         y1, u1, sol1 = _heun(th, y, k1, dth, px, py, pz, params, sol)
         grow = 0.0
         if aimed and abs(u1) <= (1.0 - _SNAP) * wb and u1 != u_start:
@@ -419,12 +483,16 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
             dth = min(dth * grow, longest)
             if th_end - th < 1.25 * dth:
                 dth = th_end - th
+            if th + dth >= grid:
+                dth, at_grid = grid - th, True
             y1, u1, sol1 = _heun(th, y, k1, dth, px, py, pz, params, sol)
         edge = 0.0
         if u1 > wb:
             edge = wb
         elif u1 < -wb:
             edge = -wb
+        elif at_grid:
+            pass  # the grid azimuth decides below
         elif abs(u1) > (1.0 - _SNAP) * wb and th_end - th - dth > _NEAR_EDGE:
             # Ending next to the edge would force a sliver of a step next:
             # the stripe ends here instead.
@@ -442,19 +510,42 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
                 else:
                     b_t, b_u = t_new, u_new
             dth = t_new
+            at_grid = False
+        length += math.hypot(sol1[0] - sol[0], y1 - y)
         th += dth
         y = y1
         sol = sol1
         point_out[k, 1], stripe_out[k] = y, stripe
         k += 1
-        if edge != 0.0:
+        restart = False  # at a grid azimuth, at u_next
+        u_next = 0.0
+        if at_grid:
+            grid = _next_grid(th, period, origin)
+            if edge == 0.0 and length >= min_length:
+                # Centred on the coming period, within the band; kept only
+                # where it starts a groove apart from this stripe's end.
+                k2, dx2, dc2 = _slopes(sol)
+                u_next = -0.5 * (k2 - dc2) * period
+                u_next = max(-(1.0 - _SNAP) * wb, min((1.0 - _SNAP) * wb, u_next))
+                apart = abs(u_next - u1) * abs(dx2)
+                if apart * apart >= spacing * spacing * (dx2 * dx2 + k2 * k2) and apart > 0.0:
+                    restart = True
+        if edge != 0.0 or restart:
             # The stripe's end sample: its own point and direction.
             _put(sol, k - 1, point_out, tangent_out)
             stripe += 1
-            # The next stripe starts the band's height away: solved there, from
-            # this solve carried over.
-            y_new = sol[1] - edge
+            length = 0.0
+            # The next stripe starts the band's height away (or, at a grid
+            # azimuth, at u_next): solved there, from this solve carried over.
+            y_new = sol[1] + u_next if restart else sol[1] - edge
             m = _moved(sol, y_new - y)
+            if restart:
+                # Begun a hair before the grid azimuth: the two stripes' glints
+                # overlap there, where every stipple hands over at once (an eye
+                # on that azimuth, as at a head azimuth of 0 with an odd number
+                # of periods to the eyes' separation, would otherwise fall in
+                # the rounding's gap between one stripe's end and the next).
+                th -= _OVERLAP
             sol = solve(th, y_new, px, py, pz, params, m[3], m[8], m[9], NEAR_STEPS)
             y = y_new
             point_out[k, 1], stripe_out[k] = y, stripe

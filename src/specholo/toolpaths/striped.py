@@ -44,7 +44,7 @@ CHUNK_SAMPLES = 4_000_000
 MAX_GROWTH = 4**4
 MIN_BOUND = 1024
 #: Stripe placements (see :class:`StripeOptions`).
-PLACEMENTS = ("auto", "avoid", "phase")
+PLACEMENTS = ("auto", "avoid", "phase", "lock")
 #: "auto": most plan samples (by the runs' estimate, see :func:`_plan_estimate`)
 #: placed by "avoid"; a larger design is placed by "phase", which takes seconds
 #: where the placement would take many minutes (the README example has 8e6
@@ -60,6 +60,22 @@ PLAN_BYTES_PER_SAMPLE = 3 * 2 * 32
 #: Widest stripe spacing, as a share of the band's half-height w, at which
 #: stripes are placed among the leaves; wider grooves keep one family a width apart.
 AVOID_MAX_SPACING = 0.5
+#: "lock": shortest stripe a grid azimuth ends, mm (a shorter one runs on to
+#: the next: where the glint barely moves along its path, a stripe per
+#: period would be a sliver the chaining drops, and a view would lose it).
+LOCK_MIN_LENGTH = 4 * MIN_SPACING
+#: "lock": the band's edge, which ends a stripe drifting faster than its
+#: run's mean, as a multiple of the band. On the README scene at 500
+#: stipples, 1 ends most stripes at the edge, out of step between the eyes
+#: (under the sun the worst p95 error was 2.5 mm, as "phase"); 3 leaves the
+#: grid to end nearly all (1.2 mm), the vertical error up to 3 bands.
+LOCK_SLACK = 3.0
+#: "lock": the grid's origin, in eye half-angles a: the stripes of every
+#: period end at origin + (j + 1/2) period, so the eyes of the head straight
+#: on, and of every head a whole number of eye separations 2a from it, see
+#: each stipple mid-stripe, as far from its ends as it can be; the heads
+#: whose eyes meet the ends all at once sit at odd multiples of half a period.
+LOCK_ORIGIN = 1.0
 #: A band this wide never ends a stripe: the walk of one planned stripe.
 _ONE_STRIPE = 1e9
 
@@ -82,7 +98,10 @@ class StripeOptions:
             (:mod:`._avoid_kernel`); "phase" for one family of stripes per run,
             its band phase set at the apex (every stipple designed alone);
             "auto" for "avoid" where its plan fits in memory and in
-            :data:`AUTO_MAX_PLAN_SAMPLES`, else "phase".
+            :data:`AUTO_MAX_PLAN_SAMPLES`, else "phase"; "lock" for "phase"
+            with every stipple's stripes ending together, at azimuths a whole
+            fraction of the eyes' separation apart (:func:`lock_periods`), so
+            both eyes see each stipple at the same point of its stripes.
         leaves: "avoid": leaves to choose from per band height 2 w.
         jump_cost: "avoid": what a new stripe costs, in plan samples of groove
             lost to a crossing (a jump's ends are short and each junction is a
@@ -181,8 +200,30 @@ class _Scratch:
         return self.stripe[:m], self.point[:m], self.tangent[:m], self.keep[:m]
 
 
+def lock_periods(runs: Runs, params: np.ndarray, setup: Setup, w: float) -> np.ndarray:
+    """Each run's period of stripe ends for "lock" placement, radians (r,).
+
+    The eyes of a head are 2 a apart in azimuth (a the viewer's eye half-angle);
+    a run's stripes end every 2 a / m, m the fewest whole parts in which the
+    run's mean band drift over 2 a fits the band's height 2 w. Every stipple's
+    ends then fall on azimuths common to both eyes' views, so where one eye
+    sees a stipple's glint near a stripe's end (its streak cut short, the next
+    stripe's end lit), the other eye does too, at the same place on its
+    stripe; a run drifting faster than its mean still ends at the band's
+    edge. A run whose stripes would outlast the eyes' separation anyway (its
+    mean drift over 2 a under 2 w) gets 0, no grid: ending them each 2 a
+    would only add strokes.
+    """
+    lock = 2.0 * setup.viewer.eye_half_angle
+    drift = kernel.drifts(runs.start, runs.end, np.ascontiguousarray(runs.point), params, w)
+    parts = np.ceil(drift * lock / (2.0 * w))
+    return np.where(parts >= 2.0, lock / np.maximum(parts, 1.0), 0.0)
+
+
 def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
-               w: float, spacing: float, scratch: _Scratch) -> tuple[np.ndarray, ...]:
+               w: float, spacing: float, scratch: _Scratch,
+               period: np.ndarray | None = None,
+               eye_half: float = 0.0) -> tuple[np.ndarray, ...]:
     """Samples of every run, in travel order.
 
     Returns:
@@ -217,7 +258,9 @@ def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
             stripe, point, tangent = np.empty(m, dtype=np.int64), np.empty((m, 2)), np.empty((m, 2))
         count = kernel.integrate(runs.start[pending], runs.end[pending],
                                  np.ascontiguousarray(runs.point[pending]), u0[pending],
-                                 params, w, spacing, offsets, stripe, point, tangent)
+                                 params, w, spacing, offsets, stripe, point, tangent,
+                                 None if period is None else period[pending],
+                                 LOCK_MIN_LENGTH, LOCK_ORIGIN * eye_half)
         parts.append((pending, offsets, count, stripe, point, tangent))
         # Runs whose bound was too small go again with room to spare.
         cap[pending[count < 0]] *= 4
@@ -353,8 +396,8 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
         opts: construction options.
         near_plate: points with |p_z| at most this many mm become dimples;
             default half the groove width.
-        info: if given, gets "placement", the placement used ("avoid" or
-            "phase"), and where "auto" fell back to phase, "fallback": why.
+        info: if given, gets "placement", the placement used ("avoid",
+            "phase" or "lock"), and where "auto" fell back to phase, "fallback": why.
 
     Returns:
         The grooves, and the ids of stipples that could not be designed: the
@@ -381,8 +424,8 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     spacing = setup.tool.width * (1 + SPACING_CLEARANCE) if opts.spacing is None else opts.spacing
     # A groove wide against the band leaves no two leaves a width apart to jump
     # between (the phase walk widens its band there instead).
-    used = "phase"
-    if opts.placement != "phase" and spacing <= AVOID_MAX_SPACING * w:
+    used = "lock" if opts.placement == "lock" else "phase"
+    if opts.placement not in ("phase", "lock") and spacing <= AVOID_MAX_SPACING * w:
         sample_cap, likely = _plan_estimate(far, setup, opts)
         why = _avoid_refusal(sample_cap, likely, setup) if opts.placement == "auto" else None
         planned = None
@@ -405,6 +448,12 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
             info["fallback"] = why
     if info is not None:
         info["placement"] = used
+    period = lock_periods(far, params, setup, w) if used == "lock" else None
+    if period is not None:
+        # A stripe per period at most: room for the ends the grid adds.
+        ends = np.divide(far.end - far.start, period, out=np.zeros(len(period)),
+                         where=period > 0)
+        cap = cap + 3 * ends.astype(np.int64) + 6
     out = GroovesBuilder()
     # Each taken sample is at most two vertices and each kept stripe has two or
     # more samples; unused room is never touched, so it takes no memory.
@@ -416,8 +465,11 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     for idx in np.split(np.arange(len(far)), np.unique(bounds)):
         if len(idx) == 0:
             continue
-        chain_samples(out, _integrate(far.take(idx), params, u0[idx], cap[idx], w, spacing,
-                                      scratch), far.stipple[idx])
+        chain_samples(out, _integrate(far.take(idx), params, u0[idx], cap[idx],
+                                      w if period is None else LOCK_SLACK * w, spacing,
+                                      scratch, None if period is None else period[idx],
+                                      setup.viewer.eye_half_angle),
+                      far.stipple[idx])
     out.add(dots_for(near, setup))
     return out.build(), dropped
 
