@@ -39,17 +39,33 @@ def _runs(points: np.ndarray, setup: Setup) -> Runs:
     return make_runs(points, np.arange(n), np.full(n, -half), np.full(n, half))
 
 
-def _design(points: np.ndarray, placement: str, setup: Setup) -> Grooves:
+def _design(points: np.ndarray, placement: str, setup: Setup,
+            info: dict[str, str] | None = None) -> Grooves:
     grooves, dropped = design_striped(_runs(points, setup), setup,
-                                      StripeOptions(placement=placement))
+                                      StripeOptions(placement=placement), info=info)
     assert dropped.size == 0
     return grooves
 
 
 @pytest.fixture(scope="module")
 def designs() -> dict[str, Grooves]:
+    """"phase", "auto" (the avoiding plan here), "lock" (the plan, on the grid)
+    and "lock walk" (the phase walk on the grid, as where the plan would not
+    fit)."""
     setup, pts = _setup(), _scene()
-    return {p: _design(pts, p, setup) for p in ("phase", "lock")}
+    out = {p: _design(pts, p, setup) for p in ("phase", "auto")}
+    info: dict[str, str] = {}
+    out["lock"] = _design(pts, "lock", setup, info)
+    assert info == {"placement": "lock"}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(striped, "AUTO_MAX_PLAN_SAMPLES", 0)
+        info = {}
+        out["lock walk"] = _design(pts, "lock", setup, info)
+        assert info["placement"] == "lock" and "plan samples" in info["fallback"]
+    return out
+
+
+LOCKED = ("lock", "lock walk")
 
 
 def test_lock_periods_divide_the_eyes_separation() -> None:
@@ -82,15 +98,16 @@ def test_an_eye_on_the_azimuth_where_every_stripe_ends_sees_every_stipple(
     setup, pts = _setup(), _scene()
     runs = _runs(pts, setup)
     period = striped.lock_periods(runs, striped._params(setup, StripeOptions()), setup, 0.2)
-    eng = Engraved.from_grooves(designs["lock"], setup.tool)
-    checked = 0
-    for s in np.flatnonzero(period > 0):
-        grid = setup.viewer.eye_half_angle + (np.arange(-40, 40) + 0.5) * period[s]
-        for theta in grid[np.abs(grid) < setup.viewer.half_range][::3]:
-            eye = setup.viewer.eye(np.array([theta]))[0]
-            assert s in find_glints(eng, eye, setup.light).image().stipple
-            checked += 1
-    assert checked > 100
+    for name in LOCKED:
+        eng = Engraved.from_grooves(designs[name], setup.tool)
+        checked = 0
+        for s in np.flatnonzero(period > 0):
+            grid = setup.viewer.eye_half_angle + (np.arange(-40, 40) + 0.5) * period[s]
+            for theta in grid[np.abs(grid) < setup.viewer.half_range][::3]:
+                eye = setup.viewer.eye(np.array([theta]))[0]
+                assert s in find_glints(eng, eye, setup.light).image().stipple, name
+                checked += 1
+        assert checked > 100
 
 
 def test_a_head_a_whole_eye_separation_over_sees_every_stipple_mid_stripe(
@@ -121,27 +138,31 @@ def test_a_head_a_whole_eye_separation_over_sees_every_stipple_mid_stripe(
 
     separation = 2.0 * setup.viewer.eye_half_angle
     for k in (-4, -2, 2, 4):
-        locked, phased = inside(designs["lock"], k * separation), inside(designs["phase"],
-                                                                         k * separation)
-        assert len(locked) > 10
-        assert locked.min() > 0.4
-        assert phased.min() < 0.1
+        for free in ("phase", "auto"):
+            assert inside(designs[free], k * separation).min() < 0.1
+        for name in LOCKED:
+            locked = inside(designs[name], k * separation)
+            assert len(locked) > 10
+            assert locked.min() > 0.4, name
 
 
 def test_lock_keeps_the_ideal_glints_on_the_sightline(designs: dict[str, Grooves]) -> None:
     """Every stipple glints for both eyes at every azimuth, within the bands the
     stripes may drift over (3 bands at most)."""
     setup, pts = _setup(), _scene()
-    reports = verify(designs["lock"], pts, setup, azimuths=np.radians(np.arange(-45, 46, 3.0)))
-    assert all(r.visibility == 1.0 for r in reports)
-    # the apparent point moves about as far as the glint strays vertically
-    assert max(r.max_error for r in reports) < 1.1 * striped.LOCK_SLACK * 0.2
+    for name in LOCKED:
+        reports = verify(designs[name], pts, setup,
+                         azimuths=np.radians(np.arange(-45, 46, 3.0)))
+        assert all(r.visibility == 1.0 for r in reports)
+        # the apparent point moves about as far as the glint strays vertically
+        assert max(r.max_error for r in reports) < 1.1 * striped.LOCK_SLACK * 0.2
 
 
 def test_under_the_sun_locked_ends_blur_the_image_less(designs: dict[str, Grooves]) -> None:
     """The sun on a mirror finish, every degree: the stipples' worst p95 error is
-    well under that of stripes ending wherever their band does, and fewer
-    stripe ends spill light far from a designed glint."""
+    well under that of stripes ending wherever their band does (one family,
+    or placed out of each other's way), and fewer stripe ends spill light far
+    from a designed glint."""
     setup, pts = _setup(), _scene()
     spread = Spread(SUN, GLOSS["mirror"])
     az = np.radians(np.arange(-45.0, 45.5, 1.0))
@@ -150,14 +171,16 @@ def test_under_the_sun_locked_ends_blur_the_image_less(designs: dict[str, Groove
         reports = verify_streaks(grooves, pts, setup, spread, azimuths=az)
         figures[placement] = (max(r.p95_error for r in reports),
                               float(np.mean([r.end_spills for r in reports])))
-    (p95_phase, spills_phase), (p95_lock, spills_lock) = figures["phase"], figures["lock"]
-    assert p95_lock < 0.7 * p95_phase, figures
-    assert spills_lock < spills_phase, figures
+    for free in ("phase", "auto"):
+        for name in LOCKED:
+            assert figures[name][0] < 0.7 * figures[free][0], figures
+            assert figures[name][1] < figures[free][1], figures
 
 
 def test_lock_costs_few_more_strokes(designs: dict[str, Grooves]) -> None:
     """The grid ends a stripe where the band would not have yet, and the band's
     edge ends fewer: about as many strokes, no more groove."""
-    lock, phase = designs["lock"], designs["phase"]
-    assert lock.n_paths < 1.3 * phase.n_paths
-    assert lock.total_length() == pytest.approx(phase.total_length(), rel=0.02)
+    for name, free in (("lock", "auto"), ("lock walk", "phase")):
+        lock, other = designs[name], designs[free]
+        assert lock.n_paths < 1.3 * other.n_paths
+        assert lock.total_length() == pytest.approx(other.total_length(), rel=0.02)

@@ -286,9 +286,11 @@ def test_the_design_names_the_light_that_gives_its_sharpest_image(small_design: 
     assert [t["size_deg"] for t in trials] == sorted((t["size_deg"] for t in trials),
                                                       reverse=True)
     best_p95 = min(t["p95_mm"] for t in trials)
-    best_spills = min(t["spills_per_100"] for t in trials)
+    sharp = [t for t in trials if t["p95_mm"] <= 1.1 * best_p95]
+    best_spills = min(t["spills_per_100"] for t in sharp)
     chosen = next(t for t in trials if t["size_deg"] == light["size_deg"])
-    # the largest light within a tenth of the sharpest figures
+    # the largest light within a tenth of the sharpest image and, among
+    # those, of the fewest false glints
     assert chosen["p95_mm"] <= 1.1 * best_p95
     assert chosen["spills_per_100"] <= 1.1 * best_spills + 1.0
     larger = [t for t in trials if t["size_deg"] > light["size_deg"]]

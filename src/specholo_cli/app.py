@@ -50,10 +50,10 @@ _DESIGN_OPTIONS: list[tuple[str, Any, str]] = [
     ("placement", click.Choice(["auto", "avoid", "phase", "lock"]),
      "Striped design: avoid places each stipple's stripes in turn out of the grooves placed "
      "before (jumping between the band's paths where a crossing would cut glints away); "
-     "phase designs each stipple alone, one stripe family; lock is phase with every "
-     "stipple's stripes ending at view angles a whole fraction of the eyes' separation apart, "
-     "so both eyes meet stripe ends alike (a sharper image under a light of real size); auto "
-     "is avoid where its plan fits in memory and time, else phase [auto]."),
+     "phase designs each stipple alone, one stripe family; auto is avoid where its plan fits "
+     "in memory and time, else phase; lock is auto with every stipple's stripes ending at "
+     "view angles a whole fraction of the eyes' separation apart, so both eyes meet stripe "
+     "ends alike (a sharper image under a light of real size) [auto]."),
     ("thin", click.Choice(["auto", "on", "off"]),
      "Leave uncut the stipples whose grooves, on the plate as cut, would take more glints "
      "from the others than they show (the stereo points every 5 deg decide); auto where that "

@@ -6,8 +6,9 @@ centre a stripe's end pulls in, and more light spilled onto stripe ends for
 the views past them. Below some size the plate's own gloss sets the streaks
 and a smaller light no longer helps. :func:`choose_light` verifies the plate
 under lights of a few sizes, on a sample of its stipples at a few head
-azimuths, and picks the largest (the easiest to find, and the brightest) whose
-figures are within a tenth of the best.
+azimuths, and picks the largest (the easiest to find, and the brightest)
+within a tenth of the sharpest p95 error and, among those, of the fewest
+false glints.
 """
 
 from __future__ import annotations
@@ -58,7 +59,8 @@ class LightChoice:
     """The light that gives the plate its sharpest image, and why.
 
     Attributes:
-        size_deg: the largest light size (degrees) within a tenth of the best.
+        size_deg: the largest light size (degrees) within a tenth of the
+            sharpest and, among those, of the fewest false glints.
         roughness: the gloss the trials assumed (Beckmann alpha).
         trials: every size's figures, largest first.
         sampled: stipples verified; azimuths_deg: the head azimuths tried.
@@ -153,11 +155,14 @@ def choose_light(grooves: Grooves, points: np.ndarray, setup: Setup,
                                  min(vis) if vis else math.nan, float(np.mean(spills))))
     if any(math.isnan(t.p95_mm) for t in trials):
         return None
+    # The sharpest first, then the fewest false glints among them: a smaller
+    # light is not always sharper (stripes ending together blur least under
+    # a large one), and one fewer in false glints but blurrier is no better.
     good_p95 = min(t.p95_mm for t in trials)
-    good_spills = min(t.spills_per_100 for t in trials)
-    fine = [t for t in trials if t.p95_mm <= (1.0 + WITHIN) * good_p95
-            and t.spills_per_100 <= (1.0 + WITHIN) * good_spills + 1.0]
-    chosen = max(t.size_deg for t in fine) if fine else min(sizes_deg)
+    sharp = [t for t in trials if t.p95_mm <= (1.0 + WITHIN) * good_p95]
+    good_spills = min(t.spills_per_100 for t in sharp)
+    fine = [t for t in sharp if t.spills_per_100 <= (1.0 + WITHIN) * good_spills + 1.0]
+    chosen = max(t.size_deg for t in fine)
     return LightChoice(chosen, roughness, trials, len(keep),
                        [math.degrees(a) for a in azimuths], setup.light.distance)
 

@@ -46,6 +46,13 @@ _FORBIDDEN = 1e9
 #: Cost of a sample at the band's edge over one on the sightline, in samples of
 #: groove lost to a crossing.
 _CENTRING = 0.005
+#: "lock": what a jump off the grid costs over one on it, in leaves' worth of
+#: samples of groove lost to a crossing (times the leaves per band).
+_OFF_GRID = 4.0
+#: "lock": what a grid hand-over costs per leaf spacing by which the new
+#: stripe's glint is not the old one's mirrored about the sightline, in
+#: samples of groove lost to a crossing.
+_SYMMETRY = 1.0
 #: Fewest plan samples a thread takes (a sample's costs take about a microsecond).
 _GRAIN = 512
 #: Cells of the coarse map of where anything is placed, in cells of the index:
@@ -57,16 +64,19 @@ _COARSE = 8
 
 @kernel(helper=True)
 def _leaf(th0: float, th1: float, px: float, py: float, pz: float, params: sk.Params,
-          dx_target: float, du_target: float, delta: float, w: float, out: np.ndarray) -> int:
+          dx_target: float, du_target: float, delta: float, w: float, out: np.ndarray,
+          period: float, origin: float) -> int:
     """Walk the leaf through the band's centre at th0 over [th0, th1], moved back
     by whole leaf spacings ``delta`` whenever it leaves the band |u| <= w (far
     from the band the first-order neighbours would stray).
 
     Samples are at most ``dx_target`` mm apart in x, ``du_target`` mm in u
     (so a leaf overshoots the band by at most that where it hands over) and
-    the walk's largest azimuth step apart. Row j of ``out`` gets theta, x, y, u, dx/dy, du/dy,
-    the wall normal's n_x and n_y, the cosine of the path's slope, and which
-    leaf (in spacings from the first) the walk is on.
+    the walk's largest azimuth step apart, and on every azimuth origin +
+    (j + 1/2) ``period`` (none without a period). Row j of ``out`` gets theta,
+    x, y, u, dx/dy, du/dy, the wall normal's n_x and n_y, the cosine of the
+    path's slope, which leaf (in spacings from the first) the walk is on, and
+    1 on a grid azimuth (else 0).
 
     Returns:
         the number of samples, or -1 when ``out`` is too short.
@@ -77,6 +87,8 @@ def _leaf(th0: float, th1: float, px: float, py: float, pz: float, params: sk.Pa
     sol = sk.solve(th, y, px, py, pz, params, sk._UP, sk._ZERO, sk._ZERO, sk.FIRST_STEPS)
     k = 0
     shift = 0
+    grid = sk._next_grid(th, period, origin)
+    on_grid = 0.0
     while True:
         if k >= out.shape[0]:
             return -1
@@ -86,6 +98,7 @@ def _leaf(th0: float, th1: float, px: float, py: float, pz: float, params: sk.Pa
         out[k, 6], out[k, 7] = sol[3][0], sol[3][1]
         out[k, 8] = abs(dx) / max(math.sqrt(dx * dx + k1 * k1), 1e-300)
         out[k, 9] = shift
+        out[k, 10] = on_grid
         k += 1
         if th1 - th <= 1e-12:
             return k
@@ -95,6 +108,10 @@ def _leaf(th0: float, th1: float, px: float, py: float, pz: float, params: sk.Pa
             dth = min(dth, du_target / max(du, 1e-12))
         if th1 - th < 1.25 * dth:
             dth = th1 - th
+        on_grid = 0.0
+        if grid < th1 and th + dth >= grid:
+            dth, on_grid = grid - th, 1.0
+            grid = sk._next_grid(grid, period, origin)
         y1, u1, sol = sk._heun(th, y, k1, dth, px, py, pz, params, sol)
         th += dth
         if abs(u1) > w:
@@ -212,8 +229,8 @@ def _clear(x0: float, y0: float, x1: float, y1: float, occ: np.ndarray, hc: floa
 
 @kernel(nogil=True)
 def _walk(r: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray,
-          w: float, leaves: int, dx_target: float, leaf: np.ndarray
-          ) -> tuple[int, np.ndarray, np.ndarray]:
+          w: float, leaves: int, dx_target: float, leaf: np.ndarray, period: np.ndarray,
+          origin: float) -> tuple[int, np.ndarray, np.ndarray]:
     """Run r's walked leaf into ``leaf`` (see :func:`_leaf`) and, at each of its
     samples, the lowest and highest leaf inside the band, in spacings from the
     walk's first leaf.
@@ -229,7 +246,7 @@ def _walk(r: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: n
     delta = 2.0 * w / leaves
     width = leaves + 3
     m = _leaf(start[r], end[r], pts[r, 0], pts[r, 1], pts[r, 2], params, dx_target, du_target,
-              delta, w, leaf)
+              delta, w, leaf, period[r], origin)
     lo = np.empty(max(m, 0), dtype=np.int64)
     hi = np.empty(max(m, 0), dtype=np.int64)
     for j in range(m):
@@ -296,7 +313,7 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
             leaves: int, spacing: float, dx_target: float, jump_cost: float,
             min_length: float, head_c: np.ndarray, cen: np.ndarray, head_g: np.ndarray,
             gli: np.ndarray, n_c: int, h: float, side: int, r_max_g: float,
-            occ: np.ndarray, hc: float
+            occ: np.ndarray, hc: float, gridded: bool
             ) -> tuple[np.ndarray, np.ndarray, int, float, np.ndarray, np.ndarray, np.ndarray,
                        np.ndarray]:
     """Run r's stripes: the cheapest path through its leaves' costs ``here``
@@ -327,6 +344,14 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
         weight = abs(leaf[j1, 1] - leaf[j0, 1]) / max(j1 - j0, 1) / dx_target
         for s in range(width):
             cost[s] = np.inf
+        # With a grid, a jump off it (where the leaf leaves the band sooner
+        # than the next grid azimuth) costs as much as a crossing's loss of a
+        # whole band of samples: the stripes end together wherever they can.
+        # And a stripe kept across a grid azimuth costs as much: every stripe
+        # then ends on each, so both eyes, a whole number of periods apart,
+        # meet every stipple at the same point of a stripe.
+        jc = jump_cost + (_OFF_GRID * leaves if gridded and leaf[j, 10] == 0.0 else 0.0)
+        stay = _OFF_GRID * leaves if gridded and leaf[j, 10] != 0.0 else 0.0
         if j > 0:
             # A jump of d leaves may be made from the first d whose gap reaches
             # the spacing (gaps grow with d): the best jump into L comes from
@@ -337,13 +362,13 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
             while d_min <= width and d_min * delta * gap_scale < spacing:
                 d_min += 1
             for t in range(n_p):
-                v = prev_cost[t] + jump_cost
+                v = prev_cost[t] + jc
                 if t == 0 or v < pre_v[t - 1]:
                     pre_v[t], pre_a[t] = v, t
                 else:
                     pre_v[t], pre_a[t] = pre_v[t - 1], pre_a[t - 1]
             for t in range(n_p - 1, -1, -1):
-                v = prev_cost[t] + jump_cost
+                v = prev_cost[t] + jc
                 if t == n_p - 1 or v <= suf_v[t + 1]:
                     suf_v[t], suf_a[t] = v, t
                 else:
@@ -354,22 +379,38 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
                 best, arg = 0.0, L
             else:
                 t = L - d_min - p_lo  # the highest leaf far enough below
-                if t >= 0:
+                if t >= 0 and stay == 0.0:
                     t = min(t, n_p - 1)
                     best, arg = pre_v[t], p_lo + pre_a[t]
                 t = L - p_lo
-                if 0 <= t < n_p and prev_cost[t] < best:
-                    best, arg = prev_cost[t], L
+                if 0 <= t < n_p and prev_cost[t] + stay < best:
+                    best, arg = prev_cost[t] + stay, L
                 t = max(L + d_min - p_lo, 0)  # the lowest leaf far enough above
-                if t < n_p and suf_v[t] < best:
+                if t < n_p and suf_v[t] < best and stay == 0.0:
                     best, arg = suf_v[t], p_lo + suf_a[t]
+                if stay != 0.0:
+                    # On a grid azimuth every stipple hands over, both eyes
+                    # alike: the new stripe's glint is best as far below the
+                    # sightline as the old one's is above it, so that the two
+                    # half streaks an eye sees there straddle its sightline.
+                    # (Every pair of leaves: grid samples are few.)
+                    u_l = leaf[j, 3] + (L - leaf[j, 9]) * delta * leaf[j, 5]
+                    for Lp in range(lo[j - 1], hi[j - 1] + 1):
+                        if Lp == L:
+                            continue
+                        if abs(L - Lp) * delta * gap_scale < spacing:
+                            continue
+                        u_p = leaf[j, 3] + (Lp - leaf[j, 9]) * delta * leaf[j, 5]
+                        pc = prev_cost[Lp - lo[j - 1]] + jc + _SYMMETRY * abs(u_l + u_p) / delta
+                        if pc < best:
+                            best, arg = pc, Lp
                 if best >= _FORBIDDEN:  # nowhere to come from but a forbidden jump
                     best, arg = np.inf, -(1 << 40)
                     for Lp in range(lo[j - 1], hi[j - 1] + 1):
                         pc = prev_cost[Lp - lo[j - 1]]
                         if Lp != L:
                             gap = abs(L - Lp) * delta * gap_scale
-                            pc += jump_cost if gap >= spacing else _FORBIDDEN
+                            pc += jc if gap >= spacing else _FORBIDDEN
                         if pc < best:
                             best, arg = pc, Lp
             cost[L - lo[j]] = best + weight * here[j, L - lo[j]]
@@ -417,6 +458,10 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
         ya = leaf[a, 2] + (chosen[a] - leaf[a, 9]) * delta
         th_a = leaf[a, 0]
         u0 = ya - sk.target(th_a, 0.0, px, py, pz, params)[1]
+        if a > 0 and leaf[a, 10] != 0.0:
+            # Begun a hair before the grid azimuth where every stipple hands
+            # over (see _stripe_kernel._OVERLAP).
+            th_a -= sk._OVERLAP
         o_a[k], o_b[k], o_u[k], o_x[k] = th_a, leaf[b, 0], u0, abs(leaf[b, 1] - leaf[a, 1])
         k += 1
         # Room first (an array handed back from every insert costs its
@@ -439,7 +484,8 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
 
 def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray, w: float,
           spacing: float, leaves: int, dx_target: float, jump_cost: float, margin: float,
-          sample_cap: np.ndarray, min_length: float, bits: int, max_offset: float
+          sample_cap: np.ndarray, min_length: float, bits: int, max_offset: float,
+          period: np.ndarray | None = None, origin: float = 0.0
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Choose every run's stripes in turn, out of the way of those placed before.
 
@@ -460,6 +506,10 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
         max_offset: the largest glint offset from its centreline the groove
             offers, R sin t for its steepest wall t, mm (glints needing more
             are still found, their queries searching more cells).
+        period: (r,) where positive, the stripes of run r end together at
+            the azimuths origin + (j + 1/2) period wherever they can ("lock"
+            placement: a jump elsewhere costs :data:`_OFF_GRID` bands of
+            samples more); None for none.
 
     Returns:
         run (s,), theta start (s,), theta end (s,), u0 (s,) at the start (as
@@ -494,7 +544,8 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
     # Runs' leaves, costs and choices in room kept from run to run; two leaves,
     # since the next run's is walked (on its own thread: walks do not read the
     # index) while this one's costs are found and chosen among.
-    leaf_rooms = [np.empty((0, 10)), np.empty((0, 10))]
+    leaf_rooms = [np.empty((0, 11)), np.empty((0, 11))]
+    grid = np.zeros(start.size) if period is None else np.ascontiguousarray(period, dtype=float)
     here_room = np.empty((0, width))
     back_room = np.empty((0, width), dtype=np.int64)
     out: list[tuple[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = []
@@ -511,9 +562,9 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
     def walked(r: int) -> tuple[np.ndarray, int, np.ndarray, np.ndarray]:
         cap = int(sample_cap[r])
         if leaf_rooms[r % 2].shape[0] < cap:
-            leaf_rooms[r % 2] = np.empty((max(cap, 2 * leaf_rooms[r % 2].shape[0]), 10))
+            leaf_rooms[r % 2] = np.empty((max(cap, 2 * leaf_rooms[r % 2].shape[0]), 11))
         leaf = leaf_rooms[r % 2][:cap]
-        m, lo, hi = _walk(r, start, end, pts, packed, w, leaves, dx_target, leaf)
+        m, lo, hi = _walk(r, start, end, pts, packed, w, leaves, dx_target, leaf, grid, origin)
         return leaf, m, lo, hi
 
     if start.size == 0:
@@ -535,6 +586,6 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
             cen, gli, n_c, r_max_g, a, b, u0, x = _choose(
                 r, pts, packed, leaf, m, lo, hi, here, back_room, w, leaves, spacing,
                 dx_target, jump_cost, min_length, head_c, cen, head_g, gli, n_c, h, side,
-                r_max_g, occ, hc)
+                r_max_g, occ, hc, bool(grid[r] > 0.0))
             out.append((r, (a, b, u0, x)))
     return placed(-1)

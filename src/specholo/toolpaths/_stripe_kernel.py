@@ -22,11 +22,14 @@ from specholo.toolpaths.grooves import measure_paths
 
 _NEAR_EDGE = 1e-12
 _SNAP = 0.02  # a step ending within this share of w from the edge ends its stripe
-#: Radians a stripe begun at a grid azimuth starts before it: its glint
-#: moves about 1e-3 mm along the groove in that turn (1e-4 mm for a stipple
-#: 1 mm off the plate), far more than a program's digits round (1e-5 mm),
-#: far less than the eye resolves.
-_OVERLAP = 1e-4
+#: Radians a stripe begun at a grid azimuth starts before it: enough to close
+#: the rounding's gap between one stripe's last glint and the next one's
+#: first (under 1e-7 rad; the glint moves about 1e-5 mm along the groove in
+#: 1e-6 rad), so that an eye exactly on the grid azimuth sees the stipple;
+#: within it an eye sees both stripes' glints, so it is kept as small as that
+#: allows (at 1e-4 rad, a head 0.003 deg from such an azimuth saw every
+#: stipple of its period twice).
+_OVERLAP = 1e-6
 _MAX_ITERATIONS = 64  # most fixed-point steps for the wall normal
 _CONVERGED = 1e-10  # mm: the wall glint's estimated remaining error at the last step
 #: The setup's floats (see above) as a tuple: passed down the inlined helpers by

@@ -65,11 +65,13 @@ AVOID_MAX_SPACING = 0.5
 #: period would be a sliver the chaining drops, and a view would lose it).
 LOCK_MIN_LENGTH = 4 * MIN_SPACING
 #: "lock": the band's edge, which ends a stripe drifting faster than its
-#: run's mean, as a multiple of the band. On the README scene at 500
-#: stipples, 1 ends most stripes at the edge, out of step between the eyes
-#: (under the sun the worst p95 error was 2.5 mm, as "phase"); 3 leaves the
-#: grid to end nearly all (1.2 mm), the vertical error up to 3 bands.
-LOCK_SLACK = 3.0
+#: run's mean, as a multiple of the band (the avoiding plan's leaves span as
+#: many bands, as finely spaced). On the README scene at 500 stipples, under
+#: the sun: 1 ends most stripes at the edge, out of step between the eyes
+#: (worst p95 error 2.5 mm, as "phase"); 2 still many (2.7 mm planned); 3
+#: leaves the grid to end nearly all (1.2 mm in the walk, 1.4 mm planned),
+#: the vertical error up to 3 bands.
+LOCK_SLACK = 3
 #: "lock": the grid's origin, in eye half-angles a: the stripes of every
 #: period end at origin + (j + 1/2) period, so the eyes of the head straight
 #: on, and of every head a whole number of eye separations 2a from it, see
@@ -98,10 +100,11 @@ class StripeOptions:
             (:mod:`._avoid_kernel`); "phase" for one family of stripes per run,
             its band phase set at the apex (every stipple designed alone);
             "auto" for "avoid" where its plan fits in memory and in
-            :data:`AUTO_MAX_PLAN_SAMPLES`, else "phase"; "lock" for "phase"
-            with every stipple's stripes ending together, at azimuths a whole
-            fraction of the eyes' separation apart (:func:`lock_periods`), so
-            both eyes see each stipple at the same point of its stripes.
+            :data:`AUTO_MAX_PLAN_SAMPLES`, else "phase"; "lock" for what
+            "auto" would do with every stipple's stripes ending together, at
+            azimuths a whole fraction of the eyes' separation apart
+            (:func:`lock_periods`), so both eyes see each stipple at the same
+            point of its stripes.
         leaves: "avoid": leaves to choose from per band height 2 w.
         jump_cost: "avoid": what a new stripe costs, in plan samples of groove
             lost to a crossing (a jump's ends are short and each junction is a
@@ -218,6 +221,13 @@ def lock_periods(runs: Runs, params: np.ndarray, setup: Setup, w: float) -> np.n
     drift = kernel.drifts(runs.start, runs.end, np.ascontiguousarray(runs.point), params, w)
     parts = np.ceil(drift * lock / (2.0 * w))
     return np.where(parts >= 2.0, lock / np.maximum(parts, 1.0), 0.0)
+
+
+def _grid_steps(runs: Runs, period: np.ndarray) -> np.ndarray:
+    """Grid azimuths in each run's interval, at most (r,) (0 without a grid)."""
+    ends = np.divide(runs.end - runs.start, period, out=np.zeros(len(period)),
+                     where=period > 0)
+    return ends.astype(np.int64) + (period > 0)
 
 
 def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
@@ -346,7 +356,8 @@ def _avoid_refusal(sample_cap: np.ndarray, likely: int, setup: Setup) -> str | N
 
 def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
           spacing: float, sample_cap: np.ndarray, likely: int,
-          growth: int = MAX_GROWTH) -> tuple[Runs, np.ndarray, np.ndarray]:
+          growth: int = MAX_GROWTH,
+          period: np.ndarray | None = None) -> tuple[Runs, np.ndarray, np.ndarray]:
     """The stripes of every run, placed in turn out of each other's way
     (:func:`._avoid_kernel.place`).
 
@@ -354,6 +365,8 @@ def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
         sample_cap, likely: each run's bound on its plan samples, and the plan's
             likely samples (:func:`_plan_estimate`).
         growth: most times a run's bound may grow before the plan is refused.
+        period: (r,) "lock": each run's grid period (:func:`lock_periods`),
+            where its stripes end wherever they can; None for none.
 
     Returns:
         One run per stripe (its stipple, point and azimuth interval), its u0 at
@@ -362,15 +375,20 @@ def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
     from specholo.toolpaths import _avoid_kernel
 
     first = sample_cap.copy()
+    # "lock": the leaves span the slack's bands, as finely spaced, so a stripe
+    # can last until the grid ends it.
+    slack = 1 if period is None else LOCK_SLACK
+    band, leaves = slack * opts.band, slack * opts.leaves
     while True:
         why = _plan_memory(sample_cap, likely)
         if why is not None:
             raise SpecholoError(f"--placement avoid: {why}; use --placement phase or auto")
         run, a, b, u0, dx, bad = _avoid_kernel.place(
-            runs.start, runs.end, np.ascontiguousarray(runs.point), params, opts.band, spacing,
-            opts.leaves, opts.plan_step, opts.jump_cost, opts.plan_margin, sample_cap,
+            runs.start, runs.end, np.ascontiguousarray(runs.point), params, band, spacing,
+            leaves, opts.plan_step, opts.jump_cost, opts.plan_margin, sample_cap,
             2.0 * MIN_SPACING, _avoid_kernel.table_bits(likely),
-            setup.tool.radius * math.sin(setup.tool.max_tilt))
+            setup.tool.radius * math.sin(setup.tool.max_tilt), period,
+            LOCK_ORIGIN * setup.viewer.eye_half_angle)
         # A run whose u drifts far faster than x (eyes high above the stipples)
         # outgrows the estimate: the plan starts again with room for it.
         if bad < 0 or sample_cap[bad] >= growth * first[bad]:
@@ -424,17 +442,25 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     spacing = setup.tool.width * (1 + SPACING_CLEARANCE) if opts.spacing is None else opts.spacing
     # A groove wide against the band leaves no two leaves a width apart to jump
     # between (the phase walk widens its band there instead).
-    used = "lock" if opts.placement == "lock" else "phase"
-    if opts.placement not in ("phase", "lock") and spacing <= AVOID_MAX_SPACING * w:
+    lockstep = opts.placement == "lock"
+    # "lock" ends the stripes on a grid of azimuths, in the plan where "auto"
+    # would plan, else in the phase walk.
+    grid = lock_periods(far, params, setup, w) if lockstep else None
+    used = "phase"
+    period = None
+    if opts.placement != "phase" and spacing <= AVOID_MAX_SPACING * w:
         sample_cap, likely = _plan_estimate(far, setup, opts)
-        why = _avoid_refusal(sample_cap, likely, setup) if opts.placement == "auto" else None
+        if grid is not None:  # a plan sample on every grid azimuth
+            sample_cap = sample_cap + _grid_steps(far, grid)
+        why = (_avoid_refusal(sample_cap, likely, setup) if opts.placement in ("auto", "lock")
+               else None)
         planned = None
         if why is None:
             try:
                 # "auto" lets a run's bound grow once: a plan far beyond its
                 # estimate (eyes far above the plate) would take minutes.
                 planned = _plan(far, params, setup, opts, spacing, sample_cap, likely,
-                                MAX_GROWTH if opts.placement == "avoid" else 4)
+                                MAX_GROWTH if opts.placement == "avoid" else 4, grid)
             except SpecholoError as exc:
                 if opts.placement == "avoid":
                     raise
@@ -446,14 +472,12 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
             w, spacing, used = _ONE_STRIPE, 0.0, "avoid"
         elif info is not None and why is not None:
             info["fallback"] = why
+    if used == "phase" and grid is not None:
+        # The phase walk ends the stripes on the grid itself.
+        period = grid
+        cap = cap + 3 * _grid_steps(far, period) + 6
     if info is not None:
-        info["placement"] = used
-    period = lock_periods(far, params, setup, w) if used == "lock" else None
-    if period is not None:
-        # A stripe per period at most: room for the ends the grid adds.
-        ends = np.divide(far.end - far.start, period, out=np.zeros(len(period)),
-                         where=period > 0)
-        cap = cap + 3 * ends.astype(np.int64) + 6
+        info["placement"] = "lock" if lockstep else used
     out = GroovesBuilder()
     # Each taken sample is at most two vertices and each kept stripe has two or
     # more samples; unused room is never touched, so it takes no memory.

@@ -44,7 +44,9 @@ def design_summary(d: Any, written: Any, out: Path) -> Summary:
     if d.config.method == "striped":
         lines.append(band_line(d))
     if d.placement and "fallback" in d.placement:
-        lines.append(f"placement: {d.placement['fallback']}; stripes placed by phase instead")
+        how = ("phase, ending on the grid" if d.placement.get("placement") == "lock"
+               else "phase")
+        lines.append(f"placement: {d.placement['fallback']}; stripes placed by {how} instead")
     if d.views is not None:
         lo, hi = (math.degrees(v) for v in d.views.needed)
         lines.append(f"tool: {d.config.cutter().describe()}, {d.config.depth_mm:g} mm deep, "
