@@ -318,3 +318,14 @@ def test_a_plate_verified_a_few_views_at_a_time_gives_the_same_figures(small_des
                                 cut=cut, budget=1)
     assert whole == parts
     assert whole[1] is not None and len(whole[1]) == len(az)
+
+
+def test_the_light_to_use_names_the_sun_when_it_is_as_good() -> None:
+    """A design sharpest under a light as large as the sun's is told it may use
+    the sun; a smaller light is a lamp, sized at 3 m or at the design's light."""
+    from specholo.simulation.lighting import _lamp
+
+    assert _lamp(0.53, None).startswith("the sun, or a small lamp")
+    assert "27.8 mm across at 3 m" in _lamp(0.53, None)
+    assert "sun" not in _lamp(0.25, None)
+    assert _lamp(0.25, 500.0) == "a lamp at most 2.2 mm across at the design's 500 mm"

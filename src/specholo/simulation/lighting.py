@@ -100,8 +100,10 @@ def _lamp(size_deg: float, distance: float | None) -> str:
     """A lamp of that angular size, in words, where the design puts its light."""
     size = math.radians(size_deg)
     if distance is None:
-        return (f"a small lamp far along the light's direction, at most {size_deg:g} deg "
+        lamp = (f"a small lamp far along the light's direction, at most {size_deg:g} deg "
                 f"across (e.g. {3000.0 * size:.1f} mm across at 3 m)")
+        # the sun is as large a light as any tried, and the one most at hand
+        return f"the sun, or {lamp}" if size_deg >= SIZES_DEG[0] else lamp
     return f"a lamp at most {distance * size:.1f} mm across at the design's {distance:g} mm"
 
 
