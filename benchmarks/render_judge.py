@@ -275,12 +275,22 @@ class Plate:
                     and np.array_equal(a.offsets, b.offsets))
 
 
-def design_plate(name: str, work: Path, redesign: bool) -> Path:
-    """``specholo design`` into work/NAME (kept between runs unless asked)."""
-    folder = work / name
+def plate_options(name: str, stipples: int | None) -> list[str]:
+    """The design options of plate NAME, with ``stipples`` stipples if given."""
+    options = list(PLATES[name][1])
+    if stipples is not None:
+        options[options.index("--stipples") + 1] = str(stipples)
+    return options
+
+
+def design_plate(name: str, work: Path, redesign: bool, stipples: int | None = None) -> Path:
+    """``specholo design`` into work/NAME (kept between runs unless asked; a
+    folder of its own for another stipple count)."""
+    folder = work / (name if stipples is None else f"{name}-{stipples}")
     if (folder / "hologram.json").is_file() and not redesign:
         return folder
-    model, options = PLATES[name]
+    model = PLATES[name][0]
+    options = plate_options(name, stipples)
     cmd = [sys.executable, "-m", "specholo_cli.cli", "design", str(ROOT / "examples" / model),
            "--out", str(folder), *options]
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
@@ -304,8 +314,8 @@ def cut_plate(name: str, folder: Path, work: Path) -> Plate:
     g = cut.grooves
     first = g.vertices[g.offsets[:-1]]
     last = g.vertices[g.offsets[1:] - 1]
-    plate = Plate(name, folder, loaded, g, hf, hf.bounds.copy(), work / f"{name}.ply", seconds,
-                  ends=np.stack([first, last], axis=1))
+    plate = Plate(name, folder, loaded, g, hf, hf.bounds.copy(), work / f"{folder.name}.ply",
+                  seconds, ends=np.stack([first, last], axis=1))
     plate.vertices, plate.faces = write_mesh(hf, plate.mesh)
     return plate
 
@@ -977,6 +987,9 @@ def main() -> None:
     ap.add_argument("--pixel", type=float, default=0.003, help="pixel on the plate, mm")
     ap.add_argument("--quick", action="store_true",
                     help="one plate, the sun, alpha 0.003, azimuth 0 (a smoke run)")
+    ap.add_argument("--stipples", type=int, default=None,
+                    help="stipples of every plate (denser plates resolve visibility finer: "
+                         "one stipple of 32 seen is 0.031)")
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args()
     # specholo's kernels (and the designs and verifications it runs) keep to one
@@ -1004,7 +1017,7 @@ def main() -> None:
     plates_out: dict[str, Any] = {}
     render_seconds: list[float] = []
     for name in plates:
-        folder = design_plate(name, work, args.redesign)
+        folder = design_plate(name, work, args.redesign, args.stipples)
         plate = cut_plate(name, folder, work)
         setup = plate.loaded.config.setup()
         step = common_step(azimuths, math.degrees(setup.viewer.half_range))
@@ -1012,7 +1025,8 @@ def main() -> None:
         point_verify = verify_rows(folder, azimuths, step)
         info = json.loads((folder / "hologram.json").read_text())
         plates_out[name] = {
-            "design": PLATES[name][1], "stipples": int(len(plate.loaded.points)),
+            "design": plate_options(name, args.stipples),
+            "stipples": int(len(plate.loaded.points)),
             "stipples_with_grooves": info["stats"].get("stipples_with_grooves"),
             "paths": int(plate.cut_grooves.n_paths),
             "groove_mm": float(info["stats"].get("groove_length_mm", math.nan)),
