@@ -710,7 +710,7 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
         vis = [np.ones(n, bool), np.ones(n, bool)]
     seen = vis[0] & vis[1]
 
-    def shown(glints: list[list[Glint]]) -> tuple[float, np.ndarray]:
+    def shown(glints: list[list[Glint]]) -> tuple[float, np.ndarray, np.ndarray]:
         lit = [np.bincount(np.array([g.stipple for g in k], np.int64), minlength=n) > 0
                for k in glints]
         both = np.flatnonzero(seen & lit[0] & lit[1])
@@ -718,7 +718,7 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
         if both.size:
             err, _ = stereo_errors(points, _as_glints(glints[0]), _as_glints(glints[1]),
                                    eyes[0], eyes[1], both)
-        return (float(both.size / seen.sum()) if seen.any() else math.nan), err
+        return (float(both.size / seen.sum()) if seen.any() else math.nan), err, both
 
     modelled = [[g for g in k if g.own_distance <= SPILL] for k in kept]
     # Stripe ends bright enough to be glints of their own (verify's rule for
@@ -744,12 +744,13 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
     # the typical glint) get about one sample each at these counts, so those
     # found are the lucky ones, their light overestimated: they are counted
     # apart, with verify's own image rule.
-    visibility, err = shown([_merged(modelled[0], near[0]), _merged(modelled[1], near[1])])
-    visibility_modelled, err_modelled = shown(modelled)
+    visibility, err, both = shown([_merged(modelled[0], near[0]),
+                                   _merged(modelled[1], near[1])])
+    visibility_modelled, err_modelled, _ = shown(modelled)
     # the stipples both eyes see whose designed glint one eye's picture lacks
     lacking = [sorted(set(np.flatnonzero(seen).tolist())
                       - {g.stipple for g in modelled[side]}) for side in range(2)]
-    visibility_faint, err_faint = shown(kept)
+    visibility_faint, err_faint, _ = shown(kept)
     r_cut = plate.r_cut
     designed = modelled[0] + modelled[1]
     faint = [g for k in kept for g in k if g.own_distance > SPILL]
@@ -779,6 +780,8 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
         "median_error": _pct(err, 50),
         "p95_error": _pct(err, 95),
         "max_error": float(err.max()) if err.size else math.nan,
+        # the stipples seen farthest off, to hold against verify's own
+        "worst_stipples": [[int(both[k]), float(err[k])] for k in np.argsort(-err)[:10]],
         "visibility_modelled": visibility_modelled,
         "median_error_modelled": _pct(err_modelled, 50),
         "p95_error_modelled": _pct(err_modelled, 95),
