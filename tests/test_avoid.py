@@ -210,8 +210,8 @@ def test_glints_beyond_the_cell_size_are_found(monkeypatch: pytest.MonkeyPatch) 
     wide = _design(pts, "avoid", setup)
     place = _avoid_kernel.place
 
-    def small_cells(*args: object) -> object:
-        return place(*args[:-1], 0.2 * float(args[-1]))  # type: ignore[arg-type]
+    def small_cells(*args: object, **options: object) -> object:
+        return place(*args[:-1], 0.2 * float(args[-1]), **options)  # type: ignore[arg-type]
 
     monkeypatch.setattr(_avoid_kernel, "place", small_cells)
     assert _same(_design(pts, "avoid", setup), wide)

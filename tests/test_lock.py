@@ -184,3 +184,27 @@ def test_lock_costs_few_more_strokes(designs: dict[str, Grooves]) -> None:
         lock, other = designs[name], designs[free]
         assert lock.n_paths < 1.3 * other.n_paths
         assert lock.total_length() == pytest.approx(other.total_length(), rel=0.02)
+
+
+def test_only_the_gridded_stipples_drift_past_the_band(designs: dict[str, Grooves]) -> None:
+    """A stipple the grid ends the stripes of may drift 3 bands from its
+    sightline before the band's edge ends one; a stipple without a grid (its
+    stripes outlast the eyes' separation anyway) keeps to the band."""
+    setup, pts = _setup(), _scene()
+    runs = _runs(pts, setup)
+    period = striped.lock_periods(runs, striped._params(setup, StripeOptions()), setup, 0.2)
+    for name in LOCKED:
+        eng = Engraved.from_grooves(designs[name], setup.tool)
+        drift: dict[bool, list[float]] = {True: [], False: []}
+        for theta in np.radians(np.arange(-45.0, 46.0, 1.5)):
+            eye = setup.viewer.eye(np.array([theta]))[0]
+            g = find_glints(eng, eye, setup.light).image()
+            p = pts[g.stipple]
+            # where the eye's sightline through the stipple is at the glint's depth
+            t = (g.point[:, 2] - eye[2]) / (p[:, 2] - eye[2])
+            cross = eye + t[:, None] * (p - eye)
+            for gridded, u in zip(period[g.stipple] > 0, g.point[:, 1] - cross[:, 1],
+                                  strict=True):
+                drift[bool(gridded)].append(abs(u))
+        assert max(drift[False]) <= 0.2 * 1.05, name
+        assert 0.2 * 1.05 < max(drift[True]) <= striped.LOCK_SLACK * 0.2 * 1.05, name

@@ -230,21 +230,25 @@ def _clear(x0: float, y0: float, x1: float, y1: float, occ: np.ndarray, hc: floa
 @kernel(nogil=True)
 def _walk(r: int, start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray,
           w: float, leaves: int, dx_target: float, leaf: np.ndarray, period: np.ndarray,
-          origin: float) -> tuple[int, np.ndarray, np.ndarray]:
+          origin: float, slack: float) -> tuple[int, np.ndarray, np.ndarray]:
     """Run r's walked leaf into ``leaf`` (see :func:`_leaf`) and, at each of its
     samples, the lowest and highest leaf inside the band, in spacings from the
-    walk's first leaf.
+    walk's first leaf. A run without a grid period keeps to the middle
+    1 / ``slack`` of the band (its own band, where ``w`` is widened for the
+    gridded runs).
 
     Returns:
         the number of samples m (-1 when ``leaf`` is too short), lo (m,), hi (m,).
     """
     params = sk._unpacked(packed)
+    delta = 2.0 * w / leaves
+    width = leaves + 3
+    if period[r] <= 0.0:
+        w = w / slack
     w_eff = 0.98 * w  # the walked leaf strays ~(dy / D)^2 from the planned one
     # A hand-over (the old leaf kept to the new one's first sample) overshoots
     # the band by one u step at most: within w.
     du_target = w - w_eff
-    delta = 2.0 * w / leaves
-    width = leaves + 3
     m = _leaf(start[r], end[r], pts[r, 0], pts[r, 1], pts[r, 2], params, dx_target, du_target,
               delta, w, leaf, period[r], origin)
     lo = np.empty(max(m, 0), dtype=np.int64)
@@ -485,7 +489,7 @@ def _choose(r: int, pts: np.ndarray, packed: np.ndarray, leaf: np.ndarray, m: in
 def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarray, w: float,
           spacing: float, leaves: int, dx_target: float, jump_cost: float, margin: float,
           sample_cap: np.ndarray, min_length: float, bits: int, max_offset: float,
-          period: np.ndarray | None = None, origin: float = 0.0
+          period: np.ndarray | None = None, origin: float = 0.0, slack: float = 1.0
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Choose every run's stripes in turn, out of the way of those placed before.
 
@@ -510,6 +514,7 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
             the azimuths origin + (j + 1/2) period wherever they can ("lock"
             placement: a jump elsewhere costs :data:`_OFF_GRID` bands of
             samples more); None for none.
+        slack: ``w`` over the band of a run without a grid period.
 
     Returns:
         run (s,), theta start (s,), theta end (s,), u0 (s,) at the start (as
@@ -564,7 +569,8 @@ def place(start: np.ndarray, end: np.ndarray, pts: np.ndarray, packed: np.ndarra
         if leaf_rooms[r % 2].shape[0] < cap:
             leaf_rooms[r % 2] = np.empty((max(cap, 2 * leaf_rooms[r % 2].shape[0]), 11))
         leaf = leaf_rooms[r % 2][:cap]
-        m, lo, hi = _walk(r, start, end, pts, packed, w, leaves, dx_target, leaf, grid, origin)
+        m, lo, hi = _walk(r, start, end, pts, packed, w, leaves, dx_target, leaf, grid, origin,
+                          slack)
         return leaf, m, lo, hi
 
     if start.size == 0:

@@ -354,7 +354,7 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
               packed: np.ndarray, w: float, spacing: float, offsets: np.ndarray,
               stripe_out: np.ndarray, point_out: np.ndarray, tangent_out: np.ndarray,
               period: np.ndarray | None = None, min_length: float = 0.0,
-              origin: float = 0.0) -> np.ndarray:
+              origin: float = 0.0, slack: float = 1.0) -> np.ndarray:
     """Walk every run through its interval, striping where |u| reaches the band edge.
 
     Samples of run r go to slots offsets[r] .. offsets[r + 1] - 1: stripe
@@ -363,8 +363,8 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
     centrelines stay ``spacing`` apart: a groove never cuts into its neighbour.
 
     ``period`` (r,), where positive, also ends run r's stripes at the
-    azimuths origin + (j + 1/2) period (see :func:`_walk`); ``min_length``:
-    shortest stripe, mm, such an azimuth ends.
+    azimuths origin + (j + 1/2) period (see :func:`_walk`), its band ``slack``
+    times as wide; ``min_length``: shortest stripe, mm, such an azimuth ends.
 
     Returns:
         (r,) number of samples written per run, or -1 where the slots ran out.
@@ -373,7 +373,7 @@ def integrate(start: np.ndarray, end: np.ndarray, pts: np.ndarray, u0: np.ndarra
     count = np.zeros(n, dtype=np.int64)
     grid = np.zeros(n) if period is None else np.ascontiguousarray(period, dtype=np.float64)
     chunked(_integrate, 0, n, start, end, pts, u0, packed, w, spacing, offsets, stripe_out,
-            point_out, tangent_out, count, grid, min_length, origin, grain=_GRAIN)
+            point_out, tangent_out, count, grid, min_length, origin, slack, grain=_GRAIN)
     return count
 
 
@@ -382,13 +382,13 @@ def _integrate(lo: int, hi: int, start: np.ndarray, end: np.ndarray, pts: np.nda
                u0: np.ndarray, packed: np.ndarray, w: float, spacing: float,
                offsets: np.ndarray, stripe_out: np.ndarray, point_out: np.ndarray,
                tangent_out: np.ndarray, count: np.ndarray, period: np.ndarray,
-               min_length: float, origin: float) -> None:
+               min_length: float, origin: float, slack: float) -> None:
     """:func:`integrate` of runs lo .. hi - 1."""
     params = _unpacked(packed)
     for i in range(lo, hi):
         count[i] = _walk(start[i], end[i], pts[i, 0], pts[i, 1], pts[i, 2], u0[i], params, w,
                          spacing, offsets[i], offsets[i + 1], stripe_out, point_out,
-                         tangent_out, period[i], min_length, origin)
+                         tangent_out, period[i], min_length, origin, slack)
 
 
 @kernel(fastmath=_FAST, inline="always", helper=True)
@@ -405,7 +405,7 @@ def _next_grid(th: float, period: float, origin: float) -> float:
 def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
           params: Params, w: float, spacing: float, first: int, stop: int,
           stripe_out: np.ndarray, point_out: np.ndarray, tangent_out: np.ndarray,
-          period: float, min_length: float, origin: float) -> int:
+          period: float, min_length: float, origin: float, slack: float) -> int:
     """One run of :func:`integrate`, from theta ``th0`` to ``th_end`` into slots
     ``first`` .. ``stop`` - 1.
 
@@ -421,6 +421,8 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
         the number of samples written, or -1 where the slots ran out.
     """
     max_step, max_chord = params[8], params[9]
+    if period > 0.0:
+        w = w * slack  # the grid, not the band, ends most of its stripes
     k = first
     th = th0
     s0 = target(th, 0.0, px, py, pz, params)

@@ -270,7 +270,7 @@ def _integrate(runs: Runs, params: np.ndarray, u0: np.ndarray, cap: np.ndarray,
                                  np.ascontiguousarray(runs.point[pending]), u0[pending],
                                  params, w, spacing, offsets, stripe, point, tangent,
                                  None if period is None else period[pending],
-                                 LOCK_MIN_LENGTH, LOCK_ORIGIN * eye_half)
+                                 LOCK_MIN_LENGTH, LOCK_ORIGIN * eye_half, LOCK_SLACK)
         parts.append((pending, offsets, count, stripe, point, tangent))
         # Runs whose bound was too small go again with room to spare.
         cap[pending[count < 0]] *= 4
@@ -387,8 +387,8 @@ def _plan(runs: Runs, params: np.ndarray, setup: Setup, opts: StripeOptions,
             runs.start, runs.end, np.ascontiguousarray(runs.point), params, band, spacing,
             leaves, opts.plan_step, opts.jump_cost, opts.plan_margin, sample_cap,
             2.0 * MIN_SPACING, _avoid_kernel.table_bits(likely),
-            setup.tool.radius * math.sin(setup.tool.max_tilt), period,
-            LOCK_ORIGIN * setup.viewer.eye_half_angle)
+            setup.tool.radius * math.sin(setup.tool.max_tilt), period=period,
+            origin=LOCK_ORIGIN * setup.viewer.eye_half_angle, slack=slack)
         # A run whose u drifts far faster than x (eyes high above the stipples)
         # outgrows the estimate: the plan starts again with room for it.
         if bad < 0 or sample_cap[bad] >= growth * first[bad]:
@@ -489,8 +489,7 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     for idx in np.split(np.arange(len(far)), np.unique(bounds)):
         if len(idx) == 0:
             continue
-        chain_samples(out, _integrate(far.take(idx), params, u0[idx], cap[idx],
-                                      w if period is None else LOCK_SLACK * w, spacing,
+        chain_samples(out, _integrate(far.take(idx), params, u0[idx], cap[idx], w, spacing,
                                       scratch, None if period is None else period[idx],
                                       setup.viewer.eye_half_angle),
                       far.stipple[idx])
