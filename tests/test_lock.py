@@ -2,28 +2,20 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
+from test_avoid import _design, _runs, _setup
 
 from specholo.optics.spread import GLOSS, SUN, Spread
-from specholo.setup import Light, Setup, Tool, Viewer
 from specholo.simulation.glints import Engraved, find_glints
 from specholo.simulation.streak_verify import verify_streaks
 from specholo.simulation.verify import verify
 from specholo.toolpaths import striped
-from specholo.toolpaths.common import Runs, make_runs
 from specholo.toolpaths.grooves import Grooves
-from specholo.toolpaths.striped import StripeOptions, design_striped
+from specholo.toolpaths.striped import StripeOptions
 
-#: The README's drag tip at its design depth.
-TOOL = Tool(0.05, 0.0115)
-
-
-def _setup() -> Setup:
-    return Setup(light=Light(math.radians(45.0)),
-                 viewer=Viewer(600.0, 0.0, math.radians(45.0), 64.0), tool=TOOL)
+# The setup (the README's drag tip, eyes 600 mm away over +-45 deg), the runs
+# (every stipple over the whole design range) and the design are test_avoid's.
 
 
 def _scene(n: int = 24, seed: int = 5) -> np.ndarray:
@@ -31,20 +23,6 @@ def _scene(n: int = 24, seed: int = 5) -> np.ndarray:
     rng = np.random.default_rng(seed)
     return np.column_stack([rng.uniform(-15, 15, n), rng.uniform(-10, 10, n),
                             rng.uniform(-30, 20, n)])
-
-
-def _runs(points: np.ndarray, setup: Setup) -> Runs:
-    half = setup.viewer.design_range
-    n = len(points)
-    return make_runs(points, np.arange(n), np.full(n, -half), np.full(n, half))
-
-
-def _design(points: np.ndarray, placement: str, setup: Setup,
-            info: dict[str, str] | None = None) -> Grooves:
-    grooves, dropped = design_striped(_runs(points, setup), setup,
-                                      StripeOptions(placement=placement), info=info)
-    assert dropped.size == 0
-    return grooves
 
 
 @pytest.fixture(scope="module")

@@ -488,7 +488,7 @@ def _walk(th0: float, th_end: float, px: float, py: float, pz: float, u0: float,
             dth = min(dth * grow, longest)
             if th_end - th < 1.25 * dth:
                 dth = th_end - th
-            if th + dth >= grid:
+            if grid < th_end and th + dth >= grid:
                 dth, at_grid = grid - th, True
             y1, u1, sol1 = _heun(th, y, k1, dth, px, py, pz, params, sol)
         edge = 0.0

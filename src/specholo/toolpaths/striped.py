@@ -415,7 +415,8 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
         near_plate: points with |p_z| at most this many mm become dimples;
             default half the groove width.
         info: if given, gets "placement", the placement used ("avoid",
-            "phase" or "lock"), and where "auto" fell back to phase, "fallback": why.
+            "phase" or "lock"), and where "auto" or "lock" fell back to the
+            phase walk, "fallback": why.
 
     Returns:
         The grooves, and the ids of stipples that could not be designed: the
@@ -445,13 +446,12 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
     lockstep = opts.placement == "lock"
     # "lock" ends the stripes on a grid of azimuths, in the plan where "auto"
     # would plan, else in the phase walk.
-    grid = lock_periods(far, params, setup, w) if lockstep else None
+    period = lock_periods(far, params, setup, w) if lockstep else None
     used = "phase"
-    period = None
     if opts.placement != "phase" and spacing <= AVOID_MAX_SPACING * w:
         sample_cap, likely = _plan_estimate(far, setup, opts)
-        if grid is not None:  # a plan sample on every grid azimuth
-            sample_cap = sample_cap + _grid_steps(far, grid)
+        if period is not None:  # a plan sample on every grid azimuth
+            sample_cap = sample_cap + _grid_steps(far, period)
         why = (_avoid_refusal(sample_cap, likely, setup) if opts.placement in ("auto", "lock")
                else None)
         planned = None
@@ -460,21 +460,21 @@ def design_striped(runs: Runs, setup: Setup, opts: StripeOptions | None = None,
                 # "auto" lets a run's bound grow once: a plan far beyond its
                 # estimate (eyes far above the plate) would take minutes.
                 planned = _plan(far, params, setup, opts, spacing, sample_cap, likely,
-                                MAX_GROWTH if opts.placement == "avoid" else 4, grid)
+                                MAX_GROWTH if opts.placement == "avoid" else 4, period)
             except SpecholoError as exc:
                 if opts.placement == "avoid":
                     raise
                 # "auto" never fails where the phase walk would not.
                 planned, why = None, str(exc)
         if planned is not None:
-            # Every planned stripe is walked alone, on its own leaf, never ending early.
+            # Every planned stripe is walked alone, on its own leaf, never
+            # ending early (the plan put its ends on the grid).
             far, u0, cap = planned
-            w, spacing, used = _ONE_STRIPE, 0.0, "avoid"
+            w, spacing, used, period = _ONE_STRIPE, 0.0, "avoid", None
         elif info is not None and why is not None:
             info["fallback"] = why
-    if used == "phase" and grid is not None:
+    if period is not None:
         # The phase walk ends the stripes on the grid itself.
-        period = grid
         cap = cap + 3 * _grid_steps(far, period) + 6
     if info is not None:
         info["placement"] = "lock" if lockstep else used

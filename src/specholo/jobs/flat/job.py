@@ -132,19 +132,18 @@ def band_line(d: Any) -> str:
 
     band = float(d.config.band or BAND)
     distance = d.config.setup().viewer.distance
+    within = "about a band"
     if getattr(d.config, "placement", None) == "lock":
         from specholo.toolpaths.striped import LOCK_SLACK
 
         # the stripes end on the common grid, most before the band's edge
         reach = LOCK_SLACK * band
-        arcmin = math.degrees(reach / distance) * 60.0
-        line = (f"stripes: ending together (lock), band {band:g} mm, so each glint sits "
-                f"within {reach:g} mm of its place vertically, {arcmin:.1f} arcmin seen "
-                f"from {distance:g} mm")
+        within, head = f"{reach:g} mm", "stripes: ending together (lock), band"
     else:
-        arcmin = math.degrees(band / distance) * 60.0
-        line = (f"stripes: band {band:g} mm, so each glint sits within about a band of its "
-                f"place vertically, {arcmin:.1f} arcmin seen from {distance:g} mm")
+        reach, head = band, "stripes: band"
+    arcmin = math.degrees(reach / distance) * 60.0
+    line = (f"{head} {band:g} mm, so each glint sits within {within} of its place "
+            f"vertically, {arcmin:.1f} arcmin seen from {distance:g} mm")
     spacing = stipple_spacing(d.points, distance)
     if spacing is not None:
         line += f", where neighbouring stipples look {spacing:.1f} arcmin apart"
