@@ -182,6 +182,41 @@ def test_a_cut_through_a_streak_leaves_a_gap_not_a_lost_glint() -> None:
     assert 0.0 < shift < 0.1
 
 
+@pytest.mark.parametrize(("rho", "glints"), [(4.0, 1), (20.0, 2)])
+def test_a_crossing_parts_a_long_streak_into_two_glints_an_eye_sees_apart(rho: float,
+                                                                           glints: int) -> None:
+    from specholo.simulation.streak_verify import cut_streaks, eye_streaks
+    from specholo.simulation.streaks import ACUITY
+
+    left = VIEWER.stereo(np.array([0.0]))[0][0]
+    stripe = _circle_arc(-3.0, 3.0, np.array([0.0, rho]), rho)
+    at = find_glints(Engraved.from_grooves(_grooves(stripe), TOOL), left, LIGHT).point[0]
+    # a straight groove across the stripe through the left eye's point glint
+    cross = (np.array([[at[0], at[1] - 1.0], [at[0], at[1] + 1.0]]), 0.0)
+    grooves = _grooves(stripe, cross)
+    setup = Setup(light=LIGHT, viewer=VIEWER, tool=TOOL)
+    found = eye_streaks(grooves, 2, setup, Spread(SUN, GLOSS["mirror"]), np.array([0.0]))
+    cut = cut_streaks(found, grooves, setup, TOOL, TOOL.depth)
+    assert np.sum(found.streaks[0].glints().path == 0) == 1
+    parts = cut.streaks[0].glints()
+    mine = parts.path == 0
+    # The streak is as long as the lobe times the stripe's radius, and the
+    # pieces either side of the gap about half that apart: on the tighter
+    # stripe nearer than the eye resolves (one spot), on the wider farther
+    # (two, one each side of the crossing, sharing the streak's light).
+    reach = ACUITY * float(np.linalg.norm(left - at))
+    extent = found.streaks[0].extent[found.streaks[0].path == 0][0]
+    assert (extent > 2.0 * reach) == (glints == 2)
+    assert np.sum(mine) == glints
+    if glints == 2:
+        a, b = parts.point[mine]
+        assert np.linalg.norm(a - b) > reach
+        assert (a[0] - at[0]) * (b[0] - at[0]) < 0.0
+        assert parts.brightness is not None
+        total = cut.streaks[0].brightness[cut.streaks[0].path == 0].sum()
+        assert math.isclose(parts.brightness[mine].sum(), total, rel_tol=1e-9)
+
+
 def test_spread_options_are_checked_in_one_line() -> None:
     assert Spread.of(None, None) is None
     assert Spread.of(0.53, "mirror") == Spread(SUN, 0.003)

@@ -23,6 +23,7 @@ from specholo.setup import Setup
 from specholo.simulation._streak_kernel import nearest
 from specholo.simulation.glints import Engraved, Glints, find_glints
 from specholo.simulation.streaks import (
+    ACUITY,
     SPILL_SEPARATION,
     Streaks,
     bright_spills,
@@ -236,9 +237,21 @@ def cut_streaks(found: EyeStreaks, grooves: Grooves, setup: Setup, cutter: Any,
     keep = survivors(grooves, np.concatenate(moved).reshape(-1, 3),
                      np.concatenate(paths).astype(np.int64), cutter, depth)
     parts = np.split(keep, np.cumsum(sizes)[:-1])
+    eyes = [eye for pair in found.eyes for eye in pair]
     return EyeStreaks(found.azimuths, found.eyes,
-                      [st.cut(k) for st, k in zip(found.streaks, parts, strict=True)],
+                      [_apart(st.cut(k), eye)
+                       for st, k, eye in zip(found.streaks, parts, eyes, strict=True)],
                       found.points)
+
+
+def _apart(st: Streaks, eye: np.ndarray) -> Streaks:
+    """The streaks as cut, each broken where its pieces lie farther apart than
+    the eye resolves (:data:`~specholo.simulation.streaks.ACUITY`) from ``eye``."""
+    if st.count == 0:
+        return st
+    first = np.searchsorted(st.run, np.arange(st.count))
+    at = st.point[np.minimum(first, len(st.point) - 1)]
+    return st.split(ACUITY * np.linalg.norm(at - eye, axis=1))
 
 
 def _fwhm(st: Streaks) -> np.ndarray:

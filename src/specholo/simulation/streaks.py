@@ -25,6 +25,7 @@ and returns the lit cells grouped into streaks.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -44,6 +45,9 @@ STEP = 0.01
 #: going: a program's rounded digits leave kinks of up to 2e-3 rad between
 #: short arcs, and a kink turns the wall's normal by less than a lobe is wide.
 CORNER = 0.01
+#: What the eye resolves, radians (1 arcmin): pieces of a streak farther apart
+#: than this, seen from the eye, are two glints.
+ACUITY = math.radians(1.0 / 60.0)
 #: A spill counts as a false glint this far from every designed glint, mm:
 #: nearer, it merges with one (the verification's p95 error limit).
 SPILL_SEPARATION = 0.25
@@ -108,6 +112,44 @@ class Streaks:
         """The streaks with the cells not in ``keep`` ((c,) bool) cut away (dark)."""
         return Streaks(self.path, self.stipple, self.designed, self.run, self.point,
                        np.where(keep, self.weight, 0.0), self.length)
+
+    def split(self, reach: np.ndarray) -> Streaks:
+        """The streaks broken where a cut leaves pieces an eye sees apart.
+
+        Consecutive lit pieces of a streak (runs of its cells with light, in
+        order along the groove) whose brightness-weighted centres are more
+        than ``reach`` ((r,) mm, per streak) apart become streaks of their own,
+        each keeping the streak's path, stipple and ``designed``: a crossing
+        cuts a gap into a streak, and nearer than the eye resolves the pieces
+        either side are one spot, farther off two. A dark cell goes with the
+        piece before it (the first piece, before any).
+        """
+        c = len(self.run)
+        if c == 0:
+            return self
+        lit = self.weight > 0.0
+        first = np.r_[True, self.run[1:] != self.run[:-1]]
+        begins = np.flatnonzero(lit & (first | ~np.r_[False, lit[:-1]]))
+        if len(begins) < 2:
+            return self
+        piece = np.cumsum(np.isin(np.arange(c), begins)) - 1
+        ok = lit & (piece >= 0)
+        total = np.bincount(piece[ok], weights=self.weight[ok], minlength=len(begins))
+        centre = np.stack([np.bincount(piece[ok], weights=self.weight[ok] * self.point[ok, k],
+                                       minlength=len(begins)) for k in range(3)], axis=1)
+        centre /= total[:, None]
+        run_of = self.run[begins]
+        far = np.linalg.norm(np.diff(centre, axis=0), axis=1) > np.asarray(reach)[run_of[1:]]
+        cut_at = begins[1:][far & (run_of[1:] == run_of[:-1])]
+        if not len(cut_at):
+            return self
+        starts = np.zeros(c, dtype=bool)
+        starts[cut_at] = True
+        starts |= first
+        new_run = np.cumsum(starts) - 1
+        old = self.run[starts]
+        return Streaks(self.path[old], self.stipple[old], self.designed[old], new_run,
+                       self.point, self.weight, self.length)
 
     def offset(self, paths: np.ndarray) -> Streaks:
         """The same streaks with each path renamed ``paths[path]`` (a chunk's paths)."""
