@@ -1,7 +1,7 @@
 """Rendered glints (Mitsuba 3): what a viewer meets on a plate as cut, beside verify.
 
 Usage: python benchmarks/render_judge.py [--work DIR] [--azimuths -20 0 20]
-       [--spp 16] [--spp-fine 256] [--pixel 0.003] [--plates bunny knot] [--quick]
+       [--spp 16] [--spp-fine 1024] [--pixel 0.003] [--plates bunny knot] [--quick]
        [--lights sun point] [--alphas 0.003 0.01] [--stipples N]
 
 Designs two small plates with the default tool (``specholo design`` on the
@@ -26,9 +26,10 @@ pieces of one path's streak closer than the eye resolves (1 arcmin) are one
 glint, whose place is its brightness-weighted centroid followed back to the
 cut surface. A glint is *designed* where the point model (``find_glints`` on
 the folder's grooves, as verify uses them) has a glint of the same path
-within 0.25 mm and it lies on the streak model's designed streak about it
-(within 0.02 mm); it counts when it passes verify's image rule (1/20 of its
-stipple's brightest, 1/100 of the typical stipple's), before and after the
+within 0.25 mm, or, given verify's streak model, where it lies on that
+model's designed streak of its path (within 0.02 mm); it counts when it
+passes verify's image rule (1/20 of its stipple's brightest, 1/100 of the
+typical stipple's), before and after the
 bright stripe ends beside it join it, as in verify. Any other glint counts
 when it is bright enough to be a glint of its own, verify's rule for end
 spills (1/20 of the typical stipple's and of its stipple's brightest
@@ -846,7 +847,9 @@ def model_streaks(plate: Plate, size_deg: float, alpha: float,
         from specholo.simulation.streak_verify import eye_streaks
     except ImportError:
         return None
-    found = eye_streaks(plate.loaded.grooves, len(plate.loaded.points), plate.setup,
+    # the program's grooves, as cut and rendered: where a glint falls at a
+    # stripe's very end, the program's rounding decides which side it is on
+    found = eye_streaks(plate.cut_grooves, len(plate.loaded.points), plate.setup,
                         Spread(math.radians(size_deg), alpha), np.array([theta]))
     out = []
     cells: list[dict[int, np.ndarray]] = []
@@ -881,12 +884,14 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
                streak_model: ModelStreaks | None = None) -> dict[str, Any]:
     """What the two eyes meet at one head azimuth, in verify's terms.
 
-    A glint is *designed* where the point model has a glint of the same path
-    (the same stipple, if the G-code's paths differ from the design's) within
-    SPILL of it and, given the streak model, it lies on that path's designed
-    streak (within STREAK_MATCH of its lit stretch): light elsewhere on the
-    path, a cap where the tool lifts or a faint piece beyond the lobe, is
-    not the designed glint even where the crossings took that away. The rest
+    A glint is *designed* where it lies on its path's designed streak in the
+    streak model (within STREAK_MATCH of its lit stretch), or without the
+    streak model, where the point model has a glint of the same path (the
+    same stipple, if the G-code's paths differ from the design's) within
+    SPILL of it. Light elsewhere on the path, a cap where the tool lifts or a
+    faint piece beyond the lobe, is not the designed glint even where the
+    crossings took that away; two pieces of a designed streak a crossing
+    parts farther than the eye resolves are two designed glints. The rest
     are caps, the ends of stripes whose glint lies just past them, and the
     like. A *spill* is a glint farther than SPILL from every glint of the
     point model.
@@ -913,16 +918,23 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
                     k = own[np.argmin(d[own])]
                     g.own_distance = float(d[k])
                     g.own_offset = g.point - model.point[k]
-            g.designed = g.own_distance <= SPILL
-            if g.designed and streak_model is not None and same_paths:
+            if streak_model is not None and same_paths:
+                # on its path's designed streak, however long the streak
                 cells = streak_model.designed[side].get(g.path)
                 g.designed = cells is not None and bool(
                     np.min(np.linalg.norm(cells - g.point[:2], axis=1)) <= STREAK_MATCH)
+            else:
+                g.designed = g.own_distance <= SPILL
         # the typical stipple's light is its designed glints' (verify's image of them)
         t = typical_flux([g for g in found if g.designed])
         t = t if math.isfinite(t) else typical_flux(found)
         typical.append(t)
-        kept.append(image_rule(found, t))
+        # verify's image of the stipples: the designed glints by its rule among
+        # themselves (a bright stripe end of the same stipple does not dim
+        # them; it joins them or is a glint of its own, below), the others by
+        # the same rule among all, counted apart
+        kept.append(image_rule([g for g in found if g.designed], t)
+                    + [g for g in image_rule(found, t) if not g.designed])
     if loaded.mesh is not None and loaded.normals is not None:
         vis = [visible(loaded.mesh, points, loaded.normals, e) for e in eyes]
     else:
@@ -1216,7 +1228,7 @@ def main() -> None:
                     help="head azimuths, degrees")
     ap.add_argument("--spp", type=int, default=16,
                     help="samples per pixel, first pass (a square number)")
-    ap.add_argument("--spp-fine", type=int, default=256,
+    ap.add_argument("--spp-fine", type=int, default=1024,
                     help="samples per pixel about what the first pass lit (a square number)")
     ap.add_argument("--pixel", type=float, default=0.003, help="pixel on the plate, mm")
     ap.add_argument("--quick", action="store_true",
