@@ -239,12 +239,12 @@ def cut_streaks(found: EyeStreaks, grooves: Grooves, setup: Setup, cutter: Any,
     parts = np.split(keep, np.cumsum(sizes)[:-1])
     eyes = [eye for pair in found.eyes for eye in pair]
     return EyeStreaks(found.azimuths, found.eyes,
-                      [_apart(st.cut(k), eye)
+                      [_parted(st.cut(k), eye)
                        for st, k, eye in zip(found.streaks, parts, eyes, strict=True)],
                       found.points)
 
 
-def _apart(st: Streaks, eye: np.ndarray) -> Streaks:
+def _parted(st: Streaks, eye: np.ndarray) -> Streaks:
     """The streaks as cut, each broken where its pieces lie farther apart than
     the eye resolves (:data:`~specholo.simulation.streaks.ACUITY`) from ``eye``."""
     if st.count == 0:

@@ -135,9 +135,9 @@ class Streaks:
         piece = np.cumsum(np.isin(np.arange(c), begins)) - 1
         ok = lit & (piece >= 0)
         total = np.bincount(piece[ok], weights=self.weight[ok], minlength=len(begins))
-        centre = np.stack([np.bincount(piece[ok], weights=self.weight[ok] * self.point[ok, k],
+        moment = np.stack([np.bincount(piece[ok], weights=self.weight[ok] * self.point[ok, k],
                                        minlength=len(begins)) for k in range(3)], axis=1)
-        centre /= total[:, None]
+        centre = moment / total[:, None]
         run_of = self.run[begins]
         far = np.linalg.norm(np.diff(centre, axis=0), axis=1) > np.asarray(reach)[run_of[1:]]
         cut_at = begins[1:][far & (run_of[1:] == run_of[:-1])]
