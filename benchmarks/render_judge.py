@@ -444,45 +444,40 @@ def _split_creases(hf: Any, pos: np.ndarray, normal: np.ndarray, move: np.ndarra
     if not t.size:
         return pos, normal, tri
     near = (n[t] @ halves.T).max(axis=(1, 2)) > math.cos(NEAR_HALF)
+    # the others whole (cut in 1): each piece's corners, 3 a piece
+    parts = [_remade(hf, pos[tri[t[near]]], m[t[near]], SUBDIVIDE),
+             _remade(hf, pos[tri[t[~near]]], m[t[~near]], 1)]
+    new_pos = np.concatenate([q for q, _ in parts])
+    keep = np.ones(len(tri), bool)
+    keep[t] = False
+    added = len(pos) + np.arange(len(new_pos)).reshape(-1, 3)
+    return (np.concatenate([pos, new_pos]),
+            np.concatenate([normal] + [q for _, q in parts]),
+            np.concatenate([tri[keep], added]))
+
+
+def _remade(hf: Any, corner: np.ndarray, moves: np.ndarray,
+            k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles (s, 3, 3) whose corners lie on the cuts ``moves`` (s, 3), each
+    cut into k^2 pieces on the cut deepest at the piece's centre: the pieces'
+    corners (s k^2 3, 3), heights of the deepest cut, and unit normals there of
+    the piece's own cut."""
     # barycentric grid of a triangle cut in k^2: its points and pieces
-    k = SUBDIVIDE
     ij = np.array([(i, j) for i in range(k + 1) for j in range(k + 1 - i)], dtype=float)
     at = {(int(i), int(j)): q for q, (i, j) in enumerate(ij)}
     pieces = [(at[i, j], at[i + 1, j], at[i, j + 1]) for i in range(k) for j in range(k - i)]
     pieces += [(at[i + 1, j], at[i + 1, j + 1], at[i, j + 1])
                for i in range(k) for j in range(k - 1 - i)]
-    split = t[near]
-    corner = pos[tri[split]]  # (s, 3, 3)
+    sub = np.array(pieces)
     grid = (corner[:, :1, :2] + (ij[None, :, :1] / k) * (corner[:, 1:2, :2] - corner[:, :1, :2])
             + (ij[None, :, 1:] / k) * (corner[:, 2:3, :2] - corner[:, :1, :2]))  # (s, g, 2)
-    sub = np.array(pieces)
-    # each piece: the triangle's cut deepest at its centre
-    centre = grid[:, sub].mean(axis=2)  # (s, p, 2)
-    ms = m[split]
-    owner = _deepest(hf, centre, ms)  # (s, p)
     xy = grid[:, sub]  # (s, p, 3, 2)
-    z = _deepest_z(hf, grid, ms)  # (s, g)
-    zs = z[:, sub]  # (s, p, 3)
+    owner = _deepest(hf, xy.mean(axis=2), moves)  # (s, p)
+    z = np.minimum(_surfaces(hf, grid, moves[:, None, :]).min(axis=2), 0.0)[:, sub]
     grad = _gradients(hf, xy.reshape(-1, 2), np.repeat(owner.ravel(), 3))
-    pieces_pos = np.concatenate([xy.reshape(-1, 2), zs.reshape(-1, 1)], axis=1)
-    pieces_n = np.concatenate([-grad, np.ones((len(grad), 1))], axis=1)
-    # the others whole, on the cut deepest at their centre
-    whole = t[~near]
-    owner_w = _deepest(hf, pos[tri[whole], :2].mean(axis=1)[:, None], m[whole])[:, 0]
-    whole_xy = pos[tri[whole]].reshape(-1, 3)
-    grad_w = _gradients(hf, whole_xy[:, :2], np.repeat(owner_w, 3))
-    whole_n = np.concatenate([-grad_w, np.ones((len(grad_w), 1))], axis=1)
-    new_n = np.concatenate([whole_n, pieces_n])
-    new_n /= np.linalg.norm(new_n, axis=1, keepdims=True)
-    start = len(pos)
-    tri = tri.copy()
-    tri[whole] = start + np.arange(3 * whole.size).reshape(-1, 3)
-    start += 3 * whole.size
-    added = start + np.arange(len(pieces_pos)).reshape(-1, 3)
-    keep = np.ones(len(tri), bool)
-    keep[split] = False
-    return (np.concatenate([pos, whole_xy, pieces_pos]), np.concatenate([normal, new_n]),
-            np.concatenate([tri[keep], added]))
+    normal = np.concatenate([-grad, np.ones((len(grad), 1))], axis=1)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    return np.concatenate([xy.reshape(-1, 2), z.reshape(-1, 1)], axis=1), normal
 
 
 def _surfaces(hf: Any, xy: np.ndarray, moves: np.ndarray) -> np.ndarray:
@@ -506,11 +501,6 @@ def _deepest(hf: Any, xy: np.ndarray, moves: np.ndarray) -> np.ndarray:
     pick = np.take_along_axis(np.broadcast_to(moves[:, None, :], z.shape),
                               np.argmin(z, axis=2)[..., None], axis=2)[..., 0]
     return np.where(z.min(axis=2) < 0.0, pick, -1)
-
-
-def _deepest_z(hf: Any, xy: np.ndarray, moves: np.ndarray) -> np.ndarray:
-    """(s, q) the cut surface's height at each point, the deepest of ``moves``."""
-    return np.minimum(_surfaces(hf, xy, moves[:, None, :]).min(axis=2), 0.0)
 
 
 def _gradients(hf: Any, xy: np.ndarray, moves: np.ndarray) -> np.ndarray:

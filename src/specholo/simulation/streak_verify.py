@@ -249,9 +249,7 @@ def _parted(st: Streaks, eye: np.ndarray) -> Streaks:
     the eye resolves (:data:`~specholo.simulation.streaks.ACUITY`) from ``eye``."""
     if st.count == 0:
         return st
-    first = np.searchsorted(st.run, np.arange(st.count))
-    at = st.point[np.minimum(first, len(st.point) - 1)]
-    return st.split(ACUITY * np.linalg.norm(at - eye, axis=1))
+    return st.split(ACUITY * np.linalg.norm(st.centre - eye, axis=1))
 
 
 def _fwhm(st: Streaks) -> np.ndarray:

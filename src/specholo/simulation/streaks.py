@@ -129,10 +129,11 @@ class Streaks:
             return self
         lit = self.weight > 0.0
         first = np.r_[True, self.run[1:] != self.run[:-1]]
-        begins = np.flatnonzero(lit & (first | ~np.r_[False, lit[:-1]]))
+        starts_piece = lit & (first | ~np.r_[False, lit[:-1]])
+        begins = np.flatnonzero(starts_piece)
         if len(begins) < 2:
             return self
-        piece = np.cumsum(np.isin(np.arange(c), begins)) - 1
+        piece = np.cumsum(starts_piece) - 1
         ok = lit & (piece >= 0)
         total = np.bincount(piece[ok], weights=self.weight[ok], minlength=len(begins))
         moment = np.stack([np.bincount(piece[ok], weights=self.weight[ok] * self.point[ok, k],
