@@ -127,6 +127,10 @@ CREASE = math.radians(20.0)
 NEAR_HALF = 0.2
 #: Pieces along each side of a crease triangle cut finer (0.6 um at 2.5 um).
 SUBDIVIDE = 4
+#: Sub-rays along each side of a lit pixel that say which path its light came
+#: from: a pixel 3 um across can straddle a crease, and the light of a streak
+#: cut short there lies within a few micrometres of it.
+SUB_RAYS = 4
 #: Oldest LLVM the vectorised variant is known to compile with (15 fails).
 MIN_LLVM = 19
 
@@ -538,6 +542,13 @@ def _gradient_kernel() -> Any:
     return run
 
 
+def lobe_width(diameter_deg: float, alpha: float) -> float:
+    """How far a wall's normal may stray from the half vector and still glint,
+    radians: the rms of the Beckmann slopes along a direction (alpha / sqrt 2)
+    and of the half vector over the light's disc (a quarter of its diameter)."""
+    return math.hypot(alpha / math.sqrt(2.0), 0.25 * math.radians(diameter_deg))
+
+
 def light_position(plate: Plate) -> tuple[np.ndarray, float]:
     """Where the light's disc sits and its distance from the plate centre: the
     folder's point light, or a sun's direction far out."""
@@ -663,7 +674,14 @@ class Renderer:
 
 def hit_field(hf: Any, eye: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Where rays from the eye meet the cut surface: points (n, 3) and the path
-    (n,) that cut the sample nearest each (-1 on the uncut plate).
+    (n,) whose cut is deepest at each (-1 on the uncut plate)."""
+    p, move = _hits(hf, eye, d)
+    path = np.where(move >= 0, hf.program.path[np.maximum(move, 0)], -1)
+    return p, path.astype(np.int64)
+
+
+def _hits(hf: Any, eye: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`hit_field`'s points (n, 3) and the move (n,) deepest at each.
 
     Fixed-point steps on the exact surface: sightlines within 30 deg of the
     plate normal against walls of at most 45 deg contract by 0.6 a step.
@@ -674,15 +692,69 @@ def hit_field(hf: Any, eye: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.n
         z, _ = hf.surface(p[:, :2])
         t = (z - eye[2]) / d[:, 2]
     p = eye + t[:, None] * d
-    # the path whose cut is deepest there, of the four samples' about it (the
+    # the move whose cut is deepest there, of the four samples' about it (the
     # nearest sample's may be across a crease)
     ny, nx = hf.shape
     ij = np.floor((p[:, :2] - hf.origin) / hf.resolution).astype(np.int64)
     moves = np.stack([hf.moves[np.clip(ij[:, 1] + dj, 0, ny - 1), np.clip(ij[:, 0] + di, 0, nx - 1)]
                       for di in (0, 1) for dj in (0, 1)], axis=1)
-    move = _deepest(hf, p[:, None, :2], moves)[:, 0]
-    path = np.where(move >= 0, hf.program.path[np.maximum(move, 0)], -1)
-    return p, path.astype(np.int64)
+    return p, _deepest(hf, p[:, None, :2], moves)[:, 0]
+
+
+@dataclass
+class Sources:
+    """Lit pixels' light, shared out among the paths it came from: one row per
+    pixel and path (a pixel across a crease gives a row to each side)."""
+
+    pixel: np.ndarray  # (e,) the lit pixel (index into the pixels given)
+    path: np.ndarray  # (e,) the path, -1 the uncut plate
+    light: np.ndarray  # (e,) the pixel's light from that path
+    point: np.ndarray  # (e, 3) where on the cut surface, the glinting sub-rays' mean
+    film: np.ndarray  # (e, 2) the same on the film, pixels
+
+
+def pixel_sources(hf: Any, cam: Camera, px: np.ndarray, py: np.ndarray, w: np.ndarray,
+                  light: np.ndarray, width: float) -> Sources:
+    """Which paths each lit pixel's light (w, (n,)) came from.
+
+    Each pixel is crossed by :data:`SUB_RAYS` squared sub-rays; each meets the
+    cut surface on one path's cut, whose wall there glints by how near its
+    normal is to the half vector toward the eye and ``light`` (3,): a Gaussian
+    of ``width`` radians (the gloss's and the light's spread together). The
+    pixel's light goes to the paths by their sub-rays' glints.
+    """
+    k = SUB_RAYS
+    off = (np.arange(k) + 0.5) / k
+    ox, oy = (a.ravel() for a in np.meshgrid(off, off))
+    fx = (px[:, None] + ox[None]).ravel()
+    fy = (py[:, None] + oy[None]).ravel()
+    p, move = _hits(hf, cam.eye, cam.rays(fx, fy))
+    grad = _gradients(hf, p[:, :2], move)
+    n = np.concatenate([-grad, np.ones((len(p), 1))], axis=1)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    v = cam.eye - p
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    to_light = light - p
+    h = v + to_light / np.linalg.norm(to_light, axis=1, keepdims=True)
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    angle = np.arccos(np.clip(np.sum(n * h, axis=1), -1.0, 1.0))
+    # each pixel's sub-rays against its best one (no underflow where all are dim)
+    log = -0.5 * (angle.reshape(-1, k * k) / width) ** 2
+    glint = np.exp(log - log.max(axis=1, keepdims=True))
+    share = (glint / glint.sum(axis=1, keepdims=True)).ravel()
+    pixel = np.repeat(np.arange(len(px)), k * k)
+    path = np.where(move >= 0, hf.program.path[np.maximum(move, 0)], -1).astype(np.int64)
+    key, row = np.unique(pixel * (int(hf.program.path.max(initial=0)) + 2) + path + 1,
+                         return_inverse=True)
+    total = np.bincount(row, weights=share)
+    sums = [np.bincount(row, weights=share * c) for c in (p[:, 0], p[:, 1], p[:, 2], fx, fy)]
+    first = np.zeros(len(key), np.int64)
+    first[row[::-1]] = np.arange(len(row))[::-1]
+    some = total > 0.0  # a path none of whose sub-rays glints gets none of the light
+    first, total = first[some], total[some]
+    return Sources(pixel[first], path[first], w[pixel[first]] * total,
+                   np.stack([c[some] for c in sums[:3]], axis=1) / total[:, None],
+                   np.stack([c[some] for c in sums[3:]], axis=1) / total[:, None])
 
 
 @dataclass
@@ -706,8 +778,11 @@ class Glint:
     designed: bool = False  # the streak about its path's point glint
 
 
-def find_spots(img: np.ndarray, cam: Camera, plate: Plate, pixel: float) -> list[Glint]:
-    """Every path's glints in a picture of pixels about ``pixel`` mm on the plate."""
+def find_spots(img: np.ndarray, cam: Camera, plate: Plate, pixel: float, light: np.ndarray,
+               width: float) -> list[Glint]:
+    """Every path's glints in a picture of pixels about ``pixel`` mm on the plate,
+    the light (3,) the centre of the rendered light's disc, ``width`` its lobe's
+    (see :func:`pixel_sources`)."""
     peak = float(img.max())
     if peak <= 0:
         return []
@@ -716,9 +791,11 @@ def find_spots(img: np.ndarray, cam: Camera, plate: Plate, pixel: float) -> list
     # narrower than a pixel: two pixels' reach joins them.
     lab, n = ndimage.label(ndimage.binary_dilation(lit, iterations=2))
     py, px = np.nonzero(lit)
-    w = img[py, px]
-    comp = lab[py, px]
-    points, path = hit_field(plate.field, cam.eye, cam.rays(px + 0.5, py + 0.5))
+    src = pixel_sources(plate.field, cam, px, py, img[py, px], light, width)
+    # a path's share of a pixel counts where it alone would light one
+    some = src.light > LIT * peak
+    w, path, points, film = src.light[some], src.path[some], src.point[some], src.film[some]
+    comp = lab[py[src.pixel[some]], px[src.pixel[some]]]
     dist = float(np.linalg.norm(cam.target - cam.eye))
     join = EYE_RESOLUTION * dist
     out: list[Glint] = []
@@ -734,8 +811,7 @@ def find_spots(img: np.ndarray, cam: Camera, plate: Plate, pixel: float) -> list
             sel = mine[np.isin(comp[mine], pieces[group == gid])]
             ww = w[sel]
             flux = float(ww.sum())
-            cx = float(np.average(px[sel] + 0.5, weights=ww))
-            cy = float(np.average(py[sel] + 0.5, weights=ww))
+            cx, cy = np.average(film[sel], axis=0, weights=ww)
             centre, _ = hit_field(plate.field, cam.eye, cam.rays(np.array([cx]), np.array([cy])))
             xy = points[sel, :2]
             mu = np.average(xy, axis=0, weights=ww)
@@ -955,8 +1031,13 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
         t = typical[side]
         ends.append([g for g in kept[side] if not g.designed
                      and g.flux * FAINT_RATIO >= max(t, best.get(g.stipple, t))])
-    spills = [[g for g in k if g.model_distance > SPILL] for k in ends]
-    near = [[g for g in k if g.model_distance <= SPILL] for k in ends]
+    # near or far from the designed glints the eye sees, as verify measures it
+    # (a streak's centre may lie well off its point glint)
+    gap = [[_nearest_distance(modelled[side], g) for g in ends[side]] for side in range(2)]
+    spills = [[g for g, d in zip(k, dk, strict=True) if d > SPILL] for k, dk in zip(ends, gap,
+                                                                                   strict=True)]
+    near = [[g for g, d in zip(k, dk, strict=True) if d <= SPILL] for k, dk in zip(ends, gap,
+                                                                                  strict=True)]
     # What a viewer meets of each stipple: its designed glints and the bright
     # stripe ends beside them (within SPILL of a designed glint, as verify
     # takes them into a stipple's image); the spills farther off are points
@@ -1053,6 +1134,13 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
              "end_streak": any(g is e for k in ends for e in k),
              "point": g.point.tolist()} for g in faint],
     }
+
+
+def _nearest_distance(glints: list[Glint], g: Glint) -> float:
+    """How far ``g`` lies from the nearest of ``glints``, mm (inf: none)."""
+    if not glints:
+        return math.inf
+    return float(np.min(np.linalg.norm(np.array([k.point for k in glints]) - g.point, axis=1)))
 
 
 def _merged(designed: list[Glint], beside: list[Glint]) -> list[Glint]:
@@ -1226,6 +1314,10 @@ def main() -> None:
     ap.add_argument("--stipples", type=int, default=None,
                     help="stipples of every plate (denser plates resolve visibility finer: "
                          "one stipple of 32 seen is 0.031)")
+    ap.add_argument("--reuse-pictures", action="store_true",
+                    help="take each view's picture from --work where an earlier run kept it "
+                         "at the same sample counts (to judge again without rendering; the "
+                         "pictures are of the plates as that run cut and meshed them)")
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args()
     # specholo's kernels (and the designs and verifications it runs) keep to one
@@ -1282,18 +1374,32 @@ def main() -> None:
             for alpha in alphas:
                 t0 = time.perf_counter()
                 scene = load_scene(mi, plate, size, alpha)
+                light_at, _ = light_position(plate)
                 renderer = Renderer(mi, dr, scene)
                 scene_s = time.perf_counter() - t0
                 streak_verify = (verify_rows(folder, azimuths, step, size, alpha)
                                  if streaks else None)
                 for a in azimuths:
                     found, sampled = [], []
-                    for cam in cams[a]:
+                    for side, cam in zip(("left", "right"), cams[a], strict=True):
                         t0 = time.perf_counter()
-                        img, counts = renderer.picture(cam, plate, args.spp, args.spp_fine,
-                                                       seed=len(render_seconds))
+                        kept = folder / (f"picture-{light_name}-{alpha:g}-{a:g}-{side}-"
+                                         f"{args.spp}-{args.spp_fine}.npz")
+                        if args.reuse_pictures and kept.exists():
+                            with np.load(kept) as f:
+                                img = f["img"]
+                                counts = dict(zip(("coarse", "fine"),
+                                                  (int(c) for c in f["counts"]), strict=True))
+                        else:
+                            img, counts = renderer.picture(cam, plate, args.spp,
+                                                           args.spp_fine,
+                                                           seed=len(render_seconds))
+                            if tmp is None:
+                                np.savez_compressed(kept, img=img, counts=np.array(
+                                    [counts["coarse"], counts["fine"]]))
                         render_seconds.append(time.perf_counter() - t0)
-                        found.append(find_spots(img, cam, plate, args.pixel))
+                        found.append(find_spots(img, cam, plate, args.pixel, light_at,
+                                                lobe_width(size, alpha)))
                         sampled.append(counts)
                     model = (model_streaks(plate, size, alpha, math.radians(a))
                              if streaks else None)

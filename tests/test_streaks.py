@@ -19,11 +19,12 @@ import numpy as np
 import pytest
 
 from specholo.errors import SpecholoError
+from specholo.optics.normality import normality
 from specholo.optics.spread import GLOSS, SUN, Spread
 from specholo.setup import Light, Setup, Tool, Viewer
 from specholo.simulation.glints import Engraved, find_glints
 from specholo.simulation.streak_verify import verify_streaks
-from specholo.simulation.streaks import false_glints, find_streaks
+from specholo.simulation.streaks import ACUITY, false_glints, find_streaks
 from specholo.simulation.survival import verify_as_cut
 from specholo.toolpaths.grooves import Grooves
 
@@ -130,7 +131,8 @@ def test_a_stripe_ending_short_of_its_glint_spills_light_onto_its_end() -> None:
     eng = Engraved.from_grooves(_grooves(stub, other), TOOL)
     assert list(find_glints(eng, eye, LIGHT).stipple) == [1]  # no point glint on the stub
     st = find_streaks(eng, eye, LIGHT, spread)
-    spill = np.flatnonzero(~st.designed)
+    # (the stripes' end caps are spills of a point each, apart from this)
+    spill = np.flatnonzero(~st.designed & (st.extent > 0))
     assert len(spill) == 1 and st.stipple[spill[0]] == 0
     # its light lies along the stripe's last tenth of a millimetre or so (the
     # lobe's tail past the end, a streak's length from it)
@@ -146,6 +148,55 @@ def test_a_stripe_ending_short_of_its_glint_spills_light_onto_its_end() -> None:
     far = Engraved.from_grooves(_grooves(_circle_arc(at[0] - 2.0, at[0] - 0.05 * rho_wall), other),
                                 TOOL)
     assert len(false_glints(find_streaks(far, eye, LIGHT, spread), st.glints())) == 0
+
+
+def _flipped(arc: tuple[np.ndarray, float]) -> tuple[np.ndarray, float]:
+    """The arc mirrored across the x axis: curved the other way about its glint."""
+    ends, bulge = arc
+    return ends * [1.0, -1.0], -bulge
+
+
+def test_a_stripes_ends_glint_as_caps_of_its_ball_where_they_face_h() -> None:
+    eye = _eye()
+    spread = Spread(SUN, GLOSS["mirror"])
+    # curved one way, h leans out of both ends of the stripe: no cap glints;
+    # curved the other, back into the groove at both, where the ball's cap
+    # offers every normal that does
+    for arc, caps in ((_circle_arc(-2.0, 2.0), 0), (_flipped(_circle_arc(-2.0, 2.0)), 2)):
+        eng = Engraved.from_grooves(_grooves(arc), TOOL)
+        st = find_streaks(eng, eye, LIGHT, spread)
+        cap = np.flatnonzero(~st.designed & (st.extent == 0))
+        assert len(cap) == caps
+        for r in cap:
+            g = st.point[st.run == r][0]
+            ends, _ = arc
+            end = ends[np.argmin(np.linalg.norm(ends - g[:2], axis=1))]
+            ball = np.array([*end, TOOL.radius - TOOL.depth])
+            assert np.linalg.norm(ball - g) == pytest.approx(TOOL.radius, abs=1e-9)
+            h = normality(g[None], LIGHT, eye)[0]
+            normal = (ball - g) / TOOL.radius
+            assert np.degrees(np.arccos(min(1.0, normal @ (h / np.linalg.norm(h))))) < 1e-3
+            # on the cap past the stripe's end, as bright as a dot of the ball
+            assert np.linalg.norm(g[:2] - end) < np.linalg.norm(g[:2] - ends.mean(axis=0))
+            assert st.brightness[r] == pytest.approx(TOOL.radius**2)
+
+
+def test_a_cap_nearer_its_streak_than_the_eye_resolves_joins_its_spot() -> None:
+    eye = _eye()
+    spread = Spread(SUN, GLOSS["mirror"])
+    for half, joined in ((0.05, True), (2.0, False)):
+        eng = Engraved.from_grooves(_grooves(_flipped(_circle_arc(-half, half))), TOOL)
+        st = find_streaks(eng, eye, LIGHT, spread)
+        assert st.count == 3 and st.designed.sum() == 1
+        seen = st.gather(ACUITY * np.linalg.norm(st.centre - eye, axis=1))
+        assert seen.count == (1 if joined else 3)
+        d = int(np.flatnonzero(seen.designed)[0])
+        if joined:  # one spot, as bright as all three, at their joint centre
+            assert seen.brightness[d] == pytest.approx(st.brightness.sum())
+            centre = (st.brightness[:, None] * st.centre).sum(axis=0) / st.brightness.sum()
+            assert np.allclose(seen.centre[d], centre, atol=1e-9)
+        else:
+            assert np.allclose(seen.centre[d], st.centre[st.designed][0])
 
 
 def test_a_cut_through_a_streak_leaves_a_gap_not_a_lost_glint() -> None:

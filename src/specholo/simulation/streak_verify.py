@@ -115,6 +115,7 @@ def streak_view(theta: float, points: np.ndarray, left: Streaks, right: Streaks,
     :func:`~specholo.simulation.verify.view_report` gives them from glints),
     with the end spills, the streaks' length and how far their centres moved
     from the point glints (``point_glints``, each eye's, when given)."""
+    left, right = _gathered(left, eye_l), _gathered(right, eye_r)
     gl, gr = left.glints(), right.glints()
     # what each eye sees of a stipple: its designed streaks, with the light of
     # the bright stripe ends beside them; the spills farther off are points of
@@ -250,6 +251,15 @@ def _parted(st: Streaks, eye: np.ndarray) -> Streaks:
     if st.count == 0:
         return st
     return st.split(ACUITY * np.linalg.norm(st.centre - eye, axis=1))
+
+
+def _gathered(st: Streaks, eye: np.ndarray) -> Streaks:
+    """The streaks with each end spill nearer its path's designed streak than
+    the eye resolves (:data:`~specholo.simulation.streaks.ACUITY`) from ``eye``
+    taken into it."""
+    if st.count == 0:
+        return st
+    return st.gather(ACUITY * np.linalg.norm(st.centre - eye, axis=1))
 
 
 def _fwhm(st: Streaks) -> np.ndarray:

@@ -45,6 +45,8 @@ STEP = 0.01
 #: going: a program's rounded digits leave kinks of up to 2e-3 rad between
 #: short arcs, and a kink turns the wall's normal by less than a lobe is wide.
 CORNER = 0.01
+#: A path whose ends lie this near each other is closed (it leaves no caps), mm.
+CLOSED = 1e-6
 #: What the eye resolves, radians (1 arcmin): pieces of a streak farther apart
 #: than this, seen from the eye, are two glints.
 ACUITY = math.radians(1.0 / 60.0)
@@ -151,6 +153,43 @@ class Streaks:
         old = self.run[starts]
         return Streaks(self.path[old], self.stipple[old], self.designed[old], new_run,
                        self.point, self.weight, self.length)
+
+    def gather(self, reach: np.ndarray) -> Streaks:
+        """The streaks with each end spill (a cap, a stripe end's light) taken
+        into its path's designed streak where their centres lie within
+        ``reach`` ((r,) mm, per streak) of each other: nearer than the eye
+        resolves they are one spot, at their joint brightness-weighted centre,
+        however faint the spill. A spill nearer several takes the nearest."""
+        if self.count == 0 or self.designed.all() or not self.designed.any():
+            return self
+        centre, bright = self.centre, self.brightness
+        spill = np.flatnonzero(~self.designed & (bright > 0.0))
+        mine = np.flatnonzero(self.designed & (bright > 0.0))
+        # every (spill, designed streak of its path) pair
+        order = mine[np.argsort(self.path[mine], kind="stable")]
+        lo = np.searchsorted(self.path[order], self.path[spill], side="left")
+        n = np.searchsorted(self.path[order], self.path[spill], side="right") - lo
+        which = np.repeat(spill, n)
+        cand = order[np.repeat(lo, n) + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)]
+        d = np.linalg.norm(centre[cand] - centre[which], axis=1)
+        near = d <= np.asarray(reach)[which]
+        which, cand, d = which[near], cand[near], d[near]
+        if not len(which):
+            return self
+        best = np.lexsort((d, which))  # each spill's nearest first
+        first = np.r_[True, which[best][1:] != which[best][:-1]]
+        into = np.full(self.count, -1, np.int64)
+        into[which[best][first]] = cand[best][first]
+        taken = into >= 0
+        if not taken.any():
+            return self
+        new_id = np.cumsum(~taken) - 1
+        target = np.where(taken, new_id[np.maximum(into, 0)], new_id)
+        run = target[self.run]
+        cells = np.argsort(run, kind="stable")
+        keep = ~taken
+        return Streaks(self.path[keep], self.stipple[keep], self.designed[keep], run[cells],
+                       self.point[cells], self.weight[cells], self.length[cells])
 
     def offset(self, paths: np.ndarray) -> Streaks:
         """The same streaks with each path renamed ``paths[path]`` (a chunk's paths)."""
@@ -259,6 +298,8 @@ def find_streaks(eng: Engraved, eye: np.ndarray, light: Light, spread: Spread,
                                       eye, lvec, is_point, beta, tail, step,
                                       _turn_rate(eng, eye, light))
         parts.append(_group(eng, rows, cell_row, s, f, spread))
+    if len(eng.path):
+        parts.append(_caps(eng, eye, light))
     if len(eng.dot_path):
         parts.append(_dots(eng, eye, light))
     return join(parts) if parts else _empty()
@@ -326,6 +367,30 @@ def _dots(eng: Engraved, eye: np.ndarray, light: Light) -> Streaks:
     ok = tilt(h) <= eng.tool.max_tilt
     q = int(ok.sum())
     return Streaks(path[ok], eng.grooves.stipple[path[ok]], np.ones(q, dtype=bool),
+                   np.arange(q, dtype=np.int64), g[ok], np.full(q, eng.tool.radius**2),
+                   np.zeros(q))
+
+
+def _caps(eng: Engraved, eye: np.ndarray, light: Light) -> Streaks:
+    """The caps a groove's ends leave: past its last point the tool's ball
+    leaves a concave half dimple, whose normals point back into the groove.
+    Where h does, the cap glints as a dot does (a point of brightness R^2, the
+    ball's Gaussian curvature whatever the lobe), at the ball's point whose
+    normal is h: one cell each, an end spill of its path. A closed path has
+    no ends."""
+    path = eng.path
+    first = np.flatnonzero(np.r_[True, path[1:] != path[:-1]])
+    last = np.r_[first[1:] - 1, len(path) - 1]
+    start, t0 = eng.at(first, np.zeros(len(first)))
+    end, t1 = eng.at(last, np.ones(len(last)))
+    open_ = np.linalg.norm(end - start, axis=1) > CLOSED
+    ends = np.concatenate([start[open_], end[open_]])
+    out = np.concatenate([-t0[open_], t1[open_]])  # along the path, out of the groove
+    g, h = wall_glint(ends[:, :2], eng.tool, light, eye)
+    ok = (np.einsum("ij,ij->i", h[:, :2], out) < 0.0) & (tilt(h) <= eng.tool.max_tilt)
+    owner = np.concatenate([path[first[open_]], path[last[open_]]])[ok]
+    q = int(ok.sum())
+    return Streaks(owner, eng.grooves.stipple[owner], np.zeros(q, dtype=bool),
                    np.arange(q, dtype=np.int64), g[ok], np.full(q, eng.tool.radius**2),
                    np.zeros(q))
 
