@@ -131,6 +131,11 @@ SUBDIVIDE = 4
 #: from: a pixel 3 um across can straddle a crease, and the light of a streak
 #: cut short there lies within a few micrometres of it.
 SUB_RAYS = 4
+#: Samples a pixel where a groove glints as a point (a cap a stripe's end
+#: leaves, a dot): a sphere of the tip lights a spot about 0.1 um across, which
+#: the fine pass hits about once in four at 256; at 8,192 a stratum is a
+#: fraction of that spot.
+SPP_POINTS = 8192
 #: Oldest LLVM the vectorised variant is known to compile with (15 fails).
 MIN_LLVM = 19
 
@@ -290,6 +295,7 @@ class Plate:
     faces: int = 0
     ends: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
     engraved: Any = None  # the point model's grooves, prepared on first use
+    cut_engraved: Any = None  # the program's grooves, prepared on first use
 
     @property
     def setup(self) -> Any:
@@ -549,6 +555,25 @@ def lobe_width(diameter_deg: float, alpha: float) -> float:
     return math.hypot(alpha / math.sqrt(2.0), 0.25 * math.radians(diameter_deg))
 
 
+def point_glints(plate: Plate, eye: np.ndarray, size_deg: float, alpha: float) -> np.ndarray:
+    """(m, 3) where the program's grooves glint as points for an eye (the caps
+    a stripe's ends leave and the dots, in verify's streak model), on the
+    real tool's wall: the pixels to sample finer."""
+    from specholo.optics.spread import Spread
+    from specholo.simulation.glints import Engraved, Glints
+    from specholo.simulation.streaks import find_streaks
+    from specholo.simulation.survival import on_real_wall
+
+    setup, cfg = plate.setup, plate.loaded.config
+    if plate.cut_engraved is None:
+        plate.cut_engraved = Engraved.from_grooves(plate.cut_grooves, setup.tool)
+    st = find_streaks(plate.cut_engraved, eye, setup.light,
+                      Spread(math.radians(size_deg), alpha))
+    at = np.flatnonzero(st.length == 0.0)
+    cells = Glints(st.path[st.run[at]], st.stipple[st.run[at]], st.point[at])
+    return on_real_wall(cells, setup.tool, cfg.cutter(), cfg.depth_mm, setup.light, eye)
+
+
 def light_position(plate: Plate) -> tuple[np.ndarray, float]:
     """Where the light's disc sits and its distance from the plate centre: the
     folder's point light, or a sun's direction far out."""
@@ -640,6 +665,18 @@ class Renderer:
             lum = np.asarray(mi.luminance(spec), dtype=np.float64)
             out[lo:hi] = lum.reshape(hi - lo, spp).mean(axis=1)
         return out
+
+    def refine(self, cam: Camera, img: np.ndarray, points: np.ndarray, spp: int,
+               seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The pixels (xs, ys) that see ``points`` (m, 3) sampled again at
+        ``spp``, written into ``img``; returns them and their values."""
+        px, py = cam.project(points)
+        inside = (px >= 0) & (px < cam.width) & (py >= 0) & (py < cam.height)
+        flat = np.unique(py[inside].astype(np.int64) * cam.width + px[inside].astype(np.int64))
+        ys, xs = np.divmod(flat, cam.width)
+        values = self.sample(cam, xs, ys, spp, seed) if len(flat) else np.zeros(0)
+        img[ys, xs] = values
+        return xs, ys, values
 
     def picture(self, cam: Camera, plate: Plate, spp: int, spp_fine: int,
                 seed: int) -> tuple[np.ndarray, dict[str, int]]:
@@ -1308,6 +1345,9 @@ def main() -> None:
                     help="samples per pixel, first pass (a square number)")
     ap.add_argument("--spp-fine", type=int, default=1024,
                     help="samples per pixel about what the first pass lit (a square number)")
+    ap.add_argument("--spp-points", type=int, default=SPP_POINTS,
+                    help="samples per pixel where the grooves glint as points (caps, dots); "
+                         "0: as the rest")
     ap.add_argument("--pixel", type=float, default=0.003, help="pixel on the plate, mm")
     ap.add_argument("--quick", action="store_true",
                     help="one plate, the sun, alpha 0.003, azimuth 0 (a smoke run)")
@@ -1397,6 +1437,21 @@ def main() -> None:
                             if tmp is None:
                                 np.savez_compressed(kept, img=img, counts=np.array(
                                     [counts["coarse"], counts["fine"]]))
+                        # the point glints, sampled finer (kept apart, so a
+                        # picture kept from before is refined the same way)
+                        caps = kept.with_name(kept.stem.replace("picture-", "points-")
+                                              + f"-{args.spp_points}.npz")
+                        if args.reuse_pictures and caps.exists():
+                            with np.load(caps) as f:
+                                xs, ys, values = f["xs"], f["ys"], f["values"]
+                            img[ys, xs] = values
+                        elif args.spp_points > 0:
+                            xs, ys, values = renderer.refine(
+                                cam, img, point_glints(plate, cam.eye, size, alpha),
+                                args.spp_points, seed=len(render_seconds) + 10_000)
+                            if tmp is None:
+                                np.savez_compressed(caps, xs=xs, ys=ys, values=values)
+                        counts["points"] = len(xs) if args.spp_points > 0 else 0
                         render_seconds.append(time.perf_counter() - t0)
                         found.append(find_spots(img, cam, plate, args.pixel, light_at,
                                                 lobe_width(size, alpha)))
@@ -1438,7 +1493,7 @@ def main() -> None:
                     "python": platform.python_version()},
         "mitsuba": {"version": mi.__version__, "drjit": dr.__version__, "variant": "llvm_ad_rgb",
                     "threads": 1, "integrator": "direct", "spp": args.spp,
-                    "spp_fine": args.spp_fine,
+                    "spp_fine": args.spp_fine, "spp_points": args.spp_points,
                     "pixel_mm": args.pixel, "field_mm": RESOLUTION,
                     "sun_distance_mm": SUN_DISTANCE},
         "rules": {"spill_mm": SPILL, "faint_ratio": FAINT_RATIO,
