@@ -449,7 +449,12 @@ def _split_creases(hf: Any, pos: np.ndarray, normal: np.ndarray, move: np.ndarra
     cos = np.minimum(np.minimum(np.einsum("ij,ij->i", n[:, 0], n[:, 1]),
                                 np.einsum("ij,ij->i", n[:, 1], n[:, 2])),
                      np.einsum("ij,ij->i", n[:, 0], n[:, 2]))
-    crease = ((m[:, 0] != m[:, 1]) | (m[:, 1] != m[:, 2])) & (cos < math.cos(CREASE))
+    # two paths' cuts always fold where they meet, however near their walls'
+    # normals there (a crossing at a shallow angle folds by a few degrees, and
+    # blending across the fold passes the normals between: the crease glints)
+    p = np.where(m >= 0, hf.program.path[np.maximum(m, 0)], -1)
+    crease = (((m[:, 0] != m[:, 1]) | (m[:, 1] != m[:, 2])) & (cos < math.cos(CREASE))) | (
+        (p[:, 0] != p[:, 1]) | (p[:, 1] != p[:, 2]))
     t = np.flatnonzero(crease)
     if not t.size:
         return pos, normal, tri
@@ -620,9 +625,9 @@ class Renderer:
     then again, much more densely, about every pixel the first pass lit. A
     glint's lit strip is a fraction of a micrometre across the groove, so a
     pixel's value is a rare hit: the second pass makes the glints' fluxes and
-    centroids steady, the first only finds where to look. (A cap at a path's
-    end, a sphere of the tip, still gets about one sample: its light is not
-    measured, see judge_view.)
+    centroids steady, the first only finds where to look. A cap at a
+    stripe's end, a sphere of the tip, lights a spot far smaller still, which
+    :meth:`refine` samples at many more (see :data:`SPP_POINTS`).
     """
 
     #: Samples traced per kernel launch (bounds the memory of one launch).
@@ -809,6 +814,7 @@ class Glint:
     pixels: int
     end_distance: float  # from its lit pixels to the nearer end of its path, mm
     axis: np.ndarray  # (2,) unit direction of the streak on the plate
+    piece_points: np.ndarray | None = None  # (k, 3) each piece's centroid on the plate
     model_distance: float = math.inf  # to the nearest point-model glint, mm
     own_distance: float = math.inf  # to the point-model glint of its own path, mm
     own_offset: np.ndarray | None = None  # (3,) from that glint to this one, mm
@@ -861,7 +867,7 @@ def find_spots(img: np.ndarray, cam: Camera, plate: Plate, pixel: float, light: 
                              math.sqrt(12.0 * max(float(vals[-1]), 0.0)),
                              float(along.max() - along.min()) + plate.field.resolution,
                              _fwhm(along, ww, pixel), int((group == gid).sum()), len(sel),
-                             end_d, vecs[:, -1]))
+                             end_d, vecs[:, -1], centres[group == gid]))
     return out
 
 
@@ -993,11 +999,12 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
     same stipple, if the G-code's paths differ from the design's) within
     SPILL of it. Light elsewhere on the path, a cap where the tool lifts or a
     faint piece beyond the lobe, is not the designed glint even where the
-    crossings took that away; two pieces of a designed streak a crossing
+    crossings took that away (nearer it than the eye resolves it is part of
+    its spot, as in verify); two pieces of a designed streak a crossing
     parts farther than the eye resolves are two designed glints. The rest
     are caps, the ends of stripes whose glint lies just past them, and the
-    like. A *spill* is a glint farther than SPILL from every glint of the
-    point model.
+    like. A *spill* is a bright one farther than SPILL from every designed
+    glint.
     """
     from specholo.simulation.verify import stereo_errors
     from specholo.visibility.occlusion import visible
@@ -1022,10 +1029,13 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
                     g.own_distance = float(d[k])
                     g.own_offset = g.point - model.point[k]
             if streak_model is not None and same_paths:
-                # on its path's designed streak, however long the streak
+                # a piece of it on its path's designed streak, however long the
+                # streak: the rest of the path's light nearer than the eye
+                # resolves is part of the same spot, as verify gathers it
                 cells = streak_model.designed[side].get(g.path)
-                g.designed = cells is not None and bool(
-                    np.min(np.linalg.norm(cells - g.point[:2], axis=1)) <= STREAK_MATCH)
+                at = g.piece_points if g.piece_points is not None else g.point[None]
+                g.designed = cells is not None and bool(np.min(np.linalg.norm(
+                    cells[:, None, :] - at[None, :, :2], axis=2)) <= STREAK_MATCH)
             else:
                 g.designed = g.own_distance <= SPILL
         # the typical stipple's light is its designed glints' (verify's image of them)
@@ -1079,10 +1089,9 @@ def judge_view(plate: Plate, theta: float, eyes: tuple[np.ndarray, np.ndarray],
     # stripe ends beside them (within SPILL of a designed glint, as verify
     # takes them into a stipple's image); the spills farther off are points
     # of their own, counted apart.
-    # Fainter unmodelled glints (mostly the caps a path's ends leave, 1/140 of
-    # the typical glint) get about one sample each at these counts, so those
-    # found are the lucky ones, their light overestimated: they are counted
-    # apart, with verify's own image rule.
+    # Fainter glints of their own (mostly the caps a stripe's ends leave,
+    # about 1/250 of the typical glint) are counted apart, with verify's own
+    # image rule.
     # ... and, as verify does, the image rule again on the merged spots: a
     # stipple's second streak piece past the eye's resolution may be 1/20 of
     # the designed glint alone, and far fainter than the spot it makes.
@@ -1384,6 +1393,7 @@ def main() -> None:
     rows: list[dict[str, Any]] = []
     plates_out: dict[str, Any] = {}
     render_seconds: list[float] = []
+    reused = 0  # pictures taken from an earlier run (their seconds are not a render's)
     for name in plates:
         folder = design_plate(name, work, args.redesign, args.stipples)
         plate = cut_plate(name, folder, work, azimuths)
@@ -1426,6 +1436,7 @@ def main() -> None:
                         kept = folder / (f"picture-{light_name}-{alpha:g}-{a:g}-{side}-"
                                          f"{args.spp}-{args.spp_fine}.npz")
                         if args.reuse_pictures and kept.exists():
+                            reused += 1
                             with np.load(kept) as f:
                                 img = f["img"]
                                 counts = dict(zip(("coarse", "fine"),
@@ -1500,6 +1511,7 @@ def main() -> None:
                   "invisible_ratio": INVISIBLE_RATIO,
                   "join_arcmin": 1.0, "lit": LIT},
         "streak_model_in_verify": streaks,
+        "pictures_reused": reused,
         "seconds": {"total": total, "render_total": sum(render_seconds),
                     "render_median": float(np.median(render_seconds)) if render_seconds
                     else math.nan},
@@ -1511,8 +1523,9 @@ def main() -> None:
     print()
     print(markdown(rows))
     median = float(np.median(render_seconds)) if render_seconds else math.nan
-    print(f"\n{len(render_seconds)} pictures in {sum(render_seconds):.0f} s of rendering "
-          f"(median {median:.1f} s, llvm_ad_rgb, 1 thread, "
+    from_before = f", {reused} of them kept from an earlier run" if reused else ""
+    print(f"\n{len(render_seconds)} pictures{from_before} in {sum(render_seconds):.0f} s of "
+          f"rendering (median {median:.1f} s, llvm_ad_rgb, 1 thread, "
           f"{args.spp}/{args.spp_fine} spp); whole run {total:.0f} s; load {load0[0]:.2f} before, "
           f"{os.getloadavg()[0]:.2f} after -> {args.out}")
     if tmp is not None:

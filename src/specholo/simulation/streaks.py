@@ -129,23 +129,15 @@ class Streaks:
         c = len(self.run)
         if c == 0:
             return self
-        lit = self.weight > 0.0
-        first = np.r_[True, self.run[1:] != self.run[:-1]]
-        starts_piece = lit & (first | ~np.r_[False, lit[:-1]])
-        begins = np.flatnonzero(starts_piece)
+        begins, centre = self.pieces
         if len(begins) < 2:
             return self
-        piece = np.cumsum(starts_piece) - 1
-        ok = lit & (piece >= 0)
-        total = np.bincount(piece[ok], weights=self.weight[ok], minlength=len(begins))
-        moment = np.stack([np.bincount(piece[ok], weights=self.weight[ok] * self.point[ok, k],
-                                       minlength=len(begins)) for k in range(3)], axis=1)
-        centre = moment / total[:, None]
         run_of = self.run[begins]
         far = np.linalg.norm(np.diff(centre, axis=0), axis=1) > np.asarray(reach)[run_of[1:]]
         cut_at = begins[1:][far & (run_of[1:] == run_of[:-1])]
         if not len(cut_at):
             return self
+        first = np.r_[True, self.run[1:] != self.run[:-1]]
         starts = np.zeros(c, dtype=bool)
         starts[cut_at] = True
         starts |= first
@@ -154,24 +146,46 @@ class Streaks:
         return Streaks(self.path[old], self.stipple[old], self.designed[old], new_run,
                        self.point, self.weight, self.length)
 
+    @cached_property
+    def pieces(self) -> tuple[np.ndarray, np.ndarray]:
+        """The lit pieces of the streaks (runs of cells with light, in order
+        along the groove): the first cell of each (p,) and each one's
+        brightness-weighted centre (p, 3)."""
+        lit = self.weight > 0.0
+        first = np.r_[True, self.run[1:] != self.run[:-1]] if len(self.run) else lit
+        starts_piece = lit & (first | ~np.r_[False, lit[:-1]])
+        begins = np.flatnonzero(starts_piece)
+        piece = np.cumsum(starts_piece) - 1
+        ok = lit & (piece >= 0)
+        total = np.bincount(piece[ok], weights=self.weight[ok], minlength=len(begins))
+        moment = np.stack([np.bincount(piece[ok], weights=self.weight[ok] * self.point[ok, k],
+                                       minlength=len(begins)) for k in range(3)], axis=1)
+        return begins, moment.reshape(-1, 3) / np.maximum(total, 1e-300)[:, None]
+
     def gather(self, reach: np.ndarray) -> Streaks:
         """The streaks with each end spill (a cap, a stripe end's light) taken
-        into its path's designed streak where their centres lie within
-        ``reach`` ((r,) mm, per streak) of each other: nearer than the eye
-        resolves they are one spot, at their joint brightness-weighted centre,
-        however faint the spill. A spill nearer several takes the nearest."""
+        into its path's designed streak where its centre lies within ``reach``
+        ((r,) mm, per streak) of the centre of one of that streak's lit pieces
+        (as :meth:`split` parts them): nearer than the eye resolves they are
+        one spot, at their joint brightness-weighted centre, however faint
+        the spill. A spill nearer several takes the nearest."""
         if self.count == 0 or self.designed.all() or not self.designed.any():
             return self
         centre, bright = self.centre, self.brightness
         spill = np.flatnonzero(~self.designed & (bright > 0.0))
-        mine = np.flatnonzero(self.designed & (bright > 0.0))
-        # every (spill, designed streak of its path) pair
-        order = mine[np.argsort(self.path[mine], kind="stable")]
-        lo = np.searchsorted(self.path[order], self.path[spill], side="left")
-        n = np.searchsorted(self.path[order], self.path[spill], side="right") - lo
+        begins, at = self.pieces
+        owner = self.run[begins]
+        mine = np.flatnonzero(self.designed[owner])  # the designed streaks' pieces
+        # every (spill, piece of a designed streak of its path) pair
+        order = mine[np.argsort(self.path[owner[mine]], kind="stable")]
+        key = self.path[owner[order]]
+        lo = np.searchsorted(key, self.path[spill], side="left")
+        n = np.searchsorted(key, self.path[spill], side="right") - lo
         which = np.repeat(spill, n)
-        cand = order[np.repeat(lo, n) + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)]
-        d = np.linalg.norm(centre[cand] - centre[which], axis=1)
+        near_piece = order[np.repeat(lo, n) + np.arange(int(n.sum()))
+                           - np.repeat(np.cumsum(n) - n, n)]
+        cand = owner[near_piece]
+        d = np.linalg.norm(at[near_piece] - centre[which], axis=1)
         near = d <= np.asarray(reach)[which]
         which, cand, d = which[near], cand[near], d[near]
         if not len(which):
