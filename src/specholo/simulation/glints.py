@@ -230,6 +230,21 @@ class Engraved:
         return np.abs(np.arctan2(cross, np.einsum("ij,ij->i", t0, t1)))
 
     @cached_property
+    def open_ends(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The ends of the paths that are not closed: each end's path (e,), its
+        point (e, 2) and the unit direction (e, 2) along the path out of the
+        groove there (starts first, then ends)."""
+        path = self.path
+        first = np.flatnonzero(np.r_[True, path[1:] != path[:-1]]) if len(path) else path
+        last = np.r_[first[1:] - 1, len(path) - 1] if len(path) else path
+        start, t0 = self.at(first, np.zeros(len(first)))
+        end, t1 = self.at(last, np.ones(len(last)))
+        open_ = np.linalg.norm(end - start, axis=1) > CLOSED
+        return (np.concatenate([path[first[open_]], path[last[open_]]]),
+                np.concatenate([start[open_, :2], end[open_, :2]]),
+                np.concatenate([-t0[open_], t1[open_]]))
+
+    @cached_property
     def span(self) -> float:
         """How far from the plate centre, in plan, any point of a groove lies, mm:
         every point of an arc lies within half the longest chord of its ends' box."""
@@ -288,6 +303,8 @@ class Engraved:
                                                                   self.direction[idx])
 
 
+#: A path whose ends lie this near each other is closed (it has no ends), mm.
+CLOSED = 1e-6
 #: A glint this many times fainter than its stipple's brightest for the same
 #: eye is haze, not the stipple's image: a corner where a path turns sweeps
 #: every wall direction between its tangents and glints for many eyes, but as

@@ -45,8 +45,6 @@ STEP = 0.01
 #: going: a program's rounded digits leave kinks of up to 2e-3 rad between
 #: short arcs, and a kink turns the wall's normal by less than a lobe is wide.
 CORNER = 0.01
-#: A path whose ends lie this near each other is closed (it leaves no caps), mm.
-CLOSED = 1e-6
 #: What the eye resolves, radians (1 arcmin): pieces of a streak farther apart
 #: than this, seen from the eye, are two glints.
 ACUITY = math.radians(1.0 / 60.0)
@@ -313,7 +311,7 @@ def find_streaks(eng: Engraved, eye: np.ndarray, light: Light, spread: Spread,
                                       _turn_rate(eng, eye, light))
         parts.append(_group(eng, rows, cell_row, s, f, spread))
     if len(eng.path):
-        parts.append(_caps(eng, eye, light))
+        parts.append(_caps(eng, eye, light, parts[0]))
     if len(eng.dot_path):
         parts.append(_dots(eng, eye, light))
     return join(parts) if parts else _empty()
@@ -385,28 +383,64 @@ def _dots(eng: Engraved, eye: np.ndarray, light: Light) -> Streaks:
                    np.zeros(q))
 
 
-def _caps(eng: Engraved, eye: np.ndarray, light: Light) -> Streaks:
+def _caps(eng: Engraved, eye: np.ndarray, light: Light, walls: Streaks) -> Streaks:
     """The caps a groove's ends leave: past its last point the tool's ball
     leaves a concave half dimple, whose normals point back into the groove.
     Where h does, the cap glints as a dot does (a point of brightness R^2, the
     ball's Gaussian curvature whatever the lobe), at the ball's point whose
     normal is h: one cell each, an end spill of its path. A closed path has
-    no ends."""
-    path = eng.path
-    first = np.flatnonzero(np.r_[True, path[1:] != path[:-1]])
-    last = np.r_[first[1:] - 1, len(path) - 1]
-    start, t0 = eng.at(first, np.zeros(len(first)))
-    end, t1 = eng.at(last, np.ones(len(last)))
-    open_ = np.linalg.norm(end - start, axis=1) > CLOSED
-    ends = np.concatenate([start[open_], end[open_]])
-    out = np.concatenate([-t0[open_], t1[open_]])  # along the path, out of the groove
-    g, h = wall_glint(ends[:, :2], eng.tool, light, eye)
-    ok = (np.einsum("ij,ij->i", h[:, :2], out) < 0.0) & (tilt(h) <= eng.tool.max_tilt)
-    owner = np.concatenate([path[first[open_]], path[last[open_]]])[ok]
+    no ends.
+
+    A cap is far too faint to be seen on its own (1/250 of a typical glint on
+    the default tip); it counts only in the spot of its own stripe's designed
+    streak, nearer it than the eye resolves (:meth:`Streaks.gather`). So
+    only the caps within that reach of a designed streak of ``walls`` on
+    their path are kept: on the README example, a third of them."""
+    path, at, out = eng.open_ends
+    # a cap glints within the ball's radius of its end, in plan
+    near = np.zeros((len(at), 3))
+    near[:, :2] = at
+    reach = ACUITY * np.linalg.norm(near - eye, axis=1)
+    boxes = _designed_boxes(walls)
+    maybe = np.flatnonzero(_near_designed(near, path, boxes, reach + eng.tool.radius))
+    g, h = wall_glint(at[maybe], eng.tool, light, eye)
+    ok = (np.einsum("ij,ij->i", h[:, :2], out[maybe]) < 0.0) & (tilt(h) <= eng.tool.max_tilt)
+    ok &= _near_designed(g, path[maybe], boxes, ACUITY * np.linalg.norm(g - eye, axis=1))
+    owner = path[maybe[ok]]
     q = int(ok.sum())
     return Streaks(owner, eng.grooves.stipple[owner], np.zeros(q, dtype=bool),
                    np.arange(q, dtype=np.int64), g[ok], np.full(q, eng.tool.radius**2),
                    np.zeros(q))
+
+
+def _designed_boxes(walls: Streaks) -> tuple[np.ndarray, ...]:
+    """The designed streaks of ``walls`` sorted by path: their paths (d,) and
+    the boxes about their cells, lower (d, 2) and upper (d, 2) corners."""
+    mine = np.flatnonzero(walls.designed)
+    if not len(mine):
+        return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros((0, 2))
+    begins = np.flatnonzero(np.r_[True, walls.run[1:] != walls.run[:-1]])  # runs ascend
+    lo = np.minimum.reduceat(walls.point[:, :2], begins, axis=0)[mine]
+    hi = np.maximum.reduceat(walls.point[:, :2], begins, axis=0)[mine]
+    order = np.argsort(walls.path[mine], kind="stable")
+    return walls.path[mine][order], lo[order], hi[order]
+
+
+def _near_designed(at: np.ndarray, path: np.ndarray, boxes: tuple[np.ndarray, ...],
+                   reach: np.ndarray) -> np.ndarray:
+    """(q,) whether each point (q, 3) on a path (q,) lies within ``reach`` (q,)
+    of the box about a designed streak on that path (:func:`_designed_boxes`)."""
+    key, lo, hi = boxes
+    keep = np.zeros(len(at), dtype=bool)
+    if not len(key) or not len(at):
+        return keep
+    start = np.searchsorted(key, path, side="left")
+    n = np.searchsorted(key, path, side="right") - start
+    which = np.repeat(np.arange(len(at)), n)
+    box = np.repeat(start, n) + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+    gap = np.maximum(np.maximum(lo[box] - at[which, :2], at[which, :2] - hi[box]), 0.0)
+    keep[which[np.hypot(gap[:, 0], gap[:, 1]) <= reach[which]]] = True
+    return keep
 
 
 def _sorted(gl: Glints) -> Glints:
