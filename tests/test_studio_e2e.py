@@ -93,7 +93,9 @@ def test_a_maker_designs_a_z_up_model_and_takes_every_file(
     page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
     page.goto(server.url)
     page.wait_for_function("window.studio !== undefined")
-    assert not page.is_hidden("#prompt")  # no model yet: the page asks for one
+    # no model yet: the page asks for one (once its first drawing is done,
+    # which a loaded machine may not have reached when the page is up)
+    page.wait_for_selector("#prompt", state="visible", timeout=10_000)
     page.set_input_files("#file", str(z_up_bunny(tmp_path)))
     page.wait_for_function("document.getElementById('model-name').textContent === 'bunny_zup'")
     _settled(page)
