@@ -395,7 +395,8 @@ def _caps(eng: Engraved, eye: np.ndarray, light: Light, walls: Streaks) -> Strea
     the default tip); it counts only in the spot of its own stripe's designed
     streak, nearer it than the eye resolves (:meth:`Streaks.gather`). So
     only the caps within that reach of a designed streak of ``walls`` on
-    their path are kept: on the README example, a third of them."""
+    their path are kept: on the README example, about 1 in 100 of those
+    facing h."""
     path, at, out = eng.open_ends
     # a cap glints within the ball's radius of its end, in plan
     near = np.zeros((len(at), 3))
