@@ -391,8 +391,8 @@ def _caps(eng: Engraved, eye: np.ndarray, light: Light, walls: Streaks) -> Strea
     normal is h: one cell each, an end spill of its path. A closed path has
     no ends.
 
-    A cap is far too faint to be seen on its own (1/250 of a typical glint on
-    the default tip); it counts only in the spot of its own stripe's designed
+    A cap is far too faint to be seen on its own (about 1/250 of a typical
+    glint on the render judge's plates); it counts only in the spot of its own stripe's designed
     streak, nearer it than the eye resolves (:meth:`Streaks.gather`). So
     only the caps within that reach of a designed streak of ``walls`` on
     their path are kept: on the README example, about 1 in 100 of those
