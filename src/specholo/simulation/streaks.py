@@ -176,12 +176,8 @@ class Streaks:
         mine = np.flatnonzero(self.designed[owner])  # the designed streaks' pieces
         # every (spill, piece of a designed streak of its path) pair
         order = mine[np.argsort(self.path[owner[mine]], kind="stable")]
-        key = self.path[owner[order]]
-        lo = np.searchsorted(key, self.path[spill], side="left")
-        n = np.searchsorted(key, self.path[spill], side="right") - lo
-        which = np.repeat(spill, n)
-        near_piece = order[np.repeat(lo, n) + np.arange(int(n.sum()))
-                           - np.repeat(np.cumsum(n) - n, n)]
+        i, j = _same_path_pairs(self.path[owner[order]], self.path[spill])
+        which, near_piece = spill[i], order[j]
         cand = owner[near_piece]
         d = np.linalg.norm(at[near_piece] - centre[which], axis=1)
         near = d <= np.asarray(reach)[which]
@@ -193,8 +189,6 @@ class Streaks:
         into = np.full(self.count, -1, np.int64)
         into[which[best][first]] = cand[best][first]
         taken = into >= 0
-        if not taken.any():
-            return self
         new_id = np.cumsum(~taken) - 1
         target = np.where(taken, new_id[np.maximum(into, 0)], new_id)
         run = target[self.run]
@@ -392,11 +386,11 @@ def _caps(eng: Engraved, eye: np.ndarray, light: Light, walls: Streaks) -> Strea
     no ends.
 
     A cap is far too faint to be seen on its own (about 1/250 of a typical
-    glint on the render judge's plates); it counts only in the spot of its own stripe's designed
-    streak, nearer it than the eye resolves (:meth:`Streaks.gather`). So
-    only the caps within that reach of a designed streak of ``walls`` on
-    their path are kept: on the README example, about 1 in 100 of those
-    facing h."""
+    glint on the render judge's plates); it counts only in the spot of its
+    own stripe's designed streak, nearer it than the eye resolves
+    (:meth:`Streaks.gather`). So only the caps within that reach of a
+    designed streak of ``walls`` on their path are kept: on the README
+    example, about 1 in 100 of those facing h."""
     path, at, out = eng.open_ends
     # a cap glints within the ball's radius of its end, in plan
     near = np.zeros((len(at), 3))
@@ -435,13 +429,19 @@ def _near_designed(at: np.ndarray, path: np.ndarray, boxes: tuple[np.ndarray, ..
     keep = np.zeros(len(at), dtype=bool)
     if not len(key) or not len(at):
         return keep
-    start = np.searchsorted(key, path, side="left")
-    n = np.searchsorted(key, path, side="right") - start
-    which = np.repeat(np.arange(len(at)), n)
-    box = np.repeat(start, n) + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+    which, box = _same_path_pairs(key, path)
     gap = np.maximum(np.maximum(lo[box] - at[which, :2], at[which, :2] - hi[box]), 0.0)
     keep[which[np.hypot(gap[:, 0], gap[:, 1]) <= reach[which]]] = True
     return keep
+
+
+def _same_path_pairs(key: np.ndarray, path: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair (i, j) with ``key[j] == path[i]``, ``key`` sorted: two (m,)
+    index arrays, i ascending."""
+    start = np.searchsorted(key, path, side="left")
+    n = np.searchsorted(key, path, side="right") - start
+    i = np.repeat(np.arange(len(path)), n)
+    return i, np.repeat(start, n) + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
 
 
 def _sorted(gl: Glints) -> Glints:
